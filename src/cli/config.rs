@@ -1,0 +1,35 @@
+//! `tissuefit config defaults` and `tissuefit config check FILE`.
+
+use super::Outcome;
+use crate::mechanics::Parameters;
+use std::path::PathBuf;
+
+#[derive(clap::Subcommand, Debug)]
+pub enum ConfigCommand {
+    /// Print a complete default parameter file, every field commented with its meaning, unit and default.
+    Defaults,
+    /// Validate a parameter file and print the resolved configuration (defaults filled in).
+    Check {
+        /// Parameter file (TOML).
+        file: PathBuf,
+    },
+}
+
+pub fn run(cmd: &ConfigCommand) -> anyhow::Result<Outcome> {
+    match cmd {
+        ConfigCommand::Defaults => {
+            print!("{}", Parameters::default_toml_commented());
+            Ok(Outcome::Success)
+        }
+        ConfigCommand::Check { file } => {
+            let params = Parameters::load(file)?;
+            let warnings = params.validate().map_err(anyhow::Error::new)?;
+            for w in &warnings {
+                tracing::warn!("{}: {w}", file.display());
+            }
+            print!("{}", params.to_toml_string());
+            eprintln!("{}: valid ({} warnings)", file.display(), warnings.len());
+            Ok(Outcome::Success)
+        }
+    }
+}

@@ -1,0 +1,91 @@
+//! Command-line interface: thin subcommands that parse arguments, call the library, and print.
+
+mod config;
+mod convert;
+mod inspect;
+
+use crate::io::{LengthScale, ReadOptions};
+use clap::{Parser, Subcommand};
+use std::io::IsTerminal;
+
+/// tissuefit: from a segmented 3D tissue image to the mechanical parameters of its cells.
+#[derive(Parser, Debug)]
+#[command(name = "tissuefit", version, about, long_about = None)]
+pub struct Cli {
+    /// More log output on stderr (-v info, -vv debug); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
+    /// Only errors on stderr.
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+    /// Worker threads (default: all cores, or RAYON_NUM_THREADS).
+    #[arg(long, global = true)]
+    pub threads: Option<usize>,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Report every cell of a tissue file: kind, size, volume, area, sphericity, mesh defects.
+    /// Exits with 1 when some cell is not a valid closed surface.
+    Inspect(inspect::InspectArgs),
+    /// Convert a tissue file: .vtk (SimuCell3D legacy or multi-material) or .vtp → .vtp or .vtk.
+    Convert(convert::ConvertArgs),
+    /// Simulation parameters: print the commented defaults, or check a config file.
+    #[command(subcommand)]
+    Config(config::ConfigCommand),
+}
+
+/// How a successful run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    Success,
+    /// The command completed but found a problem (e.g. invalid cells): exit code 1.
+    CheckFailed,
+}
+
+/// Options shared by commands that read tissue files.
+#[derive(clap::Args, Debug, Clone)]
+pub struct InputArgs {
+    /// Length unit of the input coordinates: m (default), mm, um, nm, metres per unit (2.5e-7), or the
+    /// x,y,z voxel size for meshes in voxel coordinates (0.15,0.15,0.235um).
+    #[arg(long, default_value = "m", value_name = "UNIT")]
+    pub length_unit: LengthScale,
+}
+
+impl InputArgs {
+    pub(crate) fn read_options(&self) -> ReadOptions {
+        ReadOptions { length_scale: self.length_unit }
+    }
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
+    init_logging(cli.verbose, cli.quiet);
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+    }
+    match cli.command {
+        Command::Inspect(args) => inspect::run(&args),
+        Command::Convert(args) => convert::run(&args),
+        Command::Config(cmd) => config::run(&cmd),
+    }
+}
+
+fn init_logging(verbose: u8, quiet: bool) {
+    use tracing_subscriber::EnvFilter;
+    let level = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn",
+        (false, 1) => "info",
+        _ => "debug",
+    };
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(level));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_target(false)
+        .try_init();
+}

@@ -1,0 +1,24 @@
+//! Tissue files in and out: SimuCell3D legacy VTK (polyhedra), multi-material triangle meshes from
+//! image tools (VTK 4.2 and 5.1), ParaView `.vtp` + `.pvd` series.
+//!
+//! Lengths inside tissuefit are metres. Files from image tools are in voxels or µm; a
+//! [`LengthScale`] converts them on reading.
+
+mod atomic;
+mod error;
+mod legacy_parse;
+mod legacy_tissue;
+mod legacy_write;
+mod pvd;
+mod read;
+mod units;
+mod vtp;
+
+pub use atomic::{write_atomically, write_bytes_atomically};
+pub use error::IoError;
+pub use legacy_tissue::TissueFormat;
+pub use legacy_write::write_simucell3d;
+pub use pvd::{PvdEntry, write_pvd};
+pub use read::{ReadOptions, ReadReport, read_tissue, write_tissue};
+pub use units::LengthScale;
+pub use vtp::{CellField, read_vtp, write_vtp};

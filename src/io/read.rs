@@ -1,0 +1,84 @@
+//! Reading and writing tissue files, dispatched on the file's extension (and content, for reading).
+
+use super::legacy_parse::parse_legacy;
+use super::legacy_tissue::tissue_from_grid;
+use super::legacy_write::write_simucell3d;
+use super::{CellField, IoError, LengthScale, TissueFormat, read_vtp, write_vtp};
+use crate::geometry::bounding_box;
+use crate::mesh::Tissue;
+use std::path::Path;
+
+/// How to interpret a file.
+#[derive(Clone, Debug, Default)]
+pub struct ReadOptions {
+    /// Metres per file length unit. SimuCell3D files are in metres; image-tool meshes in voxels or µm.
+    pub length_scale: LengthScale,
+}
+
+/// A tissue read from a file, with what was noticed on the way.
+#[derive(Debug)]
+pub struct ReadReport {
+    pub tissue: Tissue,
+    pub format: TissueFormat,
+    /// Things the user should know (unknown cell types, skipped faces, suspicious units).
+    pub warnings: Vec<String>,
+}
+
+/// Reads a tissue from a legacy VTK (`.vtk`) or ParaView PolyData (`.vtp`) file.
+///
+/// Cells with mesh defects (holes, non-manifold edges) are read as they are; `CellMesh::check`
+/// reports the defects. Structural problems (truncated file, wrong counts, indices out of range,
+/// non-finite coordinates, unknown cell types) are errors naming the file and line.
+pub fn read_tissue(path: &Path, options: &ReadOptions) -> Result<ReadReport, IoError> {
+    let bytes = std::fs::read(path).map_err(|source| IoError::Open { path: path.into(), source })?;
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+    let head = &bytes[..bytes.len().min(64)];
+    let mut warnings = Vec::new();
+    let (mut tissue, format) =
+        if ext.as_deref() == Some("vtp") || head.starts_with(b"<?xml") || head.starts_with(b"<VTKFile") {
+            (read_vtp(path)?, TissueFormat::Vtp)
+        } else if head.starts_with(b"# vtk") || ext.as_deref() == Some("vtk") {
+            let grid = parse_legacy(path, &bytes)?;
+            tissue_from_grid(path, &grid, &mut warnings)?
+        } else {
+            return Err(IoError::Unsupported {
+                path: path.into(),
+                message: "unknown file type; tissuefit reads legacy VTK (.vtk) and ParaView PolyData (.vtp)".into(),
+            });
+        };
+    for cell in tissue.cells() {
+        if let Some(node) = cell.mesh().positions().iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+            return Err(IoError::parse(
+                path,
+                None,
+                format!("cell {}: node {node} has a non-finite coordinate", cell.id()),
+            ));
+        }
+    }
+    if !options.length_scale.is_identity() {
+        tissue.scale(options.length_scale.0);
+    }
+    let all: Vec<_> = tissue.cells().iter().flat_map(|c| c.mesh().positions().iter().copied()).collect();
+    if let Some((lo, hi)) = bounding_box(&all) {
+        let extent = (hi - lo).max();
+        if extent > 1e-2 {
+            warnings.push(format!(
+                "the tissue spans {extent:.3e} m; tissuefit works in metres. If the file is in µm or voxels, pass --length-unit (e.g. um, or the voxel size 0.15,0.15,0.235um)"
+            ));
+        }
+    }
+    Ok(ReadReport { tissue, format, warnings })
+}
+
+/// Writes a tissue; the extension picks the format: `.vtp` (ParaView) or `.vtk` (SimuCell3D legacy).
+/// `extra` holds per-cell fields (one value per cell, e.g. pressure).
+pub fn write_tissue(path: &Path, tissue: &Tissue, extra: &[CellField<'_>]) -> Result<(), IoError> {
+    match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("vtp") => write_vtp(path, tissue, extra, None),
+        Some("vtk") => write_simucell3d(path, tissue, extra),
+        _ => Err(IoError::Unsupported {
+            path: path.into(),
+            message: "unknown output type; use .vtp (ParaView PolyData) or .vtk (SimuCell3D legacy)".into(),
+        }),
+    }
+}

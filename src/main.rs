@@ -1,0 +1,18 @@
+//! The `tissuefit` binary: parse the command line, run, map the outcome to an exit code
+//! (0 success, 1 completed but a check failed, 2 error).
+
+use clap::Parser;
+use std::process::ExitCode;
+use tissuefit::cli::{Cli, Outcome, run};
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(Outcome::Success) => ExitCode::SUCCESS,
+        Ok(Outcome::CheckFailed) => ExitCode::from(1),
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,248 @@
+//! `Tissue`: the cells of a simulation or a segmented image, each a closed surface with an identity,
+//! a kind, a parameter-set (cell type) index, and a face type per triangle.
+
+use super::{CellId, CellMesh};
+use crate::geometry::Real;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// What a closed surface represents. The numeric codes are SimuCell3D's `global_cell_id`s, used in
+/// its files and in ours.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CellKind {
+    /// A free, deformable cell.
+    Epithelial,
+    /// Extracellular matrix: an enclosing body that never moves; contacts are sensed from inside.
+    Ecm,
+    /// A lumen: a fluid cavity with pressure and tension, no adhesion.
+    Lumen,
+    /// A nucleus: a body enclosed by its cell.
+    Nucleus,
+    /// A cell that never moves (e.g. the boundary cells of an imaged patch).
+    Static,
+}
+
+impl CellKind {
+    /// All kinds, in code order.
+    pub const ALL: [CellKind; 5] =
+        [CellKind::Epithelial, CellKind::Ecm, CellKind::Lumen, CellKind::Nucleus, CellKind::Static];
+
+    /// SimuCell3D `global_cell_id`: 0 epithelial, 1 ECM, 2 lumen, 3 nucleus, 4 static.
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+
+    /// Inverse of [`CellKind::code`].
+    pub fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.get(code as usize).copied()
+    }
+
+    /// Lower-case name as used in configs and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            CellKind::Epithelial => "epithelial",
+            CellKind::Ecm => "ecm",
+            CellKind::Lumen => "lumen",
+            CellKind::Nucleus => "nucleus",
+            CellKind::Static => "static",
+        }
+    }
+
+    /// Whether cells of this kind never move.
+    pub fn is_immobile(self) -> bool {
+        matches!(self, CellKind::Ecm | CellKind::Static)
+    }
+}
+
+impl fmt::Display for CellKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Membrane region of a triangle; each has its own tension, bending stiffness, adhesion and repulsion.
+/// Codes follow SimuCell3D's face types: 0 apical, 1 lateral, 2 basal.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FaceType {
+    /// Facing a lumen (or, without polarisation, every face: SimuCell3D's type 0).
+    #[default]
+    Apical,
+    /// Facing another cell.
+    Lateral,
+    /// Facing the exterior or the ECM.
+    Basal,
+}
+
+impl FaceType {
+    /// All face types, in code order.
+    pub const ALL: [FaceType; 3] = [FaceType::Apical, FaceType::Lateral, FaceType::Basal];
+
+    /// Numeric code: 0 apical, 1 lateral, 2 basal.
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+
+    /// Inverse of [`FaceType::code`].
+    pub fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.get(code as usize).copied()
+    }
+
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            FaceType::Apical => "apical",
+            FaceType::Lateral => "lateral",
+            FaceType::Basal => "basal",
+        }
+    }
+}
+
+/// Structural errors of a tissue (not mesh defects: those are reported per cell by `validate`).
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum TissueError {
+    #[error("cell {cell}: {face_types} face types given for {faces} faces")]
+    FaceTypeCount { cell: CellId, face_types: usize, faces: usize },
+    #[error("cell id {0} appears twice")]
+    DuplicateCellId(CellId),
+}
+
+/// One cell: its surface and what it is.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    id: CellId,
+    kind: CellKind,
+    cell_type: u32,
+    mesh: CellMesh,
+    face_types: Vec<FaceType>,
+    target_volume: Real,
+}
+
+impl Cell {
+    /// A cell with every face of the default type (apical) and target volume = current volume.
+    /// `cell_type` indexes the parameter sets (`[[cell_types]]` in the config).
+    pub fn new(id: CellId, kind: CellKind, cell_type: u32, mesh: CellMesh) -> Self {
+        let face_types = vec![FaceType::default(); mesh.face_count()];
+        let target_volume = mesh.signed_volume();
+        Self { id, kind, cell_type, mesh, face_types, target_volume }
+    }
+
+    /// Replaces the face types; one per triangle.
+    pub fn with_face_types(mut self, face_types: Vec<FaceType>) -> Result<Self, TissueError> {
+        if face_types.len() != self.mesh.face_count() {
+            return Err(TissueError::FaceTypeCount {
+                cell: self.id,
+                face_types: face_types.len(),
+                faces: self.mesh.face_count(),
+            });
+        }
+        self.face_types = face_types;
+        Ok(self)
+    }
+
+    /// Sets the target (rest) volume V0 (m³).
+    pub fn with_target_volume(mut self, target_volume: Real) -> Self {
+        self.target_volume = target_volume;
+        self
+    }
+
+    pub fn id(&self) -> CellId {
+        self.id
+    }
+    pub fn kind(&self) -> CellKind {
+        self.kind
+    }
+    /// Index of this cell's parameter set.
+    pub fn cell_type(&self) -> u32 {
+        self.cell_type
+    }
+    pub fn mesh(&self) -> &CellMesh {
+        &self.mesh
+    }
+    /// Mutable mesh positions; topology changes go through operations that keep face types in step.
+    pub fn positions_mut(&mut self) -> &mut [crate::geometry::Vec3] {
+        self.mesh.positions_mut()
+    }
+    /// Scales coordinates component-wise (unit conversion), and the target volume with them.
+    pub fn scale(&mut self, factor: crate::geometry::Vec3) {
+        self.mesh.scale(factor);
+        self.target_volume *= (factor.x * factor.y * factor.z).abs();
+    }
+    pub fn face_types(&self) -> &[FaceType] {
+        &self.face_types
+    }
+    /// Target (rest) volume V0 (m³).
+    pub fn target_volume(&self) -> Real {
+        self.target_volume
+    }
+}
+
+/// A set of cells with unique, never-reused ids.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Tissue {
+    cells: Vec<Cell>,
+    next_id: u32,
+}
+
+impl Tissue {
+    /// An empty tissue.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Builds a tissue, checking that ids are unique.
+    pub fn from_cells(cells: Vec<Cell>) -> Result<Self, TissueError> {
+        let mut tissue = Self::new();
+        for c in cells {
+            tissue.push(c)?;
+        }
+        Ok(tissue)
+    }
+
+    /// Adds a cell; errors if its id is taken.
+    pub fn push(&mut self, cell: Cell) -> Result<(), TissueError> {
+        if self.cells.iter().any(|c| c.id == cell.id) {
+            return Err(TissueError::DuplicateCellId(cell.id));
+        }
+        self.next_id = self.next_id.max(cell.id.0.saturating_add(1));
+        self.cells.push(cell);
+        Ok(())
+    }
+
+    /// A fresh id, larger than every id this tissue has ever held.
+    pub fn allocate_id(&mut self) -> CellId {
+        let id = CellId(self.next_id);
+        self.next_id += 1;
+        id
+    }
+
+    pub fn cells(&self) -> &[Cell] {
+        &self.cells
+    }
+    pub fn cells_mut(&mut self) -> &mut [Cell] {
+        &mut self.cells
+    }
+    /// Scales every cell's coordinates component-wise (unit conversion).
+    pub fn scale(&mut self, factor: crate::geometry::Vec3) {
+        self.cells.iter_mut().for_each(|c| c.scale(factor));
+    }
+    /// The cell with this id.
+    pub fn cell(&self, id: CellId) -> Option<&Cell> {
+        self.cells.iter().find(|c| c.id == id)
+    }
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.cells.is_empty()
+    }
+    /// Total number of nodes over all cells.
+    pub fn node_count(&self) -> usize {
+        self.cells.iter().map(|c| c.mesh.node_count()).sum()
+    }
+    /// Total number of triangles over all cells.
+    pub fn face_count(&self) -> usize {
+        self.cells.iter().map(|c| c.mesh.face_count()).sum()
+    }
+}

@@ -1,0 +1,228 @@
+//! Tests on the real third-party files in ../shared/data/real (not part of the repository).
+//! Marked #[ignore] so a user's clone passes without them; CI runs them with `-- --ignored`.
+
+use std::path::{Path, PathBuf};
+use tissuefit::io::{CellField, ReadOptions, TissueFormat, read_tissue, read_vtp, write_simucell3d, write_vtp};
+use tissuefit::mesh::{MeshDefect, Tissue};
+
+fn real_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real")
+}
+
+fn real(name: &str) -> PathBuf {
+    let p = real_dir().join(name);
+    assert!(p.exists(), "{} is missing: the real-data tests need ../shared/data/real", p.display());
+    p
+}
+
+fn vtk_files() -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(real_dir())
+        .expect("../shared/data/real must exist for the ignored real-data tests")
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "vtk"))
+        .collect();
+    files.sort();
+    files
+}
+
+fn volumes(t: &Tissue) -> Vec<(u32, f64)> {
+    t.cells().iter().map(|c| (c.id().0, c.mesh().signed_volume())).collect()
+}
+
+fn assert_same_volumes(a: &Tissue, b: &Tissue, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: cell count");
+    for ((ia, va), (ib, vb)) in volumes(a).into_iter().zip(volumes(b)) {
+        assert_eq!(ia, ib, "{what}: cell ids");
+        assert!((va - vb).abs() <= 1e-9 * va.abs(), "{what}: cell {ia} volume {va} vs {vb}");
+    }
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn every_real_vtk_file_reads() {
+    let files = vtk_files();
+    assert!(files.len() >= 8, "expected the 8 VTK files of shared/data/real, found {}", files.len());
+    for f in &files {
+        let name = f.file_name().unwrap().to_string_lossy().to_string();
+        let options =
+            ReadOptions { length_scale: if name.starts_with("simucell3d") { "m" } else { "um" }.parse().unwrap() };
+        let r = read_tissue(f, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(!r.tissue.is_empty(), "{name}: no cells");
+        let expected_format =
+            if name.starts_with("simucell3d") { TissueFormat::Simucell3d } else { TissueFormat::MultiMaterial };
+        assert_eq!(r.format, expected_format, "{name}");
+    }
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn cell_counts_match_the_data_readme() {
+    let counts = [
+        ("simucell3d__embryo_1.vtk", 16, 49133),
+        ("simucell3d__embryo_5.vtk", 16, 27970),
+        ("simucell3d__cell_triplet.vtk", 3, 4248),
+        ("simucell3d__cell_doublet.vtk", 2, 3854),
+        ("simucell3d__lumen_geometry.vtk", 26, 21725),
+        ("simucell3d__hexagonal_cell_layer.vtk", 25, 300),
+    ];
+    for (name, cells, nodes) in counts {
+        let t = read_tissue(&real(name), &ReadOptions::default()).unwrap().tissue;
+        assert_eq!(t.len(), cells, "{name}");
+        // SimuCell3D cells do not share nodes, so the per-cell node counts add up to the file's points.
+        assert_eq!(t.node_count(), nodes, "{name}");
+    }
+    let mm = read_tissue(&real("deltaMic__cell4.vtk"), &ReadOptions::default()).unwrap().tissue;
+    let ids: Vec<u32> = mm.cells().iter().map(|c| c.id().0).collect();
+    assert_eq!(ids, [1, 2, 3, 4]);
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn simucell3d_volumes_agree_with_the_reference_programs_own_values() {
+    // The reference wrote cell_volume with 4 significant digits (%.3e), so agreement is to 5e-4.
+    for name in [
+        "simucell3d__embryo_1.vtk",
+        "simucell3d__embryo_5.vtk",
+        "simucell3d__cell_doublet.vtk",
+        "simucell3d__lumen_geometry.vtk",
+    ] {
+        let path = real(name);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut lines = text.lines().skip_while(|l| !l.starts_with("cell_volume"));
+        let header = lines.next().unwrap();
+        let n: usize = header.split_whitespace().nth(2).unwrap().parse().unwrap();
+        let reference: Vec<f64> =
+            lines.flat_map(|l| l.split_whitespace()).take(n).map(|v| v.parse().unwrap()).collect();
+        let t = read_tissue(&path, &ReadOptions::default()).unwrap().tissue;
+        for (cell, want) in t.cells().iter().zip(reference) {
+            let got = cell.mesh().signed_volume();
+            if cell.mesh().validate().is_err() {
+                continue; // a defective cell (see below): its signed volume differs from the reference's |V|
+            }
+            assert!((got - want).abs() / want < 5e-4, "{name} cell {}: {got} vs reference {want}", cell.id());
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn embryo_1_cell_24_has_two_flipped_faces_that_the_reference_never_noticed() {
+    // The reference takes |V| and never checks orientation; one of its own embryo meshes carries a
+    // pair of flipped faces (a failed edge swap). We report it instead of hiding it.
+    let t = read_tissue(&real("simucell3d__embryo_1.vtk"), &ReadOptions::default()).unwrap().tissue;
+    let invalid: Vec<u32> = t.cells().iter().filter(|c| c.mesh().validate().is_err()).map(|c| c.id().0).collect();
+    assert_eq!(invalid, [24]);
+    let c24 = t.cell(tissuefit::mesh::CellId(24)).unwrap();
+    let defects = c24.mesh().check();
+    assert_eq!(defects.len(), 4, "{defects:?}");
+    assert!(defects.iter().all(|d| matches!(d, MeshDefect::InconsistentOrientation { .. })));
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn cell_type_ids_that_are_not_kinds_leave_every_cell_epithelial() {
+    // embryo_1 stores per-cell ids 0..15 in cell_type_id: 1..4 there do not mean ECM, lumen, etc.
+    let r = read_tissue(&real("simucell3d__embryo_1.vtk"), &ReadOptions::default()).unwrap();
+    assert!(r.tissue.cells().iter().all(|c| c.kind() == tissuefit::mesh::CellKind::Epithelial));
+    assert_eq!(r.tissue.cells().iter().map(|c| c.cell_type()).collect::<Vec<_>>(), (0..16).collect::<Vec<_>>());
+    assert!(r.warnings.iter().any(|w| w.contains("cell_type_id")), "{:?}", r.warnings);
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn simucell3d_files_round_trip_through_legacy_and_vtp() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in vtk_files()
+        .iter()
+        .map(|f| f.file_name().unwrap().to_string_lossy().to_string())
+        .filter(|n| n.starts_with("simucell3d"))
+    {
+        let original = read_tissue(&real(&name), &ReadOptions::default()).unwrap().tissue;
+        let pressure = vec![1.0; original.len()];
+        let legacy = dir.path().join(format!("{name}.vtk"));
+        write_simucell3d(&legacy, &original, &[CellField { name: "pressure", values: &pressure }]).unwrap();
+        let back = read_tissue(&legacy, &ReadOptions::default()).unwrap().tissue;
+        assert_same_volumes(&original, &back, &format!("{name} via legacy"));
+        for (a, b) in original.cells().iter().zip(back.cells()) {
+            assert_eq!(
+                (a.kind(), a.cell_type(), a.mesh()),
+                (b.kind(), b.cell_type(), b.mesh()),
+                "{name} cell {}",
+                a.id()
+            );
+        }
+
+        let vtp = dir.path().join(format!("{name}.vtp"));
+        write_vtp(&vtp, &original, &[], Some(0.0)).unwrap();
+        let back = read_vtp(&vtp).unwrap();
+        assert_same_volumes(&original, &back, &format!("{name} via vtp"));
+        assert_eq!(original, back, "{name}: vtp round trip changes the tissue");
+    }
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn image_tool_meshes_report_their_defects_per_cell() {
+    // deltaMic's cell 1 has one non-manifold edge (data README); reading must not fail on it.
+    let t = read_tissue(&real("deltaMic__cell4.vtk"), &ReadOptions::default()).unwrap().tissue;
+    let c1 = t.cells().iter().find(|c| c.id().0 == 1).unwrap();
+    assert!(
+        c1.mesh().check().iter().any(|d| matches!(d, MeshDefect::NonManifoldEdge { .. })),
+        "{:?}",
+        c1.mesh().check()
+    );
+    for c in t.cells().iter().filter(|c| c.id().0 != 1) {
+        assert!(c.mesh().signed_volume() > 0.0, "cell {} should be oriented outward", c.id());
+    }
+    // foambryo-runner's cells are closed and manifold (data README): all valid and outward.
+    let t = read_tissue(&real("foambryo-runner__Cshaper_4_cells_min-d-3.vtk"), &ReadOptions::default()).unwrap().tissue;
+    assert_eq!(t.len(), 4);
+    for c in t.cells() {
+        assert_eq!(c.mesh().validate(), Ok(()), "foambryo cell {}", c.id());
+    }
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn coordinates_agree_with_vtkio_where_vtkio_can_read() {
+    // vtkio is a test oracle: it fails on two of the files (see io/legacy_parse.rs), and on the
+    // others its points must equal ours (it keeps the declared float type; we parse as f64).
+    for name in [
+        "simucell3d__embryo_1.vtk",
+        "simucell3d__cell_doublet.vtk",
+        "deltaMic__cell4.vtk",
+        "simucell3d__hexagonal_cell_layer.vtk",
+    ] {
+        let path = real(name);
+        let vtk = vtkio::Vtk::import(&path).unwrap_or_else(|e| panic!("vtkio on {name}: {e}"));
+        let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else { panic!("{name}: not a grid") };
+        let vtkio::model::Piece::Inline(piece) = &pieces[0] else { panic!("{name}: not inline") };
+        let theirs: Vec<f64> = match &piece.points {
+            vtkio::model::IOBuffer::F32(v) => v.iter().map(|&x| x as f64).collect(),
+            vtkio::model::IOBuffer::F64(v) => v.clone(),
+            other => panic!("{name}: unexpected point buffer {:?}", other.scalar_type()),
+        };
+        let text = std::fs::read(&path).unwrap();
+        let ours = read_tissue(&path, &ReadOptions::default()).unwrap().tissue;
+        let declared_f32 = String::from_utf8_lossy(&text[..text.len().min(400)]).contains(" float");
+        // Every node of ours must be one of vtkio's points (same set; cells may drop unused points).
+        let mut set: Vec<[u64; 3]> =
+            theirs.chunks(3).map(|p| [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()]).collect();
+        set.sort_unstable();
+        for c in ours.cells() {
+            for p in c.mesh().positions() {
+                let key = if declared_f32 {
+                    [p.x as f32 as f64, p.y as f32 as f64, p.z as f32 as f64]
+                } else {
+                    [p.x, p.y, p.z]
+                };
+                let bits = key.map(f64::to_bits);
+                assert!(
+                    set.binary_search(&bits).is_ok(),
+                    "{name}: node {p:?} of cell {} not among vtkio's points",
+                    c.id()
+                );
+            }
+        }
+    }
+}
