@@ -36,6 +36,8 @@ fn io(c: &mut Criterion) {
     let mut g = c.benchmark_group(format!("io/{name}/{}nodes", tissue.node_count()));
     g.sample_size(20);
     g.bench_function("read_legacy", |b| b.iter(|| black_box(read_tissue(&src, &ReadOptions::default()).unwrap())));
+    // The vtkio crate's legacy parser on the same file, for comparison (parse only, no tissue built).
+    g.bench_function("vtkio_import", |b| b.iter(|| black_box(vtkio::Vtk::import(&src).unwrap())));
     g.bench_function("write_legacy", |b| b.iter(|| write_simucell3d(&legacy, black_box(&tissue), &[]).unwrap()));
     g.bench_function("write_vtp", |b| b.iter(|| write_vtp(&vtp, black_box(&tissue), &[], None).unwrap()));
     g.bench_function("read_vtp", |b| b.iter(|| black_box(read_vtp(&vtp).unwrap())));

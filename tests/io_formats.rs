@@ -44,7 +44,7 @@ fn simucell3d_polyhedra_with_polygon_faces_read_and_triangulate() {
     assert!((cells[1].mesh().signed_volume() - 1.0 / 6.0).abs() < 1e-12);
     assert!(cells.iter().all(|c| c.face_types().iter().all(|&t| t == FaceType::Apical)));
     // Metre-sized cells are suspicious in a tissue: the reader says so.
-    let r = read_tissue(&p, &ReadOptions { length_scale: "um".parse().unwrap() }).unwrap();
+    let r = read_tissue(&p, &ReadOptions { length_scale: "um".parse().unwrap(), orient: false }).unwrap();
     assert!((r.tissue.cells()[0].mesh().signed_volume() - 1e-18).abs() < 1e-30);
 }
 

@@ -191,3 +191,32 @@ fn validate_catches_a_torus() {
     let (torus, _) = CellMesh::from_polygons(pos, &quads).unwrap();
     assert_eq!(torus.validate(), Err(MeshDefect::EulerCharacteristic { chi: 0 }));
 }
+
+#[test]
+fn orient_outward_repairs_flipped_and_inside_out_faces() {
+    let reference = icosphere(2e-6, 3, Vec3::new(1e-6, 0.0, 0.0));
+    let mut m = reference.clone();
+    for f in [0u32, 5, 6, 100, 101, 102, 999] {
+        m.flip_face(FaceId(f));
+    }
+    assert!(m.validate().is_err());
+    assert_eq!(m.orient_outward(), 7);
+    assert_eq!(m, reference);
+    m.flip_all();
+    assert_eq!(m.orient_outward(), m.face_count());
+    assert_eq!(m.validate(), Ok(()));
+    // A hole does not stop the repair of the rest.
+    let mut tris = reference.triangles().to_vec();
+    tris.remove(50);
+    tris[7].swap(1, 2);
+    let mut holed = CellMesh::from_triangles(reference.positions().to_vec(), tris).unwrap();
+    assert_eq!(holed.orient_outward(), 1);
+    // Only the hole remains: three boundary edges, and χ = 1 of a disc.
+    let defects = holed.check();
+    assert!(
+        defects
+            .iter()
+            .all(|d| matches!(d, MeshDefect::BoundaryEdge { .. } | MeshDefect::EulerCharacteristic { chi: 1 })),
+        "{defects:?}"
+    );
+}

@@ -44,8 +44,10 @@ fn every_real_vtk_file_reads() {
     assert!(files.len() >= 8, "expected the 8 VTK files of shared/data/real, found {}", files.len());
     for f in &files {
         let name = f.file_name().unwrap().to_string_lossy().to_string();
-        let options =
-            ReadOptions { length_scale: if name.starts_with("simucell3d") { "m" } else { "um" }.parse().unwrap() };
+        let options = ReadOptions {
+            length_scale: if name.starts_with("simucell3d") { "m" } else { "um" }.parse().unwrap(),
+            orient: false,
+        };
         let r = read_tissue(f, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!r.tissue.is_empty(), "{name}: no cells");
         let expected_format =
@@ -171,8 +173,10 @@ fn image_tool_meshes_report_their_defects_per_cell() {
         "{:?}",
         c1.mesh().check()
     );
+    // Its cells 1 and 3 have triangles wound against their neighbours; the reader re-orients them,
+    // so every cell but the non-manifold one is valid.
     for c in t.cells().iter().filter(|c| c.id().0 != 1) {
-        assert!(c.mesh().signed_volume() > 0.0, "cell {} should be oriented outward", c.id());
+        assert_eq!(c.mesh().validate(), Ok(()), "deltaMic cell {}", c.id());
     }
     // foambryo-runner's cells are closed and manifold (data README): all valid and outward.
     let t = read_tissue(&real("foambryo-runner__Cshaper_4_cells_min-d-3.vtk"), &ReadOptions::default()).unwrap().tissue;

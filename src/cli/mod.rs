@@ -52,11 +52,15 @@ pub struct InputArgs {
     /// x,y,z voxel size for meshes in voxel coordinates (0.15,0.15,0.235um).
     #[arg(long, default_value = "m", value_name = "UNIT")]
     pub length_unit: LengthScale,
+    /// Re-orient every cell's faces consistently and outward before use (repairs files whose polygons
+    /// are wound both ways; multi-material meshes are always re-oriented).
+    #[arg(long)]
+    pub orient: bool,
 }
 
 impl InputArgs {
     pub(crate) fn read_options(&self) -> ReadOptions {
-        ReadOptions { length_scale: self.length_unit }
+        ReadOptions { length_scale: self.length_unit, orient: self.orient }
     }
 }
 

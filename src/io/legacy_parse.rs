@@ -369,7 +369,7 @@ fn parse_cell_list(c: &mut Cursor, g: &mut LegacyGrid, n: usize, size: usize) ->
     g.connectivity.reserve(size.min(c.text.len() / 2));
     let mut consumed = 0usize;
     for cell in 0..n {
-        let k = c.count("the size of a cell record")? as usize;
+        let k = c.count("the size of a cell record")?;
         consumed += 1 + k;
         if consumed > size {
             return Err(

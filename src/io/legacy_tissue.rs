@@ -232,7 +232,8 @@ fn multi_material(
     }
     // Orientation convention: the tools differ on whether a face's normal points into label1 or
     // label2. Build each cell with faces kept where it is label1 and flipped where it is label2, and
-    // flip the whole convention if most cells come out inside-out.
+    // flip the whole convention if most cells come out inside-out. Some tools also wind a few
+    // triangles arbitrarily (deltaMic), so each cell is then made consistent and outward.
     let mut scratch = Vec::new();
     let mut built = Vec::with_capacity(cells.len());
     for (&label, (as1, as2)) in &cells {
@@ -247,6 +248,12 @@ fn multi_material(
     let inverted = built.iter().filter(|(_, m)| m.signed_volume() < 0.0).count();
     if 2 * inverted > built.len() {
         built.iter_mut().for_each(|(_, m)| m.flip_all());
+    }
+    for (label, mesh) in &mut built {
+        let flipped = mesh.orient_outward();
+        if flipped > 0 {
+            warnings.push(format!("cell {label}: {flipped} faces wound against their neighbours were re-oriented"));
+        }
     }
     let cells =
         built.into_iter().map(|(label, mesh)| Cell::new(CellId(label), CellKind::Epithelial, 0, mesh)).collect();

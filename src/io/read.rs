@@ -13,6 +13,9 @@ use std::path::Path;
 pub struct ReadOptions {
     /// Metres per file length unit. SimuCell3D files are in metres; image-tool meshes in voxels or µm.
     pub length_scale: LengthScale,
+    /// Re-orient every cell's faces consistently and outward (always done for multi-material meshes,
+    /// whose winding is unreliable; optional for the others, whose winding is kept as written).
+    pub orient: bool,
 }
 
 /// A tissue read from a file, with what was noticed on the way.
@@ -53,6 +56,14 @@ pub fn read_tissue(path: &Path, options: &ReadOptions) -> Result<ReadReport, IoE
                 None,
                 format!("cell {}: node {node} has a non-finite coordinate", cell.id()),
             ));
+        }
+    }
+    if options.orient {
+        for cell in tissue.cells_mut() {
+            let flipped = cell.orient_outward();
+            if flipped > 0 {
+                warnings.push(format!("cell {}: {flipped} faces re-oriented", cell.id()));
+            }
         }
     }
     if !options.length_scale.is_identity() {

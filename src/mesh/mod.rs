@@ -5,6 +5,7 @@ mod adjacency;
 mod cell_mesh;
 mod ids;
 mod measures;
+mod orient;
 pub mod shapes;
 mod summary;
 mod tissue;

@@ -169,6 +169,11 @@ impl Cell {
         self.mesh.scale(factor);
         self.target_volume *= (factor.x * factor.y * factor.z).abs();
     }
+    /// Orients the faces consistently and outward (see [`CellMesh::orient_outward`]); face types
+    /// stay with their faces. Returns how many faces were flipped.
+    pub fn orient_outward(&mut self) -> usize {
+        self.mesh.orient_outward()
+    }
     pub fn face_types(&self) -> &[FaceType] {
         &self.face_types
     }

@@ -191,6 +191,11 @@ fn count_fans(adj: &Adjacency, faces: &[u32], n: u32, tris: &[[u32; 3]]) -> usiz
 
 /// Number of connected components of the face graph (faces joined through shared edges).
 pub(crate) fn face_components(adj: &Adjacency, faces: usize) -> usize {
+    face_components_of(adj, faces).1
+}
+
+/// Connected component of every face (0-based, in order of first face) and the component count.
+pub(crate) fn face_components_of(adj: &Adjacency, faces: usize) -> (Vec<usize>, usize) {
     let mut parent: Vec<usize> = (0..faces).collect();
     for e in 0..adj.edges().len() {
         let fs = adj.edge_faces(e);
@@ -198,7 +203,17 @@ pub(crate) fn face_components(adj: &Adjacency, faces: usize) -> usize {
             union(&mut parent, w[0] as usize, w[1] as usize);
         }
     }
-    (0..faces).filter(|&i| find(&mut parent, i) == i).count()
+    let mut label = vec![usize::MAX; faces];
+    let mut count = 0;
+    for f in 0..faces {
+        let r = find(&mut parent, f);
+        if label[r] == usize::MAX {
+            label[r] = count;
+            count += 1;
+        }
+        label[f] = label[r];
+    }
+    (label, count)
 }
 
 fn find(parent: &mut [usize], mut i: usize) -> usize {

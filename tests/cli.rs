@@ -1,0 +1,140 @@
+//! End-to-end tests of the `tissuefit` binary in a temporary directory.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use tissuefit::mechanics::Parameters;
+
+fn tissuefit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
+}
+
+fn demo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/cell_quartet.vtk")
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
+}
+
+#[test]
+fn inspect_json_has_the_documented_keys() {
+    let out = tissuefit(&["inspect", demo().to_str().unwrap(), "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let v = json(&out);
+    assert!(v["file"].as_str().unwrap().ends_with("cell_quartet.vtk"));
+    let cells = v["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 4);
+    for c in cells {
+        for key in ["id", "kind", "nodes", "faces", "volume", "area", "sphericity", "valid", "defect"] {
+            assert!(c.get(key).is_some(), "cell lacks {key}: {c}");
+        }
+        assert_eq!(c["valid"], true);
+        let psi = c["sphericity"].as_f64().unwrap();
+        assert!(psi > 0.99 && psi < 1.0, "near-spherical demo cells: Ψ = {psi}");
+    }
+    let t = &v["totals"];
+    assert_eq!((t["cells"].as_u64(), t["valid_cells"].as_u64()), (Some(4), Some(4)));
+    let nodes: u64 = cells.iter().map(|c| c["nodes"].as_u64().unwrap()).sum();
+    assert_eq!(t["nodes"].as_u64(), Some(nodes));
+}
+
+#[test]
+fn inspect_exits_1_on_a_defective_cell_and_2_on_a_missing_file() {
+    let dir = tempfile::tempdir().unwrap();
+    // Flip one face of the demo's first cell by swapping two ids in its first face record.
+    let text = std::fs::read_to_string(demo()).unwrap();
+    let cells_at = text.find("CELLS").unwrap();
+    let line_end = text[cells_at..].find('\n').unwrap() + cells_at + 1;
+    let record_end = text[line_end..].find('\n').unwrap() + line_end;
+    let record: Vec<&str> = text[line_end..record_end].split(' ').collect();
+    let mut flipped = record.clone();
+    flipped.swap(3, 4); // record: nInts nFaces 3 a b c …
+    let broken = format!("{}{}{}", &text[..line_end], flipped.join(" "), &text[record_end..]);
+    let path = dir.path().join("flipped.vtk");
+    std::fs::write(&path, broken).unwrap();
+    let out = tissuefit(&["inspect", path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("3/4 cells valid") && stdout.contains("oriented inconsistently"), "{stdout}");
+
+    let out = tissuefit(&["inspect", dir.path().join("absent.vtk").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("absent.vtk"));
+}
+
+#[test]
+fn convert_round_trips_through_vtp_and_legacy() {
+    let dir = tempfile::tempdir().unwrap();
+    let vtp = dir.path().join("quartet.vtp");
+    let vtk = dir.path().join("quartet.vtk");
+    let out = tissuefit(&["convert", demo().to_str().unwrap(), vtp.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = tissuefit(&["convert", vtp.to_str().unwrap(), vtk.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let volumes = |p: &Path| -> Vec<f64> {
+        let v = json(&tissuefit(&["inspect", p.to_str().unwrap(), "--json"]));
+        v["cells"].as_array().unwrap().iter().map(|c| c["volume"].as_f64().unwrap()).collect()
+    };
+    let (a, b, c) = (volumes(&demo()), volumes(&vtp), volumes(&vtk));
+    assert_eq!(a, b);
+    assert_eq!(a, c);
+    // The .vtp carries the pressure field computed from the default parameters.
+    let bytes = std::fs::read(&vtp).unwrap();
+    assert!(String::from_utf8_lossy(&bytes[..bytes.len().min(20000)]).contains("Name=\"pressure\""));
+}
+
+#[test]
+fn convert_to_an_unknown_format_fails_cleanly_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_path = dir.path().join("quartet.xyz");
+    let out = tissuefit(&["convert", demo().to_str().unwrap(), out_path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("quartet.xyz"));
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "a failed convert must leave no file");
+}
+
+#[test]
+fn length_unit_scales_lengths() {
+    let base = json(&tissuefit(&["inspect", demo().to_str().unwrap(), "--json"]));
+    let scaled = json(&tissuefit(&["inspect", demo().to_str().unwrap(), "--json", "--length-unit", "2um"]));
+    let (v0, v1) = (base["cells"][0]["volume"].as_f64().unwrap(), scaled["cells"][0]["volume"].as_f64().unwrap());
+    assert!((v1 / v0 - 8e-18).abs() < 1e-27, "{v1} / {v0}");
+    let bad = tissuefit(&["inspect", demo().to_str().unwrap(), "--length-unit", "furlongs"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("furlongs"));
+}
+
+#[test]
+fn config_defaults_is_a_complete_valid_config() {
+    let out = tissuefit(&["config", "defaults"]);
+    assert_eq!(out.status.code(), Some(0));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let parsed = Parameters::from_toml_str(&text, "defaults").unwrap();
+    assert_eq!(parsed, Parameters::default());
+    assert!(text.lines().filter(|l| l.starts_with('#')).count() > 60, "every field is commented");
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("defaults.toml");
+    std::fs::write(&path, &text).unwrap();
+    let check = tissuefit(&["config", "check", path.to_str().unwrap()]);
+    assert_eq!(check.status.code(), Some(0), "{}", String::from_utf8_lossy(&check.stderr));
+}
+
+#[test]
+fn config_check_names_the_bad_key_and_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let typo = dir.path().join("typo.toml");
+    std::fs::write(&typo, "[numerics]\ntime_stepp = 1e-7\n").unwrap();
+    let out = tissuefit(&["config", "check", typo.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("typo.toml") && err.contains("time_stepp"), "{err}");
+
+    let unstable = dir.path().join("unstable.toml");
+    std::fs::write(&unstable, "[numerics]\ntime_step = 1e-4\n").unwrap();
+    let out = tissuefit(&["config", "check", unstable.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("unstable.toml") && err.contains("time_step"), "{err}");
+}
