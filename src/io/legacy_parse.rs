@@ -109,6 +109,24 @@ impl<'a> Cursor<'a> {
     }
 
     fn index(&mut self, what: &str) -> Result<u32, IoError> {
+        // Fast path for the common case, a plain decimal that fits in u32 (most of a file's tokens
+        // are point indices); anything else takes the general parse for its exact error message.
+        let (pos, line) = (self.pos, self.line);
+        self.skip_space();
+        let start = self.pos;
+        let mut value: u64 = 0;
+        while let Some(&b) = self.text.get(self.pos) {
+            if !b.is_ascii_digit() || self.pos - start >= 10 {
+                break;
+            }
+            value = value * 10 + u64::from(b - b'0');
+            self.pos += 1;
+        }
+        let ends = self.text.get(self.pos).is_none_or(|b| b.is_ascii_whitespace());
+        if self.pos > start && ends && value <= u64::from(u32::MAX) {
+            return Ok(value as u32);
+        }
+        (self.pos, self.line) = (pos, line);
         let t = self.expect(what)?;
         match t.parse::<i64>() {
             Ok(v) if (0..=u32::MAX as i64).contains(&v) => Ok(v as u32),
@@ -348,7 +366,7 @@ pub(crate) fn polyhedron_faces(stream: &[u32]) -> Result<Vec<&[u32]>, String> {
     let mut out = Vec::with_capacity(faces as usize);
     for f in 0..faces {
         let (&k, tail) =
-            rest.split_first().ok_or(format!("the face stream announces {faces} faces but ends after {f}"))?;
+            rest.split_first().ok_or_else(|| format!("the face stream announces {faces} faces but ends after {f}"))?;
         if tail.len() < k as usize {
             return Err(format!("face {f} announces {k} points but the record has only {} left", tail.len()));
         }
@@ -532,7 +550,11 @@ fn check_numeric_type(c: &Cursor, t: &str) -> Result<(), IoError> {
 fn read_values(c: &mut Cursor, count: usize, name: &str) -> Result<Vec<Real>, IoError> {
     let mut v = Vec::with_capacity(count.min(c.text.len() / 2));
     for _ in 0..count {
-        v.push(c.real(&format!("a value of array {name}"))?);
+        let t = c.expect("array values")?;
+        v.push(
+            t.parse()
+                .map_err(|_| c.err(format!("expected a value of array {name} (a number), found `{}`", truncate(t))))?,
+        );
     }
     Ok(v)
 }

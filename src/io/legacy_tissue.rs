@@ -13,6 +13,7 @@ use super::IoError;
 use super::legacy_parse::{DataArray, LegacyGrid, polyhedron_faces};
 use crate::geometry::Vec3;
 use crate::mesh::{Cell, CellId, CellKind, CellMesh, FaceType, Tissue};
+use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -96,19 +97,13 @@ fn cell_mesh<F: AsRef<[u32]>>(
     g: &LegacyGrid,
     id: CellId,
     faces: &[F],
-    scratch: &mut Vec<u32>,
 ) -> Result<(CellMesh, Vec<u32>), IoError> {
     let mut used: Vec<u32> = faces.iter().flat_map(|f| f.as_ref().iter().copied()).collect();
     used.sort_unstable();
     used.dedup();
-    scratch.clear();
-    scratch.resize(g.points.len(), u32::MAX);
-    for (local, &global) in used.iter().enumerate() {
-        scratch[global as usize] = local as u32;
-    }
+    let local_of = |global: u32| used.binary_search(&global).expect("every face point is in `used`") as u32;
+    let local: Vec<Vec<u32>> = faces.iter().map(|f| f.as_ref().iter().map(|&i| local_of(i)).collect()).collect();
     let positions: Vec<Vec3> = used.iter().map(|&i| g.points[i as usize]).collect();
-    let local: Vec<Vec<u32>> =
-        faces.iter().map(|f| f.as_ref().iter().map(|&i| scratch[i as usize]).collect()).collect();
     CellMesh::from_polygons(positions, &local).map_err(|source| IoError::Mesh { path: path.into(), cell: id, source })
 }
 
@@ -149,13 +144,18 @@ fn polyhedra(path: &Path, g: &LegacyGrid, warnings: &mut Vec<String>) -> Result<
             "cell_type_id holds values up to {max}, beyond SimuCell3D's default types (0 epithelial, 1 ECM, 2 lumen, 3 nucleus, 4 static): the file probably stores per-cell ids there, so every cell is read as epithelial (cell_type keeps the value). Simulating it needs a config whose [[cell_types]] cover these indices"
         ));
     }
-    let mut scratch = Vec::new();
+    // Meshes are built in parallel (cells are independent), then assembled in file order.
+    let meshes: Vec<CellMesh> = (0..n)
+        .into_par_iter()
+        .map(|c| {
+            let faces = polyhedron_faces(g.cell(c))
+                .map_err(|m| IoError::parse(path, Some(g.cells_line), format!("cell {c} (polyhedron): {m}")))?;
+            cell_mesh(path, g, ids[c], &faces).map(|(mesh, _)| mesh)
+        })
+        .collect::<Result<_, _>>()?;
     let mut tissue = Tissue::new();
-    for c in 0..n {
+    for (c, mesh) in meshes.into_iter().enumerate() {
         let id = ids[c];
-        let faces = polyhedron_faces(g.cell(c))
-            .map_err(|m| IoError::parse(path, Some(g.cells_line), format!("cell {c} (polyhedron): {m}")))?;
-        let (mesh, _) = cell_mesh(path, g, id, &faces, &mut scratch)?;
         let cell_type = type_values[c];
         let mut kind = match kinds {
             Some(a) => {
@@ -234,17 +234,17 @@ fn multi_material(
     // label2. Build each cell with faces kept where it is label1 and flipped where it is label2, and
     // flip the whole convention if most cells come out inside-out. Some tools also wind a few
     // triangles arbitrarily (deltaMic), so each cell is then made consistent and outward.
-    let mut scratch = Vec::new();
-    let mut built = Vec::with_capacity(cells.len());
-    for (&label, (as1, as2)) in &cells {
-        let polys: Vec<Vec<u32>> = as1
-            .iter()
-            .map(|&f| faces[f].to_vec())
-            .chain(as2.iter().map(|&f| faces[f].iter().rev().copied().collect()))
-            .collect();
-        let (mesh, _) = cell_mesh(path, g, CellId(label), &polys, &mut scratch)?;
-        built.push((label, mesh));
-    }
+    let mut built: Vec<(u32, CellMesh)> = cells
+        .par_iter()
+        .map(|(&label, (as1, as2))| {
+            let polys: Vec<Vec<u32>> = as1
+                .iter()
+                .map(|&f| faces[f].to_vec())
+                .chain(as2.iter().map(|&f| faces[f].iter().rev().copied().collect()))
+                .collect();
+            cell_mesh(path, g, CellId(label), &polys).map(|(mesh, _)| (label, mesh))
+        })
+        .collect::<Result<_, _>>()?;
     let inverted = built.iter().filter(|(_, m)| m.signed_volume() < 0.0).count();
     if 2 * inverted > built.len() {
         built.iter_mut().for_each(|(_, m)| m.flip_all());
@@ -272,12 +272,11 @@ fn face_labelled(
     for f in 0..faces.len() {
         cells.entry(integer(path, owner, f)?).or_default().push(f);
     }
-    let mut scratch = Vec::new();
     let mut tissue = Tissue::new();
     let mut bad_types = 0usize;
     for (&label, fs) in &cells {
         let polys: Vec<&[u32]> = fs.iter().map(|&f| faces[f]).collect();
-        let (mesh, source) = cell_mesh(path, g, CellId(label), &polys, &mut scratch)?;
+        let (mesh, source) = cell_mesh(path, g, CellId(label), &polys)?;
         let mut cell = Cell::new(CellId(label), CellKind::Epithelial, 0, mesh);
         if let Some(t) = types {
             let face_types = source
