@@ -3,6 +3,7 @@
 mod config;
 mod convert;
 mod inspect;
+mod simulate;
 
 use crate::io::{LengthScale, ReadOptions};
 use clap::{Parser, Subcommand};
@@ -32,6 +33,9 @@ pub enum Command {
     Inspect(inspect::InspectArgs),
     /// Convert a tissue file: .vtk (SimuCell3D legacy or multi-material) or .vtp → .vtp or .vtk.
     Convert(convert::ConvertArgs),
+    /// Simulate a tissue: relax it to mechanical equilibrium, or run it for a time span with growth.
+    /// Exits with 1 when an equilibrium run ends unconverged.
+    Simulate(simulate::SimulateArgs),
     /// Simulation parameters: print the commented defaults, or check a config file.
     #[command(subcommand)]
     Config(config::ConfigCommand),
@@ -74,6 +78,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Inspect(args) => inspect::run(&args),
         Command::Convert(args) => convert::run(&args),
         Command::Config(cmd) => config::run(&cmd),
+        Command::Simulate(args) => simulate::run(&args),
     }
 }
 

@@ -11,6 +11,7 @@ mod legacy_tissue;
 mod legacy_write;
 mod pvd;
 mod read;
+mod simulation_output;
 mod units;
 mod vtp;
 
@@ -20,5 +21,6 @@ pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;
 pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, write_tissue};
+pub use simulation_output::SimulationRecorder;
 pub use units::LengthScale;
 pub use vtp::{CellField, read_vtp, write_vtp};

@@ -4,11 +4,34 @@
 //! throughout; defaults are the paper's Table 2.
 //!
 //! [`Parameters`] is the simulation-parameter schema: the TOML config, its per-kind defaults and
-//! its validation (including a time-step stability estimate).
+//! its validation (including a time-step stability estimate). [`TissueForces`] evaluates the
+//! internal forces; [`Fire`] relaxes to equilibrium.
 
+mod area_elasticity;
+mod bending;
+mod cell_geometry;
+mod fire;
+mod forces;
+mod growth;
+mod motion;
 mod params;
+mod pressure;
+mod settings;
+mod simulation;
+mod tension;
 
+pub use area_elasticity::{area_elasticity_energy, target_area};
+pub use bending::{Hinge, add_bending_forces, build_hinges};
+pub use cell_geometry::CellGeometry;
+pub use fire::*;
+pub use forces::{CellForces, EnergyTerms, TermSet, TissueForces, UnknownCellType, cell_parameters};
+pub use growth::draw_growth_rates;
+pub use motion::integrate_step;
 pub use params::{
     CellTypeParams, ContactModel, Dynamics, FaceParams, FaceTypeParams, Numerics, ParamError, Parameters,
     SPHERE_ISOPERIMETRIC_RATIO, TimeStepLimit,
 };
+pub use pressure::pressure_energy;
+pub use settings::{RelaxMethod, SimulationMode, SimulationSettings};
+pub use simulation::{Observer, Sample, Simulation, SimulationError, SimulationSummary};
+pub use tension::tension_energy;

@@ -21,6 +21,7 @@
 //! a fix. It includes a time-step stability estimate ([`Parameters::time_step_limits`]), because an
 //! unstable Δt otherwise shows up much later as exploding meshes.
 
+use super::settings::{RelaxMethod, SimulationMode, SimulationSettings};
 use crate::geometry::Real;
 use crate::mesh::{CellKind, FaceType};
 use serde::de::DeserializeOwned;
@@ -44,6 +45,8 @@ pub struct Parameters {
     /// this list. Default: one entry per [`CellKind`], in code order (epithelial, ecm, lumen,
     /// nucleus, static), each with [`CellTypeParams::default_for`] its kind.
     pub cell_types: Vec<CellTypeParams>,
+    /// What `tissuefit simulate` runs and when it stops. Defaults: [`SimulationSettings::default`].
+    pub simulation: SimulationSettings,
 }
 
 /// How nodes move.
@@ -304,6 +307,7 @@ impl Default for Parameters {
         Self {
             numerics: Numerics::default(),
             cell_types: CellKind::ALL.into_iter().map(CellTypeParams::default_for).collect(),
+            simulation: SimulationSettings::default(),
         }
     }
 }
@@ -417,6 +421,29 @@ impl Parameters {
         }
 
         let numerics_valid = report.errors.is_empty();
+        let sim = &self.simulation;
+        let sim_defaults = SimulationSettings::default();
+        report.number("simulation.duration", sim.duration, sim_defaults.duration, Bound::Positive);
+        report.number("simulation.sampling_period", sim.sampling_period, sim_defaults.sampling_period, Bound::Positive);
+        report.number("simulation.force_tolerance", sim.force_tolerance, sim_defaults.force_tolerance, Bound::Positive);
+        report.number(
+            "simulation.energy_tolerance",
+            sim.energy_tolerance,
+            sim_defaults.energy_tolerance,
+            Bound::Positive,
+        );
+        report.number(
+            "simulation.volume_tolerance",
+            sim.volume_tolerance,
+            sim_defaults.volume_tolerance,
+            Bound::Positive,
+        );
+        if sim.max_steps == 0 {
+            report.errors.push("simulation.max_steps = 0: give a step budget of at least 1".to_owned());
+        }
+        if sim.sample_every_steps == 0 {
+            report.errors.push("simulation.sample_every_steps = 0: must be at least 1".to_owned());
+        }
 
         if self.cell_types.is_empty() {
             report.errors.push("cell_types is empty; give at least one [[cell_types]] entry".to_owned());
@@ -743,8 +770,19 @@ fn resolve(mut user: Table) -> Result<Parameters, Vec<String>> {
         }
     };
 
+    let mut simulation = to_value(&SimulationSettings::default());
+    if let Some(user_simulation) = user.remove("simulation") {
+        if let Some(value) = user_simulation.get("mode") {
+            parse_choice(value, &SimulationMode::ALL, "simulation.mode", &mut problems);
+        }
+        if let Some(value) = user_simulation.get("method") {
+            parse_choice(value, &RelaxMethod::ALL, "simulation.method", &mut problems);
+        }
+        overlay(&mut simulation, user_simulation, "simulation", &mut problems);
+    }
+
     for key in user.keys() {
-        problems.push(unknown_field(key, "at the top level", ["cell_types", "numerics"].iter().copied()));
+        problems.push(unknown_field(key, "at the top level", ["cell_types", "numerics", "simulation"].iter().copied()));
     }
     if !problems.is_empty() {
         return Err(problems);
@@ -752,6 +790,7 @@ fn resolve(mut user: Table) -> Result<Parameters, Vec<String>> {
     let mut merged = Table::new();
     merged.insert("numerics".to_owned(), numerics);
     merged.insert("cell_types".to_owned(), cell_types);
+    merged.insert("simulation".to_owned(), simulation);
     // Every schema problem was caught above; this is the backstop (deny_unknown_fields included).
     Value::Table(merged).try_into().map_err(|error: toml::de::Error| vec![error.to_string().replace('\n', " ")])
 }
@@ -1029,6 +1068,52 @@ static FIELD_DOCS: &[FieldDoc] = &[
         path: "cell_types.faces.*.repulsion",
         unit: "Pa/m",
         text: "Repulsion strength ξ: contact stress per unit penetration.",
+    },
+    FieldDoc {
+        path: "simulation",
+        unit: "",
+        text: "What `tissuefit simulate` runs, with which method, when it stops and how often it saves.",
+    },
+    FieldDoc {
+        path: "simulation.mode",
+        unit: "",
+        text: "\"equilibrium\" (relax until the stopping criteria hold, or max_steps: not converged) or \"time\" (integrate for duration, with growth).",
+    },
+    FieldDoc {
+        path: "simulation.method",
+        unit: "",
+        text: "Equilibrium method: \"fire\" (FIRE 2.0 minimiser, adaptive step: far fewer force evaluations) or \"integrate\" (the equations of motion of numerics.dynamics).",
+    },
+    FieldDoc { path: "simulation.duration", unit: "s", text: "Simulated time span of a \"time\" run." },
+    FieldDoc {
+        path: "simulation.max_steps",
+        unit: "",
+        text: "Step budget of an \"equilibrium\" run; reaching it is reported as not converged.",
+    },
+    FieldDoc {
+        path: "simulation.sampling_period",
+        unit: "s",
+        text: "Simulated time between saved frames (and stats rows) of a \"time\" run.",
+    },
+    FieldDoc {
+        path: "simulation.sample_every_steps",
+        unit: "",
+        text: "Steps between saved frames (and stats rows) of an \"equilibrium\" run.",
+    },
+    FieldDoc {
+        path: "simulation.force_tolerance",
+        unit: "",
+        text: "Equilibrium when the largest nodal force is below this fraction of the typical tension force γ·l_min (γ: mean surface tension of the moving cells' faces) ...",
+    },
+    FieldDoc {
+        path: "simulation.energy_tolerance",
+        unit: "",
+        text: "... and the total energy changes by less than this fraction per step ...",
+    },
+    FieldDoc {
+        path: "simulation.volume_tolerance",
+        unit: "",
+        text: "... and no cell volume changes by more than this fraction per step.",
     },
 ];
 

@@ -11,10 +11,28 @@ use crate::geometry::Vec3;
 /// wound so that `(b − a) × (c − a)` points out of the cell (positive signed volume). Construction only
 /// checks that indices are in range: meshes read from real files may be defective, and the defects
 /// are reported by `validate()`/`check()` rather than refused.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct CellMesh {
     positions: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
+    /// Changes whenever the triangles change, so caches of derived topology (adjacency, hinges)
+    /// know when to rebuild. Not part of equality.
+    topology_generation: u64,
+}
+
+/// Meshes are equal when their positions and triangles are; the cache generation does not count.
+impl PartialEq for CellMesh {
+    fn eq(&self, other: &Self) -> bool {
+        self.positions == other.positions && self.triangles == other.triangles
+    }
+}
+
+/// Source of topology generations, unique across all meshes of the process, so a cache never
+/// mistakes one mesh's topology for another's.
+static NEXT_GENERATION: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+fn next_generation() -> u64 {
+    NEXT_GENERATION.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 impl CellMesh {
@@ -27,7 +45,7 @@ impl CellMesh {
                 return Err(MeshError::NodeIndexOutOfRange { face: f, index: index as usize, nodes: nodes as usize });
             }
         }
-        Ok(Self { positions, triangles })
+        Ok(Self { positions, triangles, topology_generation: next_generation() })
     }
 
     /// Builds a mesh from polygons (any number of corners ≥ 3), triangulating each in its plane while
@@ -49,6 +67,13 @@ impl CellMesh {
             source.extend(std::iter::repeat_n(k as u32, triangles.len() - before));
         }
         Ok((Self::from_triangles(positions, triangles)?, source))
+    }
+
+    /// Identifies the current triangle list: it changes with every topology edit (and differs
+    /// between meshes), so caches keyed by it are never stale.
+    #[inline]
+    pub fn topology_generation(&self) -> u64 {
+        self.topology_generation
     }
 
     /// Node positions.
@@ -96,11 +121,13 @@ impl CellMesh {
     /// Reverses the winding of one face.
     pub fn flip_face(&mut self, f: FaceId) {
         self.triangles[f.index()].swap(1, 2);
+        self.topology_generation = next_generation();
     }
 
     /// Reverses the winding of every face (turns the surface inside out).
     pub fn flip_all(&mut self) {
         self.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+        self.topology_generation = next_generation();
     }
 
     /// Multiplies coordinates component-wise by `factor` (unit conversion, anisotropic voxels).
@@ -134,5 +161,6 @@ impl CellMesh {
             *t = t.map(|i| new_index[i as usize]);
         }
         self.positions = kept;
+        self.topology_generation = next_generation();
     }
 }

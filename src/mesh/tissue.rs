@@ -141,6 +141,11 @@ impl Cell {
         Ok(self)
     }
 
+    /// Changes the target (rest) volume V0 (m³), e.g. by growth.
+    pub fn set_target_volume(&mut self, target_volume: Real) {
+        self.target_volume = target_volume;
+    }
+
     /// Sets the target (rest) volume V0 (m³).
     pub fn with_target_volume(mut self, target_volume: Real) -> Self {
         self.target_volume = target_volume;

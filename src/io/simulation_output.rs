@@ -1,0 +1,111 @@
+//! What `tissuefit simulate` writes into its output folder:
+//!
+//! * `frames/frame_NNNNNN.vtp` + `frames.pvd`: the ParaView series, one frame per sample, with the
+//!   per-cell pressure and growth rate as cell data;
+//! * `stats.csv`: one row per cell per sample (step, time, cell, kind, volume, target volume, area,
+//!   pressure, each energy term); written as `stats.csv.partial` during the run and renamed when the
+//!   run ends, so a crashed run never leaves a file that looks complete;
+//! * `final.vtk` (SimuCell3D legacy, re-readable as input) and `summary.json`, written by the caller
+//!   at the end.
+
+use super::{CellField, IoError, PvdEntry, write_pvd, write_vtp};
+use crate::geometry::Real;
+use crate::mechanics::{EnergyTerms, Observer, Sample};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// Records samples of a simulation into an output folder.
+pub struct SimulationRecorder {
+    dir: PathBuf,
+    frames: Vec<PvdEntry>,
+    stats: BufWriter<File>,
+    /// Label of each frame's time: simulated time, or the step for relaxations without time.
+    time_is_step: bool,
+}
+
+impl SimulationRecorder {
+    /// Creates `dir/frames/` and starts `dir/stats.csv.partial`. `time_is_step`: label frames by step
+    /// (FIRE relaxations have no physical time).
+    pub fn create(dir: &Path, time_is_step: bool) -> Result<Self, IoError> {
+        let frames_dir = dir.join("frames");
+        std::fs::create_dir_all(&frames_dir).map_err(|source| IoError::Write { path: frames_dir.clone(), source })?;
+        let partial = dir.join("stats.csv.partial");
+        let file = File::create(&partial).map_err(|source| IoError::Write { path: partial.clone(), source })?;
+        let mut stats = BufWriter::new(file);
+        let header = format!(
+            "step,time,cell,kind,cell_type,nodes,volume,target_volume,area,pressure,{},energy_total",
+            EnergyTerms::NAMES.map(|n| format!("energy_{n}")).join(",")
+        );
+        writeln!(stats, "{header}").map_err(|source| IoError::Write { path: partial, source })?;
+        Ok(Self { dir: dir.to_path_buf(), frames: Vec::new(), stats, time_is_step })
+    }
+
+    fn write_sample(&mut self, s: &Sample<'_>) -> Result<(), IoError> {
+        let pressure: Vec<Real> = s.forces.cells.iter().map(|w| w.pressure).collect();
+        let name = format!("frame_{:06}.vtp", self.frames.len());
+        let label = if self.time_is_step { s.step as Real } else { s.time };
+        let path = self.dir.join("frames").join(&name);
+        write_vtp(
+            &path,
+            s.tissue,
+            &[
+                CellField { name: "pressure", values: &pressure },
+                CellField { name: "growth_rate", values: s.growth_rates },
+            ],
+            Some(label),
+        )?;
+        self.frames.push(PvdEntry { time: label, file: Path::new("frames").join(name) });
+        write_pvd(&self.dir.join("frames.pvd"), &self.frames)?;
+
+        let partial = self.dir.join("stats.csv.partial");
+        let io = |source| IoError::Write { path: partial.clone(), source };
+        for (cell, work) in s.tissue.cells().iter().zip(&s.forces.cells) {
+            let e = work.energy;
+            write!(
+                self.stats,
+                "{},{:e},{},{},{},{},{:e},{:e},{:e},{:e}",
+                s.step,
+                s.time,
+                cell.id(),
+                cell.kind().name(),
+                cell.cell_type(),
+                cell.mesh().node_count(),
+                work.geometry.volume,
+                cell.target_volume(),
+                work.geometry.area,
+                work.pressure
+            )
+            .map_err(io)?;
+            for v in e.values() {
+                write!(self.stats, ",{v:e}").map_err(io)?;
+            }
+            writeln!(self.stats, ",{:e}", e.total()).map_err(io)?;
+        }
+        Ok(())
+    }
+
+    /// Number of frames written.
+    pub fn frames(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Flushes the statistics and gives them their final name `stats.csv` (completed runs only).
+    pub fn finish(mut self) -> Result<(), IoError> {
+        let partial = self.dir.join("stats.csv.partial");
+        self.stats.flush().map_err(|source| IoError::Write { path: partial.clone(), source })?;
+        let done = self.dir.join("stats.csv");
+        std::fs::rename(&partial, &done).map_err(|source| IoError::Write { path: done, source })
+    }
+
+    /// Flushes what was recorded, keeping the `.partial` name (failed runs).
+    pub fn abandon(mut self) {
+        let _ = self.stats.flush();
+    }
+}
+
+impl Observer for SimulationRecorder {
+    fn sample(&mut self, sample: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        self.write_sample(sample).map_err(|e| Box::new(e) as Box<dyn std::error::Error + Send + Sync>)
+    }
+}

@@ -1,0 +1,77 @@
+//! Run settings of `tissuefit simulate`: what to run (relax to equilibrium, or a time span), with
+//! which method, when to stop, and how often to sample. The `[simulation]` section of a config.
+
+use crate::geometry::Real;
+use serde::{Deserialize, Serialize};
+
+/// What a simulation does.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SimulationMode {
+    /// Relax to mechanical equilibrium; stop when relaxed or at `max_steps` (then reported as not
+    /// converged).
+    #[default]
+    Equilibrium,
+    /// Integrate the equations of motion for `duration` seconds (growth included).
+    Time,
+}
+
+impl SimulationMode {
+    pub const ALL: [SimulationMode; 2] = [SimulationMode::Equilibrium, SimulationMode::Time];
+}
+
+/// How equilibrium is reached.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RelaxMethod {
+    /// FIRE 2.0 minimiser with adaptive step: the same equilibrium in far fewer force evaluations.
+    #[default]
+    Fire,
+    /// Integrate the configured equations of motion (`numerics.dynamics`) with `numerics.time_step`.
+    Integrate,
+}
+
+impl RelaxMethod {
+    pub const ALL: [RelaxMethod; 2] = [RelaxMethod::Fire, RelaxMethod::Integrate];
+}
+
+/// The `[simulation]` section.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationSettings {
+    /// `"equilibrium"` or `"time"`. Default equilibrium.
+    pub mode: SimulationMode,
+    /// Equilibrium method: `"fire"` (default) or `"integrate"`.
+    pub method: RelaxMethod,
+    /// Simulated time span of a `time` run [s]. Default 1e-3 s (10,000 steps of 1e-7 s).
+    pub duration: Real,
+    /// Step budget of an `equilibrium` run. Default 200,000.
+    pub max_steps: u64,
+    /// Simulated time between two saved frames of a `time` run [s]. Default 1e-5 s.
+    pub sampling_period: Real,
+    /// Steps between two saved frames of an `equilibrium` run. Default 1,000.
+    pub sample_every_steps: u64,
+    /// Equilibrium when the largest nodal force is below this fraction of the typical tension force
+    /// γ·l_min (γ: the mean surface tension of the moving cells' faces). Default 1e-3.
+    pub force_tolerance: Real,
+    /// … and the total energy changes by less than this fraction per step. Default 1e-9.
+    pub energy_tolerance: Real,
+    /// … and no cell volume changes by more than this fraction per step. Default 1e-9.
+    pub volume_tolerance: Real,
+}
+
+impl Default for SimulationSettings {
+    fn default() -> Self {
+        Self {
+            mode: SimulationMode::Equilibrium,
+            method: RelaxMethod::Fire,
+            duration: 1e-3,
+            max_steps: 200_000,
+            sampling_period: 1e-5,
+            sample_every_steps: 1_000,
+            force_tolerance: 1e-3,
+            energy_tolerance: 1e-9,
+            volume_tolerance: 1e-9,
+        }
+    }
+}
