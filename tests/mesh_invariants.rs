@@ -220,3 +220,11 @@ fn orient_outward_repairs_flipped_and_inside_out_faces() {
         "{defects:?}"
     );
 }
+
+#[test]
+fn subdivided_cube_is_a_valid_closed_cube() {
+    let m = tissuefit::mesh::shapes::subdivided_cube(2.0, 5, Vec3::new(1.0, 2.0, 3.0));
+    assert_eq!(m.validate(), Ok(()));
+    assert_eq!((m.node_count(), m.face_count()), (6 * 25 + 2, 12 * 25));
+    assert!((m.signed_volume() - 8.0).abs() < 1e-12 && (m.area() - 24.0).abs() < 1e-12);
+}

@@ -316,6 +316,25 @@ mod tests {
     }
 
     #[test]
+    fn gradient_is_exact_whatever_the_node_order_and_face_winding() {
+        let types = [FaceType::Lateral, FaceType::Basal];
+        // Hinge given as (j, i, k, l): face a then runs against i → j.
+        let mut setup = single_hinge(0.8, types);
+        let (energy, forces) = setup.evaluate(MODULI);
+        setup.hinges[0].nodes.swap(0, 1);
+        let (swapped_energy, swapped_forces) = setup.evaluate(MODULI);
+        assert_eq!(swapped_energy, energy);
+        for (f, g) in forces.iter().zip(&swapped_forces) {
+            assert!((f - g).norm() <= 1e-12 * f.norm());
+        }
+        assert_gradient(&setup, MODULI);
+        // Face b wound like face a (an inconsistently oriented pair): normals as the triangles say.
+        let mut setup = single_hinge(0.8, types);
+        setup.triangles[1] = [0, 1, 3];
+        assert_gradient(&setup, MODULI);
+    }
+
+    #[test]
     fn hinge_forces_sum_to_zero_with_zero_torque() {
         let setup = random_cell(2, 3);
         let (_, forces) = setup.evaluate(MODULI);

@@ -34,7 +34,7 @@
 //!
 //! # Determinism
 //! Every reduction (P, |v|², |F|², the largest displacement) is summed sequentially within fixed
-//! chunks of [`CHUNK`] nodes, and the chunk results are combined sequentially in chunk order. Chunks
+//! chunks of 1024 nodes, and the chunk results are combined sequentially in chunk order. Chunks
 //! run in parallel (rayon) for large problems, but their boundaries do not depend on the thread
 //! count, so 1 and N threads give bitwise-identical trajectories. A step allocates nothing.
 
@@ -43,7 +43,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Nodes per reduction chunk: the fixed summation blocks behind the determinism guarantee.
-pub const CHUNK: usize = 1024;
+const CHUNK: usize = 1024;
 
 /// Problems smaller than this run their chunks on the calling thread: below it, handing work to the
 /// rayon pool costs more than the few flops per node it saves. Either path gives the same bits.

@@ -285,8 +285,8 @@ impl<'p> Simulation<'p> {
         let total = *offsets.last().unwrap_or(&0);
         let mut x = vec![Vec3::zeros(); total];
         let mut f = vec![Vec3::zeros(); total];
-        let mut fire =
-            Fire::new(FireSettings::for_scales(self.params.numerics.min_edge_length, self.force_scale), total);
+        let settings = FireSettings::for_scales(self.params.numerics.min_edge_length, self.force_scale);
+        let mut fire = Fire::new(settings, total);
         self.save_good();
         self.evaluate()?;
         let mut residual = self.residual();
@@ -299,8 +299,12 @@ impl<'p> Simulation<'p> {
             }
             previous = Some((self.forces.energy().total(), self.volumes()));
             self.pack(&offsets, &mut x, &mut f);
-            fire.step(&mut x, &f, &mobile);
             self.save_good();
+            fire.step(&mut x, &f, &mobile);
+            if fire.stalled() {
+                tracing::warn!("FIRE stalled after {} uphill steps in a row at step {}", fire.uphill_run(), self.step);
+                break;
+            }
             self.unpack(&offsets, &x);
             self.step += 1;
             self.evaluate()?;

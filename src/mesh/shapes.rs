@@ -88,3 +88,52 @@ pub fn cuboid(size: Vec3, centre: Vec3) -> CellMesh {
     let (mesh, _) = CellMesh::from_polygons(positions, &quads).expect("box indices are in range");
     mesh
 }
+
+/// Axis-aligned cube of edge `size` centred at `centre`, each face an `n`×`n` grid of squares split
+/// into two triangles along alternating diagonals: 6n² + 2 nodes, 12n² faces, outward. A cell far from a sphere, for relaxation tests.
+pub fn subdivided_cube(size: Real, n: u32, centre: Vec3) -> CellMesh {
+    assert!(n >= 1, "a cube face needs at least one square");
+    let n = n as i64;
+    let mut index: HashMap<[i64; 3], u32> = HashMap::new();
+    let mut positions = Vec::new();
+    let mut node = |c: [i64; 3], positions: &mut Vec<Vec3>| {
+        *index.entry(c).or_insert_with(|| {
+            positions.push(
+                centre + Vec3::new(c[0] as Real, c[1] as Real, c[2] as Real) * (size / n as Real)
+                    - Vec3::repeat(size / 2.0),
+            );
+            (positions.len() - 1) as u32
+        })
+    };
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [0, n] {
+            for a in 0..n {
+                for b in 0..n {
+                    let corner = |du: i64, dv: i64| {
+                        let mut c = [0i64; 3];
+                        c[axis] = side;
+                        c[u] = a + du;
+                        c[v] = b + dv;
+                        c
+                    };
+                    // (u, v, axis) is right-handed: counter-clockwise in (u, v) faces +axis. The
+                    // squares are split along alternating diagonals (a symmetric pattern), so no
+                    // direction is preferred when the cube deforms.
+                    let mut q =
+                        [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)].map(|c| node(c, &mut positions));
+                    if side == 0 {
+                        q.reverse();
+                    }
+                    if (a + b) % 2 == 0 {
+                        triangles.extend([[q[0], q[1], q[2]], [q[0], q[2], q[3]]]);
+                    } else {
+                        triangles.extend([[q[0], q[1], q[3]], [q[1], q[2], q[3]]]);
+                    }
+                }
+            }
+        }
+    }
+    CellMesh::from_triangles(positions, triangles).expect("cube indices are in range")
+}
