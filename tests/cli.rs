@@ -138,3 +138,111 @@ fn config_check_names_the_bad_key_and_value() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("unstable.toml") && err.contains("time_step"), "{err}");
 }
+
+#[test]
+fn simulate_relaxes_the_demo_and_writes_every_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = tissuefit(&["simulate", demo().to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    for key in [
+        "steps",
+        "force_evaluations",
+        "converged",
+        "residual",
+        "wall_seconds",
+        "threads",
+        "cells",
+        "nodes",
+        "seconds_per_node_step",
+    ] {
+        assert!(summary.get(key).is_some(), "summary.json lacks {key}: {summary}");
+    }
+    assert_eq!(summary["converged"], true);
+    assert!(summary["residual"].as_f64().unwrap() < 1e-3);
+    let frames = summary["frames"].as_u64().unwrap() as usize;
+    assert!(frames >= 2);
+    // stats.csv: a header and one row per cell per sample.
+    let stats = std::fs::read_to_string(out.join("stats.csv")).unwrap();
+    assert_eq!(stats.lines().count(), 1 + 4 * frames);
+    assert!(stats.lines().next().unwrap().starts_with("step,time,cell,kind,"));
+    assert!(!out.join("stats.csv.partial").exists());
+    let pvd = std::fs::read_to_string(out.join("frames.pvd")).unwrap();
+    assert_eq!(pvd.matches("<DataSet").count(), frames);
+    assert_eq!(std::fs::read_dir(out.join("frames")).unwrap().count(), frames);
+    // final.vtk is a valid input again, and config.toml a valid config.
+    let again = json(&tissuefit(&["inspect", out.join("final.vtk").to_str().unwrap(), "--json"]));
+    assert_eq!(again["totals"]["valid_cells"].as_u64(), Some(4));
+    Parameters::load(&out.join("config.toml")).unwrap();
+
+    // The same folder again: refused without --force, accepted with it.
+    let o = tissuefit(&["simulate", demo().to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--force"));
+    let o = tissuefit(&[
+        "simulate",
+        demo().to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--force",
+        "--max-steps",
+        "3",
+    ]);
+    // Three steps cannot relax the demo: completed, not converged, exit 1.
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!((summary["converged"].as_bool(), summary["steps"].as_u64()), (Some(false), Some(3)));
+}
+
+#[test]
+fn simulate_time_mode_runs_the_duration() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("time");
+    let o = tissuefit(&[
+        "simulate",
+        demo().to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--mode",
+        "time",
+        "--duration",
+        "2e-6",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["steps"].as_u64(), Some(20));
+    assert!((summary["simulated_time"].as_f64().unwrap() - 2e-6).abs() < 1e-12);
+}
+
+#[test]
+fn simulate_rejects_a_bad_config_before_writing_anything() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("bad.toml");
+    std::fs::write(&config, "[simulation]\nmode = \"forever\"\n").unwrap();
+    let out = dir.path().join("run");
+    let o = tissuefit(&[
+        "simulate",
+        demo().to_str().unwrap(),
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("bad.toml") && err.contains("forever"), "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn bench_prints_one_json_object() {
+    let o = tissuefit(&["bench", "forces-cell", "--repeat", "2"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = json(&o);
+    for key in ["scenario", "threads", "cells", "nodes", "steps", "wall_seconds", "seconds_per_node_step"] {
+        assert!(v.get(key).is_some(), "bench output lacks {key}: {v}");
+    }
+    assert_eq!(v["nodes"].as_u64(), Some(1016));
+    assert!(v["seconds_per_node_step"].as_f64().unwrap() > 0.0);
+}

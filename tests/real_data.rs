@@ -230,3 +230,32 @@ fn coordinates_agree_with_vtkio_where_vtkio_can_read() {
         }
     }
 }
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn real_simucell3d_tissues_relax_without_contacts() {
+    // Internal forces only (contacts come with the next stage): each cell relaxes on its own.
+    use tissuefit::mechanics::{Observer, Parameters, Sample, Simulation};
+    struct Quiet;
+    impl Observer for Quiet {
+        fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            Ok(())
+        }
+    }
+    for name in ["simucell3d__cell_doublet.vtk", "simucell3d__cell_triplet.vtk"] {
+        let t = read_tissue(&real(name), &ReadOptions::default()).unwrap().tissue;
+        let mut p = Parameters::default();
+        p.simulation.max_steps = 400;
+        p.simulation.sample_every_steps = u64::MAX;
+        let mut sim = Simulation::new(t, &p).unwrap();
+        let s = sim.run(&mut Quiet).unwrap();
+        assert!(s.residual.is_finite() && s.energy.total().is_finite(), "{name}: {s:?}");
+        for c in sim.tissue().cells() {
+            assert_eq!(c.mesh().validate(), Ok(()), "{name} cell {} after relaxation", c.id());
+        }
+    }
+    // embryo_1 stores per-cell ids in cell_type_id: the default parameters do not define types 5..15.
+    let t = read_tissue(&real("simucell3d__embryo_1.vtk"), &ReadOptions::default()).unwrap().tissue;
+    let err = Simulation::new(t, &Parameters::default()).err().expect("undefined cell types are an error").to_string();
+    assert!(err.contains("cell_type 5") && err.contains("[[cell_types]]"), "{err}");
+}

@@ -1,5 +1,6 @@
 //! Command-line interface: thin subcommands that parse arguments, call the library, and print.
 
+mod bench;
 mod config;
 mod convert;
 mod inspect;
@@ -36,6 +37,8 @@ pub enum Command {
     /// Simulate a tissue: relax it to mechanical equilibrium, or run it for a time span with growth.
     /// Exits with 1 when an equilibrium run ends unconverged.
     Simulate(simulate::SimulateArgs),
+    /// Throughput benchmarks: print one JSON object (forces-cell, forces-tissue FILE, relax-cube).
+    Bench(bench::BenchArgs),
     /// Simulation parameters: print the commented defaults, or check a config file.
     #[command(subcommand)]
     Config(config::ConfigCommand),
@@ -79,6 +82,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Convert(args) => convert::run(&args),
         Command::Config(cmd) => config::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
+        Command::Bench(args) => bench::run(&args),
     }
 }
 

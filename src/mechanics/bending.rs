@@ -499,38 +499,4 @@ mod tests {
             assert!((a - offset - f).norm() <= 1e-12 * f.norm());
         }
     }
-
-    /// Run with `cargo test --release --lib bending_timing -- --ignored --nocapture`.
-    #[test]
-    #[ignore = "timing, not a check"]
-    fn bending_timing() {
-        let setup = random_cell(5, 2);
-        let p = &setup.positions;
-        let area_vectors: Vec<Vec3> = setup
-            .triangles
-            .iter()
-            .map(|t| triangle_area_vector(&p[t[0] as usize], &p[t[1] as usize], &p[t[2] as usize]))
-            .collect();
-        let areas: Vec<Real> = area_vectors.iter().map(|v| v.norm()).collect();
-        let normals: Vec<Vec3> = area_vectors.iter().map(|v| v.normalize()).collect();
-        let mut forces = vec![Vec3::zeros(); p.len()];
-        let repeats = 2000;
-        let start = std::time::Instant::now();
-        let mut energy = 0.0;
-        for _ in 0..repeats {
-            energy += add_bending_forces(
-                p,
-                &setup.triangles,
-                &normals,
-                &areas,
-                &setup.types,
-                MODULI,
-                std::hint::black_box(&setup.hinges),
-                &mut forces,
-            );
-        }
-        let ns = start.elapsed().as_nanos() as Real / (repeats * setup.hinges.len()) as Real;
-        println!("{} hinges: {ns:.1} ns per hinge (energy {energy:e})", setup.hinges.len());
-        assert!(energy.is_finite());
-    }
 }

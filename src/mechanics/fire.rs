@@ -78,7 +78,7 @@ pub struct FireSettings {
     /// N_P≤0^max: after more than this many consecutive restarts (steps with P ≤ 0, i.e. moving
     /// uphill), [`Fire::stalled`] turns true. Then even the smallest steps overshoot (Δt is at
     /// Δt_min), usually because the forces are not the gradient of an energy or are too noisy; the
-    /// caller should stop and report non-convergence. Default 2000.
+    /// caller should stop or change method (the simulation driver falls back to integrating the equations of motion). Default 200 (the FIRE 2.0 paper uses 2000; a stalled relaxation of a mesh without remeshing does not recover, so giving up early wastes fewer evaluations).
     pub max_uphill: usize,
 }
 
@@ -87,7 +87,7 @@ impl FireSettings {
     /// `force_scale` and whose natural length is `length` (both > 0): Δt chosen so that one step
     /// from rest (Δx = Δt²·F) moves a node by 1e-2·length under force_scale, Δt_max = 10·Δt_start,
     /// Δt_min = 0.02·Δt_start, max_displacement = 0.1·length, and the paper's N_delay = 20,
-    /// f_inc = 1.1, f_dec = 0.5, α_start = 0.25, f_α = 0.99, N_P≤0^max = 2000.
+    /// f_inc = 1.1, f_dec = 0.5, α_start = 0.25, f_α = 0.99, N_P≤0^max = 200 (see `max_uphill`).
     pub fn for_scales(length: Real, force_scale: Real) -> Self {
         let dt_start = (1e-2 * length / force_scale).sqrt();
         Self {
@@ -100,7 +100,7 @@ impl FireSettings {
             alpha_start: 0.25,
             f_alpha: 0.99,
             max_displacement: 0.1 * length,
-            max_uphill: 2000,
+            max_uphill: 200,
         }
     }
 

@@ -302,8 +302,15 @@ impl<'p> Simulation<'p> {
             self.save_good();
             fire.step(&mut x, &f, &mobile);
             if fire.stalled() {
-                tracing::warn!("FIRE stalled after {} uphill steps in a row at step {}", fire.uphill_run(), self.step);
-                break;
+                // Stuck (typically slivers that only remeshing would remove): finish with the
+                // equations of motion, which descend monotonically with a stable step.
+                tracing::warn!(
+                    "FIRE stalled after {} uphill steps in a row at step {}; continuing with {:?} integration",
+                    fire.uphill_run(),
+                    self.step,
+                    self.params.numerics.dynamics
+                );
+                return self.relax_integrate_from(observer, residual);
             }
             self.unpack(&offsets, &x);
             self.step += 1;
@@ -321,10 +328,19 @@ impl<'p> Simulation<'p> {
 
     /// Relaxation by integrating the equations of motion (no growth).
     fn relax_integrate(&mut self, observer: &mut dyn Observer) -> Result<SimulationSummary, SimulationError> {
-        let s = self.params.simulation.clone();
         self.evaluate()?;
-        let mut residual = self.residual();
+        let residual = self.residual();
         self.sample(observer, residual)?;
+        self.relax_integrate_from(observer, residual)
+    }
+
+    /// Continues a relaxation by integration from the current, evaluated state.
+    fn relax_integrate_from(
+        &mut self,
+        observer: &mut dyn Observer,
+        mut residual: Real,
+    ) -> Result<SimulationSummary, SimulationError> {
+        let s = self.params.simulation.clone();
         let mut previous: Option<(Real, Vec<Real>)> = None;
         while self.step < s.max_steps {
             if self.relaxed(residual, previous.as_ref().map(|(e, v)| (*e, v.as_slice()))) {
