@@ -259,3 +259,18 @@ fn real_simucell3d_tissues_relax_without_contacts() {
     let err = Simulation::new(t, &Parameters::default()).err().expect("undefined cell types are an error").to_string();
     assert!(err.contains("cell_type 5") && err.contains("[[cell_types]]"), "{err}");
 }
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn simulate_refuses_undefined_cell_types_before_writing_anything() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(["simulate", real("simucell3d__embryo_1.vtk").to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("embryo_1.vtk") && err.contains("cell_type 5"), "{err}");
+    assert!(!out.exists(), "nothing may be written when the run cannot start");
+}

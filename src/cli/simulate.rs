@@ -141,6 +141,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         tracing::warn!("{}: {w}", args.tissue.display());
     }
     let (cells, nodes) = (read.tissue.len(), read.tissue.node_count());
+    // Checked before anything is written: every cell has a parameter set, something moves.
+    let mut sim =
+        Simulation::new(read.tissue, &params).with_context(|| format!("simulating {}", args.tissue.display()))?;
     prepare_output(&args.out, args.force)?;
     write_bytes_atomically(&args.out.join("config.toml"), params.to_toml_string().as_bytes())?;
 
@@ -158,8 +161,6 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
     let recorder = SimulationRecorder::create(&args.out, fire)?;
     let mut observer = Progress { recorder, bar };
 
-    let mut sim =
-        Simulation::new(read.tissue, &params).with_context(|| format!("simulating {}", args.tissue.display()))?;
     let started = Instant::now();
     let result = sim.run(&mut observer);
     let wall = started.elapsed().as_secs_f64();
@@ -171,9 +172,12 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
             let saved = args.out.join("last_good.vtk");
             write_simucell3d(&saved, &last_good, &[])?;
             bail!(
-                "simulating {}: step {step}, cell {cell}: {what}. {hint} to {}",
+                "simulating {}: step {step}, cell {cell}: {what}. {hint}. The last good state (step {}) is in {}; \
+                 the statistics so far in {}",
                 args.tissue.display(),
-                saved.display()
+                step.saturating_sub(1),
+                saved.display(),
+                args.out.join("stats.csv.partial").display()
             );
         }
         Err(e) => {

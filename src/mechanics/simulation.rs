@@ -67,8 +67,8 @@ pub enum SimulationError {
     Observer { step: u64, source: Box<dyn std::error::Error + Send + Sync> },
 }
 
-const HINT: &str = "Use a smaller numerics.time_step or a larger numerics.damping (tissuefit config check estimates \
-                    the stable step); the last good state was saved";
+const HINT: &str = "Use a smaller numerics.time_step or a larger numerics.damping (`tissuefit config check` \
+                    estimates the stable step)";
 
 /// Typical tension γ̄ (N/m): the mean surface tension over the faces of moving cells; falls back to
 /// the largest tension of any type, then to 1e-3 N/m, so the force scale is never zero.
