@@ -251,8 +251,7 @@ impl<'p> Simulation<'p> {
         let settings = &self.params.simulation;
         match (settings.mode, settings.method) {
             (SimulationMode::Time, _) => self.run_time(observer),
-            (SimulationMode::Equilibrium, RelaxMethod::Fire) => self.relax_fire(observer),
-            (SimulationMode::Equilibrium, RelaxMethod::Integrate) => self.relax_integrate(observer),
+            (SimulationMode::Equilibrium, method) => self.relax(observer, method),
         }
     }
 
@@ -278,15 +277,18 @@ impl<'p> Simulation<'p> {
         }
     }
 
-    /// Relaxation with the FIRE minimiser (no physical time, no growth).
-    fn relax_fire(&mut self, observer: &mut dyn Observer) -> Result<SimulationSummary, SimulationError> {
+    /// Relaxation to equilibrium (no growth) with FIRE or by integrating the equations of motion.
+    /// A stalled FIRE hands over to integration, which descends with a stable step.
+    fn relax(
+        &mut self,
+        observer: &mut dyn Observer,
+        method: RelaxMethod,
+    ) -> Result<SimulationSummary, SimulationError> {
         let s = self.params.simulation.clone();
-        let (offsets, mobile) = self.layout();
-        let total = *offsets.last().unwrap_or(&0);
-        let mut x = vec![Vec3::zeros(); total];
-        let mut f = vec![Vec3::zeros(); total];
-        let settings = FireSettings::for_scales(self.params.numerics.min_edge_length, self.force_scale);
-        let mut fire = Fire::new(settings, total);
+        let mut mover = match method {
+            RelaxMethod::Fire => Mover::fire(self),
+            RelaxMethod::Integrate => Mover::Integrate,
+        };
         self.save_good();
         self.evaluate()?;
         let mut residual = self.residual();
@@ -298,57 +300,16 @@ impl<'p> Simulation<'p> {
                 return Ok(self.summary(true, residual));
             }
             previous = Some((self.forces.energy().total(), self.volumes()));
-            self.pack(&offsets, &mut x, &mut f);
-            self.save_good();
-            fire.step(&mut x, &f, &mobile);
-            if fire.stalled() {
-                // Stuck (typically slivers that only remeshing would remove): finish with the
-                // equations of motion, which descend monotonically with a stable step.
+            if mover.step(self)? == Moved::Stalled {
+                // Typically slivers that only remeshing would remove.
                 tracing::warn!(
-                    "FIRE stalled after {} uphill steps in a row at step {}; continuing with {:?} integration",
-                    fire.uphill_run(),
+                    "FIRE stalled (too many uphill steps in a row) at step {}; continuing with {:?} integration",
                     self.step,
                     self.params.numerics.dynamics
                 );
-                return self.relax_integrate_from(observer, residual);
+                mover = Mover::Integrate;
+                continue;
             }
-            self.unpack(&offsets, &x);
-            self.step += 1;
-            self.evaluate()?;
-            residual = self.residual();
-            observer.progress(self.step, residual);
-            if self.step.is_multiple_of(s.sample_every_steps) {
-                self.sample(observer, residual)?;
-            }
-        }
-        let converged = self.relaxed(residual, previous.as_ref().map(|(e, v)| (*e, v.as_slice())));
-        self.sample(observer, residual)?;
-        Ok(self.summary(converged, residual))
-    }
-
-    /// Relaxation by integrating the equations of motion (no growth).
-    fn relax_integrate(&mut self, observer: &mut dyn Observer) -> Result<SimulationSummary, SimulationError> {
-        self.evaluate()?;
-        let residual = self.residual();
-        self.sample(observer, residual)?;
-        self.relax_integrate_from(observer, residual)
-    }
-
-    /// Continues a relaxation by integration from the current, evaluated state.
-    fn relax_integrate_from(
-        &mut self,
-        observer: &mut dyn Observer,
-        mut residual: Real,
-    ) -> Result<SimulationSummary, SimulationError> {
-        let s = self.params.simulation.clone();
-        let mut previous: Option<(Real, Vec<Real>)> = None;
-        while self.step < s.max_steps {
-            if self.relaxed(residual, previous.as_ref().map(|(e, v)| (*e, v.as_slice()))) {
-                self.sample(observer, residual)?;
-                return Ok(self.summary(true, residual));
-            }
-            previous = Some((self.forces.energy().total(), self.volumes()));
-            self.advance(false)?;
             residual = self.residual();
             observer.progress(self.step, residual);
             if self.step.is_multiple_of(s.sample_every_steps) {
@@ -430,5 +391,53 @@ impl<'p> Simulation<'p> {
         for (c, cell) in self.tissue.cells_mut().iter_mut().enumerate() {
             cell.positions_mut().copy_from_slice(&x[offsets[c]..offsets[c + 1]]);
         }
+    }
+}
+
+/// Whether a relaxation step moved the nodes.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+enum Moved {
+    Yes,
+    /// FIRE is stuck; nothing moved.
+    Stalled,
+}
+
+/// How a relaxation moves the nodes: FIRE on packed arrays of all nodes, or the equations of motion.
+enum Mover {
+    Fire { fire: Box<Fire>, offsets: Vec<usize>, mobile: Vec<bool>, x: Vec<Vec3>, f: Vec<Vec3> },
+    Integrate,
+}
+
+impl Mover {
+    fn fire(sim: &Simulation<'_>) -> Self {
+        let (offsets, mobile) = sim.layout();
+        let total = *offsets.last().unwrap_or(&0);
+        let settings = FireSettings::for_scales(sim.params.numerics.min_edge_length, sim.force_scale);
+        Mover::Fire {
+            fire: Box::new(Fire::new(settings, total)),
+            offsets,
+            mobile,
+            x: vec![Vec3::zeros(); total],
+            f: vec![Vec3::zeros(); total],
+        }
+    }
+
+    /// One step from the current, evaluated state; evaluates the forces at the new positions.
+    fn step(&mut self, sim: &mut Simulation<'_>) -> Result<Moved, SimulationError> {
+        match self {
+            Mover::Fire { fire, offsets, mobile, x, f } => {
+                sim.pack(offsets, x, f);
+                sim.save_good();
+                fire.step(x, f, mobile);
+                if fire.stalled() {
+                    return Ok(Moved::Stalled);
+                }
+                sim.unpack(offsets, x);
+                sim.step += 1;
+                sim.evaluate()?;
+            }
+            Mover::Integrate => sim.advance(false)?,
+        }
+        Ok(Moved::Yes)
     }
 }
