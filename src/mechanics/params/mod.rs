@@ -1,0 +1,400 @@
+//! Simulation parameters: the numerics of a run and one parameter set per cell type, in SI units.
+//!
+//! The model (DESIGN.md §3; Runser et al., SimuCell3D, Table 2 "Model parameters"): a cell's energy is
+//! U = K·V·(ln(V/V0) − 1) + (k_a/2)(A/A0 − 1)² + Σ_f γ_f·A_f + bending, with A0 = (Q0·V0²)^(1/3) and
+//! the pressure p = −K ln(V/V0) capped at p_max ([`CellTypeParams::pressure`]). Faces of different
+//! cells closer than the cutoff c adhere (ω) or repel (ξ). Nodes move either dynamically (mass
+//! m = ρV/N, damping ζ, semi-implicit Euler) or overdamped (r += Δt·f/ζ).
+//!
+//! # Config files
+//! A TOML file holds `[numerics]` and a list of `[[cell_types]]`; a cell's `cell_type` (SimuCell3D's
+//! `cell_type_id`) indexes that list. Files may be partial. Missing `[numerics]` fields take their
+//! defaults (the paper gives separate dynamic and overdamped defaults for ζ: the one of the file's
+//! `dynamics` is used). A given `cell_types` list replaces the default one, and each entry's missing
+//! fields take the defaults *of that entry's kind* ([`CellTypeParams::default_for`]). This is done by
+//! overlaying the user's TOML tables on the serialised defaults, key by key, and only then
+//! deserialising: one code path, so an unknown key is rejected wherever it sits, and its full path
+//! (`cell_types[0].faces.apical`) is named.
+//!
+//! # Validation
+//! [`Parameters::validate`] collects every problem at once, each naming its TOML path, the unit and
+//! a fix. It includes a time-step stability estimate ([`Parameters::time_step_limits`]), because an
+//! unstable Δt otherwise shows up much later as exploding meshes.
+
+use super::settings::{RelaxMethod, SimulationMode, SimulationSettings};
+use crate::geometry::Real;
+use crate::mesh::{CellKind, FaceType};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+use std::path::Path;
+use toml::Table;
+
+mod reading;
+#[cfg(test)]
+mod tests;
+mod validate;
+mod writing;
+
+use reading::resolve;
+pub use validate::TimeStepLimit;
+use writing::write_toml;
+
+/// Isoperimetric ratio A³/V² of a sphere, 36π ≈ 113.1: the smallest of any closed surface.
+pub const SPHERE_ISOPERIMETRIC_RATIO: Real = 36.0 * PI;
+
+/// Everything a simulation needs besides the geometry.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Parameters {
+    /// Numerical parameters shared by all cells. Defaults: [`Numerics::default`].
+    pub numerics: Numerics,
+    /// One parameter set per cell type; a cell's `cell_type` (SimuCell3D's `cell_type_id`) indexes
+    /// this list. Default: one entry per [`CellKind`], in code order (epithelial, ecm, lumen,
+    /// nucleus, static), each with [`CellTypeParams::default_for`] its kind.
+    pub cell_types: Vec<CellTypeParams>,
+    /// What `tissuefit simulate` runs and when it stops. Defaults: [`SimulationSettings::default`].
+    pub simulation: SimulationSettings,
+}
+
+/// How nodes move.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Dynamics {
+    /// Newtonian with viscous damping: p ← p + Δt·(f − (ζ/m)·p), r ← r + Δt·p/m (semi-implicit Euler).
+    #[default]
+    Dynamic,
+    /// First order: r ← r + Δt·f/ζ.
+    Overdamped,
+}
+
+impl Dynamics {
+    /// All variants.
+    pub const ALL: [Dynamics; 2] = [Dynamics::Dynamic, Dynamics::Overdamped];
+}
+
+/// How contacts between cells are modelled (DESIGN.md §3).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactModel {
+    /// Paper Eq. 2: node–face springs with adhesion ω and repulsion ξ within the cutoff c.
+    #[default]
+    Spring,
+    /// Node–node coupling: nodes of different cells closer than c, both with mean curvature below
+    /// H_max, are tied together (positions, forces and momenta averaged).
+    Coupling,
+}
+
+impl ContactModel {
+    /// All variants.
+    pub const ALL: [ContactModel; 2] = [ContactModel::Spring, ContactModel::Coupling];
+}
+
+/// Numerical parameters (paper Table 2, "Numerical parameters").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Numerics {
+    /// Minimum edge length l_min [m]: remeshing collapses shorter edges and splits edges longer than
+    /// l_max = 3·l_min ([`Numerics::max_edge_length`]). Default 2e-7 m.
+    pub min_edge_length: Real,
+    /// Contact cutoff distance c [m]: faces of different cells farther apart do not interact; must
+    /// not exceed l_max. Default 2e-7 m.
+    pub contact_cutoff: Real,
+    /// Viscous damping coefficient ζ [kg/s], per node. Default 2.5e-10 kg/s (the paper's dynamic
+    /// default); the paper's overdamped default is 3e-9 kg/s, which a config file with
+    /// `dynamics = "overdamped"` and no `damping` gets.
+    pub damping: Real,
+    /// Time step Δt [s]. Default 1e-7 s.
+    pub time_step: Real,
+    /// Equation of motion. Default [`Dynamics::Dynamic`].
+    pub dynamics: Dynamics,
+    /// Contact model. Default [`ContactModel::Spring`].
+    pub contact_model: ContactModel,
+    /// Seed of every random draw (growth rates, division volumes and planes). Default 1.
+    pub seed: u64,
+}
+
+impl Numerics {
+    /// The paper's overdamped default damping ζ [kg/s] (Table 2).
+    pub const PAPER_OVERDAMPED_DAMPING: Real = 3e-9;
+
+    /// Paper Table 2 defaults for the given equation of motion (they differ only in ζ).
+    pub fn default_for(dynamics: Dynamics) -> Self {
+        Self {
+            min_edge_length: 2e-7,
+            contact_cutoff: 2e-7,
+            damping: match dynamics {
+                Dynamics::Dynamic => 2.5e-10,
+                Dynamics::Overdamped => Self::PAPER_OVERDAMPED_DAMPING,
+            },
+            time_step: 1e-7,
+            dynamics,
+            contact_model: ContactModel::Spring,
+            seed: 1,
+        }
+    }
+
+    /// Maximum edge length l_max = 3·l_min [m]: longer edges are split.
+    pub fn max_edge_length(&self) -> Real {
+        3.0 * self.min_edge_length
+    }
+}
+
+impl Default for Numerics {
+    fn default() -> Self {
+        Self::default_for(Dynamics::Dynamic)
+    }
+}
+
+/// The parameters of one cell type (paper Table 2, "Cell volume parameters" and "Cell surface
+/// parameters"). Defaults depend on the kind: [`CellTypeParams::default_for`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CellTypeParams {
+    /// Name, unique within the list; used in reports. Default: the kind's name.
+    pub name: String,
+    /// What the cells of this type are. Default [`CellKind::Epithelial`].
+    pub kind: CellKind,
+    /// Mass density ρ [kg/m³]; node mass m = ρV/N in the dynamic model. Default 1000 kg/m³.
+    pub mass_density: Real,
+    /// Bulk modulus K [Pa]: pressure p = −K ln(V/V0). Default 2500 Pa (ECM: 0).
+    pub bulk_modulus: Real,
+    /// Largest internal pressure p_max [Pa]; `inf` for no cap. Default 2500 Pa.
+    pub max_pressure: Real,
+    /// Volume V_min [m³] below which a cell is removed (apoptosis). Default 3.7e-16 m³ (other kinds
+    /// than epithelial: 0, never removed).
+    pub min_volume: Real,
+    /// Mean volume V_max [m³] at which a cell divides; `inf` for never. Default 1.4e-15 m³ (other
+    /// kinds than epithelial: inf).
+    pub division_volume: Real,
+    /// Standard deviation [m³] of the division volume drawn per cell. Default 0 m³.
+    pub division_volume_std: Real,
+    /// Mean volumetric growth rate g = dV0/dt [m³/s]; negative shrinks. Default 1e-11 m³/s (other
+    /// kinds than epithelial: 0).
+    pub growth_rate: Real,
+    /// Standard deviation [m³/s] of the growth rate drawn per cell. Default 0 m³/s.
+    pub growth_rate_std: Real,
+    /// Target isoperimetric ratio Q0 = A³/V² [dimensionless], giving the target area
+    /// A0 = (Q0·V0²)^(1/3); at least 36π (a sphere's). Default 250.
+    pub target_isoperimetric_ratio: Real,
+    /// Area elasticity modulus k_a [J] of the energy (k_a/2)(A/A0 − 1)². Default 1e-15 J.
+    pub area_elasticity: Real,
+    /// Largest mean curvature H_max [1/m] at which a node may be coupled to another cell (coupling
+    /// contact model). Default 5e6 1/m.
+    pub max_coupling_curvature: Real,
+    /// Membrane parameters per face type. Default: Table 2 on every face type (other kinds: the
+    /// reference's tension and repulsion, no adhesion).
+    pub faces: FaceTypeParams,
+}
+
+impl CellTypeParams {
+    /// Defaults of a kind, named after it.
+    ///
+    /// Epithelial: paper Table 2. The other kinds take K, γ and ξ from the reference program's shipped
+    /// scenarios (notes on SimuCell3D, (d) "Non-epithelial types"); they neither grow nor divide,
+    /// have no adhesion (the reference sets none), and are never removed for being small
+    /// (min_volume 0; the reference's 1e-18 m³ means the same, while Table 2's V_min would delete
+    /// every typical nucleus). Every other value is Table 2's.
+    pub fn default_for(kind: CellKind) -> Self {
+        let table2 = Self {
+            name: kind.name().to_owned(),
+            kind,
+            mass_density: 1000.0,
+            bulk_modulus: 2500.0,
+            max_pressure: 2500.0,
+            min_volume: 3.7e-16,
+            division_volume: 1.4e-15,
+            division_volume_std: 0.0,
+            growth_rate: 1e-11,
+            growth_rate_std: 0.0,
+            target_isoperimetric_ratio: 250.0,
+            area_elasticity: 1e-15,
+            max_coupling_curvature: 5e6,
+            faces: FaceTypeParams::uniform(FaceParams::default()),
+        };
+        // (K [Pa], γ [N/m], ξ [Pa/m]) from the reference scenarios.
+        let (bulk_modulus, surface_tension, repulsion) = match kind {
+            CellKind::Epithelial => return table2,
+            CellKind::Ecm => (0.0, 5e-4, 2e9),
+            CellKind::Lumen => (2500.0, 4e-4, 5e9),
+            CellKind::Nucleus => (2500.0, 0.0, 1e9),
+            CellKind::Static => (2500.0, 2e-11, 1e9),
+        };
+        let face = FaceParams { surface_tension, adhesion: 0.0, repulsion, ..FaceParams::default() };
+        Self {
+            bulk_modulus,
+            min_volume: 0.0,
+            division_volume: Real::INFINITY,
+            growth_rate: 0.0,
+            faces: FaceTypeParams::uniform(face),
+            ..table2
+        }
+    }
+
+    /// Pressure p = min(−K ln(V/V0), p_max) [Pa] of a cell of volume `volume` and target volume
+    /// `target_volume` (both m³, > 0): the paper's pressure with its cap.
+    pub fn pressure(&self, volume: Real, target_volume: Real) -> Real {
+        (-self.bulk_modulus * (volume / target_volume).ln()).min(self.max_pressure)
+    }
+}
+
+impl Default for CellTypeParams {
+    /// Epithelial defaults (paper Table 2).
+    fn default() -> Self {
+        Self::default_for(CellKind::Epithelial)
+    }
+}
+
+/// Membrane parameters of the three face types of a cell type.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaceTypeParams {
+    /// Apical faces (facing a lumen; every face of an unpolarised cell). Default: Table 2.
+    pub apical: FaceParams,
+    /// Lateral faces (facing another cell). Default: Table 2.
+    pub lateral: FaceParams,
+    /// Basal faces (facing the exterior or the ECM). Default: Table 2.
+    pub basal: FaceParams,
+}
+
+impl FaceTypeParams {
+    /// The same parameters on every face type.
+    pub fn uniform(face: FaceParams) -> Self {
+        Self { apical: face.clone(), lateral: face.clone(), basal: face }
+    }
+
+    /// Parameters of one face type.
+    pub fn get(&self, face_type: FaceType) -> &FaceParams {
+        match face_type {
+            FaceType::Apical => &self.apical,
+            FaceType::Lateral => &self.lateral,
+            FaceType::Basal => &self.basal,
+        }
+    }
+
+    /// Mutable parameters of one face type.
+    pub fn get_mut(&mut self, face_type: FaceType) -> &mut FaceParams {
+        match face_type {
+            FaceType::Apical => &mut self.apical,
+            FaceType::Lateral => &mut self.lateral,
+            FaceType::Basal => &mut self.basal,
+        }
+    }
+
+    /// The three face types with their parameters, in code order.
+    pub fn iter(&self) -> impl Iterator<Item = (FaceType, &FaceParams)> {
+        FaceType::ALL.into_iter().map(|face_type| (face_type, self.get(face_type)))
+    }
+}
+
+/// Membrane parameters of one face type (paper Table 2, "Cell surface parameters").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaceParams {
+    /// Surface tension γ [N/m]: energy γ·A per face. Default 1e-3 N/m.
+    pub surface_tension: Real,
+    /// Bending modulus k_b [J] of the discrete hinge energy. Default 2e-18 J.
+    pub bending_modulus: Real,
+    /// Adhesion strength ω [Pa/m]: contact stress per unit separation. Default 1e9 Pa/m.
+    pub adhesion: Real,
+    /// Repulsion strength ξ [Pa/m]: contact stress per unit penetration. Default 1e9 Pa/m.
+    pub repulsion: Real,
+}
+
+impl Default for FaceParams {
+    /// Paper Table 2.
+    fn default() -> Self {
+        Self { surface_tension: 1e-3, bending_modulus: 2e-18, adhesion: 1e9, repulsion: 1e9 }
+    }
+}
+
+impl Default for Parameters {
+    /// Table 2 numerics and one cell type per kind, in code order, so that SimuCell3D's
+    /// `cell_type_id` = `global_cell_id` files map onto the list as they are.
+    fn default() -> Self {
+        Self {
+            numerics: Numerics::default(),
+            cell_types: CellKind::ALL.into_iter().map(CellTypeParams::default_for).collect(),
+            simulation: SimulationSettings::default(),
+        }
+    }
+}
+
+/// Parameters that could not be read or are not valid. Every message names the origin (the file).
+#[derive(Debug, thiserror::Error)]
+pub enum ParamError {
+    /// The file could not be read.
+    #[error("{origin}: cannot read: {source}")]
+    Read { origin: String, source: std::io::Error },
+    /// The text is not TOML.
+    #[error("{origin}: {message}")]
+    Syntax { origin: String, message: String },
+    /// The TOML does not fit the schema: unknown keys, wrong value types.
+    #[error("{}", prefixed_lines(.origin, .problems))]
+    Schema { origin: String, problems: Vec<String> },
+    /// Values out of range, inconsistent, or an unstable time step.
+    #[error("{}", prefixed_lines(.origin, .problems))]
+    Invalid { origin: String, problems: Vec<String> },
+}
+
+fn prefixed_lines(origin: &str, problems: &[String]) -> String {
+    problems.iter().map(|problem| format!("{origin}: {problem}")).collect::<Vec<_>>().join("\n")
+}
+
+impl Parameters {
+    /// Reads and validates a TOML parameter file (partial files allowed: see the module doc).
+    /// The result passed [`Parameters::validate`]; call it again for the warnings.
+    pub fn load(path: &Path) -> Result<Self, ParamError> {
+        let origin = path.display().to_string();
+        let text =
+            std::fs::read_to_string(path).map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
+        Self::from_toml_str(&text, &origin)
+    }
+
+    /// Parses and validates TOML text; `origin` (usually the file path) prefixes every error.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ParamError> {
+        let table: Table = toml::from_str(text)
+            .map_err(|error| ParamError::Syntax { origin: origin.to_owned(), message: error.to_string() })?;
+        let params = resolve(table).map_err(|problems| ParamError::Schema { origin: origin.to_owned(), problems })?;
+        let (errors, _warnings) = params.check();
+        if errors.is_empty() {
+            Ok(params)
+        } else {
+            Err(ParamError::Invalid { origin: origin.to_owned(), problems: errors })
+        }
+    }
+
+    /// Checks every value; returns the warnings, or an error listing every problem found.
+    pub fn validate(&self) -> Result<Vec<String>, ParamError> {
+        let (errors, warnings) = self.check();
+        if errors.is_empty() {
+            Ok(warnings)
+        } else {
+            Err(ParamError::Invalid { origin: "parameters".to_owned(), problems: errors })
+        }
+    }
+
+    /// The parameters of cell type `index` (a cell's `cell_type`).
+    pub fn cell_type(&self, index: u32) -> Option<&CellTypeParams> {
+        self.cell_types.get(index as usize)
+    }
+
+    /// The time-step stability estimate of every cell type, in list order (see [`TimeStepLimit`]).
+    pub fn time_step_limits(&self) -> Vec<TimeStepLimit> {
+        self.cell_types
+            .iter()
+            .enumerate()
+            .map(|(index, cell_type)| TimeStepLimit::estimate(index, cell_type, &self.numerics))
+            .collect()
+    }
+
+    /// The full parameters as TOML, without comments (for writing the resolved config of a run).
+    pub fn to_toml_string(&self) -> String {
+        write_toml(self, false)
+    }
+
+    /// The default parameters as a complete TOML file in which every section and field carries a
+    /// comment with its meaning, unit and default.
+    pub fn default_toml_commented() -> String {
+        write_toml(&Self::default(), true)
+    }
+}

@@ -1,0 +1,277 @@
+use super::reading::to_value;
+use super::writing::{FIELD_DOCS, fmt_real, is_section};
+use super::*;
+use toml::Value;
+
+fn load(text: &str) -> Result<Parameters, ParamError> {
+    Parameters::from_toml_str(text, "params.toml")
+}
+
+/// The error message of a config that must be rejected.
+fn rejection(text: &str) -> String {
+    match load(text) {
+        Ok(params) => panic!("accepted: {params:?}"),
+        Err(error) => error.to_string(),
+    }
+}
+
+#[test]
+fn defaults_validate_without_errors_or_warnings() {
+    let params = Parameters::default();
+    let warnings = params.validate().expect("defaults are valid");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // The paper's defaults sit well inside the dynamic stability limits: ζΔt/m ≈ 0.1.
+    let epithelial = &params.time_step_limits()[0];
+    assert!((0.05..0.2).contains(&epithelial.damping_ratio), "{epithelial:?}");
+    assert!(epithelial.oscillation_ratio < 1.0, "{epithelial:?}");
+}
+
+#[test]
+fn default_list_follows_cell_kind_codes() {
+    let params = Parameters::default();
+    for kind in CellKind::ALL {
+        let cell_type = params.cell_type(kind.code()).expect("one entry per kind");
+        assert_eq!(cell_type.kind, kind);
+        assert_eq!(cell_type.name, kind.name());
+    }
+    assert!(params.cell_type(5).is_none());
+    assert_eq!(params.cell_types[1].bulk_modulus, 0.0);
+    assert_eq!(params.cell_types[2].faces.lateral.repulsion, 5e9);
+    assert_eq!(params.cell_types[3].faces.basal.surface_tension, 0.0);
+    assert_eq!(params.cell_types[4].faces.apical.adhesion, 0.0);
+}
+
+#[test]
+fn commented_defaults_read_back_exactly() {
+    let text = Parameters::default_toml_commented();
+    assert_eq!(load(&text).expect("commented defaults load"), Parameters::default());
+    assert!(text.contains("division_volume = inf"), "{text}");
+    let plain = Parameters::default().to_toml_string();
+    assert_eq!(load(&plain).expect("plain defaults load"), Parameters::default());
+}
+
+#[test]
+fn resolved_config_round_trips() {
+    let mut params = Parameters::default();
+    params.numerics.seed = 42;
+    params.numerics.contact_model = ContactModel::Coupling;
+    params.cell_types[0].faces.lateral.surface_tension = 1.234_567_891_234e-4;
+    params.cell_types[0].max_pressure = Real::INFINITY;
+    assert_eq!(load(&params.to_toml_string()).expect("loads"), params);
+}
+
+fn count_leaves(value: &Value) -> usize {
+    match value {
+        Value::Table(table) => table.values().map(count_leaves).sum(),
+        Value::Array(items) if is_section(value) => items.iter().map(count_leaves).sum(),
+        _ => 1,
+    }
+}
+
+#[test]
+fn every_default_field_is_documented() {
+    let text = Parameters::default_toml_commented();
+    let lines: Vec<&str> = text.lines().collect();
+    // The comment block directly above line `i`, without the `# ` markers.
+    let comment_above = |i: usize| {
+        let start = lines[..i].iter().rposition(|line| !line.starts_with('#')).map_or(0, |j| j + 1);
+        lines[start..i].iter().map(|line| line.trim_start_matches('#').trim()).collect::<Vec<_>>().join(" ")
+    };
+    let mut assignments = 0;
+    for (i, line) in lines.iter().enumerate() {
+        if line.starts_with('#') || line.trim().is_empty() {
+            continue;
+        }
+        let comment = comment_above(i);
+        assert!(!comment.is_empty() && !comment.contains("(undocumented)"), "{line:?} has no comment");
+        if line.starts_with('[') {
+            continue;
+        }
+        assignments += 1;
+        let (key, value) = line.split_once(" = ").expect("a `key = value` line");
+        assert!(comment.contains(&format!(": {value}.")), "{key}: comment {comment:?} states no default");
+        assert!(comment.len() > key.len() + 20, "{key}: comment {comment:?} explains nothing");
+    }
+    assert_eq!(assignments, count_leaves(&to_value(&Parameters::default())));
+    // Fields are written in the documented (struct) order, not alphabetically.
+    let position = |needle: &str| text.find(needle).unwrap_or_else(|| panic!("{needle} missing"));
+    assert!(position("min_edge_length =") < position("contact_cutoff ="));
+    assert!(position("surface_tension =") < position("adhesion ="));
+    // Every documented path is used, so the table holds no stale entries.
+    for doc in FIELD_DOCS {
+        let key = doc.path.rsplit('.').next().unwrap_or(doc.path);
+        assert!(text.contains(&format!("{key} =")) || text.contains(&format!("{key}]")), "stale doc {}", doc.path);
+    }
+}
+
+#[test]
+fn partial_cell_type_takes_the_defaults_of_its_kind() {
+    let params = load(
+        "[numerics]\n\
+         time_step = 5e-8\n\
+         [[cell_types]]\n\
+         kind = \"nucleus\"\n\
+         bulk_modulus = 3000\n\
+         [cell_types.faces.lateral]\n\
+         surface_tension = 2e-4\n",
+    )
+    .expect("valid partial config");
+    let nucleus = CellTypeParams::default_for(CellKind::Nucleus);
+    assert_eq!(params.numerics, Numerics { time_step: 5e-8, ..Numerics::default() });
+    assert_eq!(params.cell_types.len(), 1);
+    let t = &params.cell_types[0];
+    assert_eq!(t.name, "nucleus");
+    assert_eq!(t.bulk_modulus, 3000.0);
+    assert_eq!(t.growth_rate, nucleus.growth_rate);
+    assert_eq!(t.division_volume, Real::INFINITY);
+    assert_eq!(t.faces.apical, nucleus.faces.apical);
+    assert_eq!(t.faces.lateral.surface_tension, 2e-4);
+    assert_eq!(t.faces.lateral.repulsion, nucleus.faces.lateral.repulsion);
+    assert_eq!(t.faces.lateral.adhesion, 0.0);
+    // Without a kind, an entry is epithelial.
+    let params = load("[[cell_types]]\nname = \"a\"\n").expect("valid");
+    assert_eq!(params.cell_types[0], CellTypeParams { name: "a".into(), ..CellTypeParams::default() });
+}
+
+#[test]
+fn overdamped_file_gets_the_overdamped_damping() {
+    let params = load("[numerics]\ndynamics = \"overdamped\"\n").expect("valid");
+    assert_eq!(params.numerics.damping, Numerics::PAPER_OVERDAMPED_DAMPING);
+    assert!(params.validate().expect("valid").is_empty());
+}
+
+#[test]
+fn unknown_keys_are_rejected_with_their_path() {
+    let message = rejection("[[cell_types]]\n[cell_types.faces.apical]\nsurface_tenson = 1e-3\n");
+    assert!(message.starts_with("params.toml: "), "{message}");
+    assert!(message.contains("unknown field `surface_tenson` in cell_types[0].faces.apical"), "{message}");
+    assert!(message.contains("did you mean `surface_tension`?"), "{message}");
+    let message = rejection("[numerics]\ntimestep = 1e-7\n[solver]\n");
+    assert!(message.contains("`timestep` in numerics"), "{message}");
+    assert!(message.contains("`solver` at the top level"), "{message}");
+}
+
+#[test]
+fn wrong_types_and_choices_are_rejected() {
+    let message = rejection("[numerics]\ndamping = \"high\"\n");
+    assert!(message.contains("numerics.damping = \"high\": expected a number"), "{message}");
+    let message = rejection("[[cell_types]]\nkind = \"nucleous\"\n");
+    assert!(message.contains("cell_types[0].kind = \"nucleous\": unknown value"), "{message}");
+    let message = rejection("[numerics]\ndynamics = \"fast\"\n");
+    assert!(message.contains("numerics.dynamics"), "{message}");
+    let message = rejection("cell_types = 3\n");
+    assert!(message.contains("array of tables"), "{message}");
+    assert!(matches!(load("[numerics\n"), Err(ParamError::Syntax { .. })));
+}
+
+#[test]
+fn invalid_values_are_rejected_naming_the_field() {
+    let cases = [
+        (
+            "[[cell_types]]\n[cell_types.faces.apical]\nsurface_tension = -1e-3\n",
+            "cell_types[0].faces.apical.surface_tension = -0.001 N/m: must be ≥ 0",
+        ),
+        ("[[cell_types]]\nbulk_modulus = nan\n", "cell_types[0].bulk_modulus = nan Pa: is NaN"),
+        ("[numerics]\ncontact_cutoff = 7e-7\n", "numerics.contact_cutoff = 7e-7 m exceeds l_max"),
+        (
+            "[[cell_types]]\ntarget_isoperimetric_ratio = 100\n",
+            "cell_types[0].target_isoperimetric_ratio = 100.0: is below 36π",
+        ),
+        ("[numerics]\ntime_step = 1e-4\n", "numerics.time_step = 1e-4 s: with numerics.damping"),
+        ("[[cell_types]]\nmin_volume = 2e-15\n", "cell_types[0].min_volume = 2e-15 m³ is not below"),
+        ("[[cell_types]]\ngrowth_rate = inf\n", "cell_types[0].growth_rate = inf m³/s: must be finite"),
+        (
+            "[[cell_types]]\n[[cell_types]]\n",
+            "cell_types[1].name = \"epithelial\" is already the name of cell_types[0]",
+        ),
+        ("cell_types = []\n", "cell_types is empty"),
+    ];
+    for (text, expected) in cases {
+        let message = rejection(text);
+        assert!(message.contains(expected), "expected {expected:?} in {message:?}");
+        assert!(message.starts_with("params.toml: "), "{message}");
+    }
+}
+
+#[test]
+fn every_problem_is_reported_on_its_own_line() {
+    let message = rejection("[numerics]\ndamping = -1\n[[cell_types]]\nmass_density = 0\n");
+    let lines: Vec<&str> = message.lines().collect();
+    assert_eq!(lines.len(), 2, "{message}");
+    assert!(lines[0].starts_with("params.toml: numerics.damping = -1.0 kg/s: must be > 0"), "{message}");
+    assert!(lines[1].starts_with("params.toml: cell_types[0].mass_density = 0.0 kg/m³"), "{message}");
+}
+
+#[test]
+fn unstable_time_step_is_reported_beside_other_errors() {
+    let message =
+        rejection("[numerics]\ntime_step = 1e-4\n[[cell_types]]\ngrowth_rate = nan\n[[cell_types]]\nname = \"b\"\n");
+    assert!(message.contains("cell_types[0].growth_rate = nan"), "{message}");
+    assert!(message.contains("numerics.time_step = 1e-4 s") && message.contains("cell_types[1] (b)"), "{message}");
+    assert!(!message.contains("cell_types[0] (epithelial)"), "{message}");
+}
+
+#[test]
+fn time_step_limits_flag_unstable_steps() {
+    let mut params = Parameters::default();
+    params.numerics.time_step = 1e-4;
+    let message = params.validate().expect_err("unstable").to_string();
+    assert!(message.contains("largest stable time step"), "{message}");
+    let limits = params.time_step_limits();
+    assert!(limits[0].damping_ratio > TimeStepLimit::LIMIT, "{:?}", limits[0]);
+    let max_time_step =
+        limits.iter().filter(|limit| !limit.immobile).map(|limit| limit.max_time_step).fold(Real::INFINITY, Real::min);
+    assert!(max_time_step < 1e-6 && max_time_step > 1e-8, "{limits:?}");
+
+    // Just below the limit: valid, with a warning.
+    params.numerics.time_step = 0.9 * max_time_step;
+    let warnings = params.validate().expect("stable");
+    assert!(warnings.iter().any(|w| w.contains("half the stability limit")), "{warnings:?}");
+
+    // Overdamped with a damping 300× below the paper's overdamped default is unstable.
+    params.numerics = Numerics { dynamics: Dynamics::Overdamped, damping: 1e-11, ..Numerics::default() };
+    let message = params.validate().expect_err("unstable").to_string();
+    assert!(message.contains("Δt·k/ζ"), "{message}");
+    assert!(message.contains("larger damping"), "{message}");
+}
+
+#[test]
+fn immobile_kinds_have_no_time_step_limit() {
+    let mut params = Parameters::default();
+    params.cell_types[1].faces.basal.repulsion = 1e15; // ECM: absurdly stiff, but it never moves
+    assert!(params.validate().is_ok());
+    params.cell_types[2].faces.basal.repulsion = 1e15; // lumen: moves
+    let message = params.validate().expect_err("unstable").to_string();
+    assert!(message.contains("cell_types[2] (lumen)") && message.contains("contact"), "{message}");
+}
+
+#[test]
+fn pressure_is_capped() {
+    let mut cell_type = CellTypeParams::default();
+    // Compressed to half its target volume: K ln 2 ≈ 1733 Pa, below the 2500 Pa cap.
+    assert!((cell_type.pressure(0.5, 1.0) - 2500.0 * 2.0_f64.ln()).abs() < 1e-9);
+    // Compressed to a tenth: K ln 10 ≈ 5756 Pa, capped.
+    assert_eq!(cell_type.pressure(0.1, 1.0), 2500.0);
+    assert!(cell_type.pressure(2.0, 1.0) < 0.0);
+    cell_type.max_pressure = Real::INFINITY;
+    assert!((cell_type.pressure(0.1, 1.0) - 2500.0 * 10.0_f64.ln()).abs() < 1e-9);
+}
+
+#[test]
+fn face_types_index_their_parameters() {
+    let mut faces = FaceTypeParams::uniform(FaceParams::default());
+    faces.get_mut(FaceType::Basal).adhesion = 7.0;
+    assert_eq!(faces.basal.adhesion, 7.0);
+    assert_eq!(faces.get(FaceType::Basal).adhesion, 7.0);
+    assert_eq!(faces.iter().map(|(t, _)| t).collect::<Vec<_>>(), FaceType::ALL.to_vec());
+}
+
+#[test]
+fn floats_print_as_exact_toml() {
+    for x in [2e-7, 1e9, 2500.0, 0.001, 250.0, 0.0, 1.4e-15, 3e-9, 12345.678, -0.001, 1e5, 0.1 + 0.2] {
+        let text = format!("x = {}", fmt_real(x));
+        let table: Table = toml::from_str(&text).expect("valid TOML float");
+        assert_eq!(table["x"].as_float(), Some(x), "{text}");
+    }
+    assert_eq!(fmt_real(Real::INFINITY), "inf");
+}
