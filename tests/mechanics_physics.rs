@@ -247,3 +247,11 @@ fn growth_raises_the_target_volume_at_the_drawn_rate() {
     let grown = t.cells()[0].target_volume() - v0;
     assert!((grown / (1e-11 * 2e-5) - 1.0).abs() < 1e-9, "V0 grew by {grown:e}");
 }
+
+#[test]
+fn an_invalid_cell_is_refused_before_the_run() {
+    let mut mesh = icosphere(5e-6, 2, Vec3::zeros());
+    mesh.flip_face(tissuefit::mesh::FaceId(3));
+    let err = Simulation::new(one_cell(mesh), &params(1e-3)).err().expect("a flipped face is refused").to_string();
+    assert!(err.contains("cell 1") && err.contains("oriented inconsistently") && err.contains("--orient"), "{err}");
+}

@@ -61,6 +61,11 @@ pub enum SimulationError {
     UnknownCellType(#[from] UnknownCellType),
     #[error("the tissue has no moving cell: nothing to simulate")]
     NothingMoves,
+    #[error(
+        "cell {cell} is not a valid closed surface: {defect}. The model needs closed, outward-oriented, 2-manifold cells; \
+         `tissuefit inspect` lists every defect (--orient repairs inconsistent winding)"
+    )]
+    InvalidCell { cell: CellId, defect: crate::mesh::MeshDefect },
     #[error("step {step}, cell {cell}: {what}. {hint}")]
     Unhealthy { step: u64, cell: CellId, what: String, hint: &'static str, last_good: Box<Tissue> },
     #[error("step {step}: output failed: {source}")]
@@ -113,6 +118,10 @@ impl<'p> Simulation<'p> {
         let cell_params = cell_parameters(&tissue, params)?;
         if tissue.cells().iter().all(|c| c.kind().is_immobile()) {
             return Err(SimulationError::NothingMoves);
+        }
+        if let Some((cell, defect)) = tissue.cells().iter().find_map(|c| c.mesh().validate().err().map(|d| (c.id(), d)))
+        {
+            return Err(SimulationError::InvalidCell { cell, defect });
         }
         let gamma = tension_scale(&tissue, &cell_params);
         let growth_rates = draw_growth_rates(&tissue, &cell_params, params.numerics.seed);
