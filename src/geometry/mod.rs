@@ -1,11 +1,16 @@
-//! Math aliases and small geometric kernels shared by every other module.
+//! Math aliases, triangle kernels, exact closest-point queries (point–triangle, segment–segment,
+//! triangle–triangle) and a sparse uniform spatial grid: the geometry shared by every other module.
 //!
 //! Only this module names `nalgebra` types; everyone else uses [`Real`], [`Vec3`] and [`Mat3`].
 //! Everything is `f64`: the model works in SI units (lengths ~1e-6 m, moduli up to 1e9), where `f32`
 //! loses too much precision in volumes and energies.
 
+mod closest_point;
+mod spatial_grid;
 mod triangle;
 
+pub use closest_point::*;
+pub use spatial_grid::*;
 pub use triangle::{triangle_area, triangle_area_vector, triangle_normal};
 
 /// Scalar type of every physical quantity.
