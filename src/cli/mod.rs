@@ -74,16 +74,21 @@ impl InputArgs {
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
     init_logging(cli.verbose, cli.quiet);
+    // The command runs inside the pool, on one of its workers: every parallel loop then starts by
+    // work stealing instead of waking the pool from outside (a futex round trip per loop, which
+    // dominated small simulations).
+    let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = cli.threads {
-        rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+        builder = builder.num_threads(n);
     }
-    match cli.command {
+    let pool = builder.build()?;
+    pool.install(|| match cli.command {
         Command::Inspect(args) => inspect::run(&args),
         Command::Convert(args) => convert::run(&args),
         Command::Config(cmd) => config::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
         Command::Bench(args) => bench::run(&args),
-    }
+    })
 }
 
 fn init_logging(verbose: u8, quiet: bool) {

@@ -25,20 +25,24 @@ pub struct EnergyTerms {
     pub area_elasticity: Real,
     pub tension: Real,
     pub bending: Real,
+    /// Contact (adhesion and repulsion) energy of this cell's nodes near other cells.
+    pub contact: Real,
 }
 
 impl EnergyTerms {
     /// Names of the terms, in field order.
-    pub const NAMES: [&'static str; 4] = ["pressure", "area_elasticity", "tension", "bending"];
+    pub const NAMES: [&'static str; 5] = ["pressure", "area_elasticity", "tension", "bending", "contact"];
+    /// The terms computed per cell (all but contact).
+    pub const INTERNAL: [&'static str; 4] = ["pressure", "area_elasticity", "tension", "bending"];
 
     /// Sum of all terms.
     pub fn total(&self) -> Real {
-        self.pressure + self.area_elasticity + self.tension + self.bending
+        self.pressure + self.area_elasticity + self.tension + self.bending + self.contact
     }
 
     /// The terms as an array, in [`EnergyTerms::NAMES`] order.
-    pub fn values(&self) -> [Real; 4] {
-        [self.pressure, self.area_elasticity, self.tension, self.bending]
+    pub fn values(&self) -> [Real; 5] {
+        [self.pressure, self.area_elasticity, self.tension, self.bending, self.contact]
     }
 }
 
@@ -48,6 +52,7 @@ impl std::ops::AddAssign for EnergyTerms {
         self.area_elasticity += o.area_elasticity;
         self.tension += o.tension;
         self.bending += o.bending;
+        self.contact += o.contact;
     }
 }
 
@@ -120,6 +125,7 @@ impl CellForces {
             area_elasticity: if terms.area_elasticity { u_area } else { 0.0 },
             tension: if terms.tension { tension_energy(&g.areas, face_types, gamma) } else { 0.0 },
             bending: 0.0,
+            contact: 0.0,
         };
 
         let positions = mesh.positions();

@@ -10,6 +10,7 @@
 mod area_elasticity;
 mod bending;
 mod cell_geometry;
+mod contact;
 mod fire;
 mod forces;
 mod growth;
@@ -23,6 +24,7 @@ mod tension;
 pub use area_elasticity::{area_elasticity_energy, target_area};
 pub use bending::{Hinge, add_bending_forces, build_hinges};
 pub use cell_geometry::CellGeometry;
+pub use contact::{ContactWorkspace, contact_energy_density, contact_stress};
 pub use fire::*;
 pub use forces::{CellForces, EnergyTerms, TermSet, TissueForces, UnknownCellType, cell_parameters};
 pub use growth::draw_growth_rates;
@@ -33,5 +35,5 @@ pub use params::{
 };
 pub use pressure::pressure_energy;
 pub use settings::{RelaxMethod, SimulationMode, SimulationSettings};
-pub use simulation::{Observer, Sample, Simulation, SimulationError, SimulationSummary};
+pub use simulation::{LastGood, Observer, Sample, Simulation, SimulationError, SimulationSummary};
 pub use tension::tension_energy;

@@ -15,7 +15,7 @@ use super::fire::{Fire, FireSettings};
 use super::forces::{TermSet, TissueForces, UnknownCellType, cell_parameters};
 use super::growth::draw_growth_rates;
 use super::motion::integrate_step;
-use super::{CellForces, CellTypeParams, EnergyTerms, Parameters, RelaxMethod, SimulationMode};
+use super::{CellForces, CellTypeParams, ContactWorkspace, EnergyTerms, Parameters, RelaxMethod, SimulationMode};
 use crate::geometry::{Real, Vec3};
 use crate::mesh::{CellId, FaceType, Tissue};
 use serde::Serialize;
@@ -54,6 +54,22 @@ pub struct SimulationSummary {
     pub energy: EnergyTerms,
 }
 
+/// The last healthy state of a failed run (its `Debug` is a one-line summary, not the meshes).
+pub struct LastGood(pub Box<Tissue>);
+
+impl std::fmt::Debug for LastGood {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "LastGood({} cells, {} nodes)", self.0.len(), self.0.node_count())
+    }
+}
+
+impl std::ops::Deref for LastGood {
+    type Target = Tissue;
+    fn deref(&self) -> &Tissue {
+        &self.0
+    }
+}
+
 /// Why a run stopped early.
 #[derive(Debug, thiserror::Error)]
 pub enum SimulationError {
@@ -67,7 +83,7 @@ pub enum SimulationError {
     )]
     InvalidCell { cell: CellId, defect: crate::mesh::MeshDefect },
     #[error("step {step}, cell {cell}: {what}. {hint}")]
-    Unhealthy { step: u64, cell: CellId, what: String, hint: &'static str, last_good: Box<Tissue> },
+    Unhealthy { step: u64, cell: CellId, what: String, hint: &'static str, last_good: LastGood },
     #[error("step {step}: output failed: {source}")]
     Observer { step: u64, source: Box<dyn std::error::Error + Send + Sync> },
 }
@@ -102,6 +118,7 @@ pub struct Simulation<'p> {
     params: &'p Parameters,
     cell_params: Vec<&'p CellTypeParams>,
     forces: TissueForces,
+    contacts: ContactWorkspace,
     momenta: Vec<Vec<Vec3>>,
     growth_rates: Vec<Real>,
     last_good: Vec<Vec<Vec3>>,
@@ -130,6 +147,7 @@ impl<'p> Simulation<'p> {
         Ok(Self {
             cell_params,
             forces: TissueForces::default(),
+            contacts: ContactWorkspace::default(),
             momenta,
             growth_rates,
             last_good: Vec::new(),
@@ -179,6 +197,12 @@ impl<'p> Simulation<'p> {
     /// Evaluates forces at the current positions and checks the state's health.
     fn evaluate(&mut self) -> Result<(), SimulationError> {
         self.forces.compute(&self.tissue, &self.cell_params, TermSet::ALL);
+        self.contacts.add_contacts(
+            &self.tissue,
+            &self.cell_params,
+            self.params.numerics.contact_cutoff,
+            &mut self.forces.cells,
+        );
         self.force_evaluations += 1;
         for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.forces.cells).enumerate() {
             let problem = if let Some(n) = cell.mesh().positions().iter().position(|p| !p.iter().all(|v| v.is_finite()))
@@ -205,14 +229,14 @@ impl<'p> Simulation<'p> {
     /// The first force term that is non-finite for cell `c`.
     fn culprit(&self, c: usize) -> &'static str {
         let cell = &self.tissue.cells()[c];
-        for name in EnergyTerms::NAMES {
+        for name in EnergyTerms::INTERNAL {
             let mut work = CellForces::default();
             work.compute(cell, self.cell_params[c], TermSet::only(name));
             if !work.all_finite() || !work.energy.total().is_finite() {
                 return name;
             }
         }
-        "combined"
+        "contact"
     }
 
     fn unhealthy(&self, c: usize, what: String) -> SimulationError {
@@ -227,7 +251,7 @@ impl<'p> Simulation<'p> {
             cell: self.tissue.cells()[c].id(),
             what,
             hint: HINT,
-            last_good: Box::new(last_good),
+            last_good: LastGood(Box::new(last_good)),
         }
     }
 

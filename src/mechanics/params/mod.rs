@@ -79,14 +79,12 @@ pub enum ContactModel {
     /// Paper Eq. 2: node–face springs with adhesion ω and repulsion ξ within the cutoff c.
     #[default]
     Spring,
-    /// Node–node coupling: nodes of different cells closer than c, both with mean curvature below
-    /// H_max, are tied together (positions, forces and momenta averaged).
-    Coupling,
 }
 
 impl ContactModel {
     /// All variants.
-    pub const ALL: [ContactModel; 2] = [ContactModel::Spring, ContactModel::Coupling];
+    /// (The paper's node-coupling model, driven by H_max, is not in this version.)
+    pub const ALL: [ContactModel; 1] = [ContactModel::Spring];
 }
 
 /// Numerical parameters (paper Table 2, "Numerical parameters").

@@ -54,7 +54,7 @@ fn commented_defaults_read_back_exactly() {
 fn resolved_config_round_trips() {
     let mut params = Parameters::default();
     params.numerics.seed = 42;
-    params.numerics.contact_model = ContactModel::Coupling;
+    params.numerics.dynamics = Dynamics::Overdamped;
     params.cell_types[0].faces.lateral.surface_tension = 1.234_567_891_234e-4;
     params.cell_types[0].max_pressure = Real::INFINITY;
     assert_eq!(load(&params.to_toml_string()).expect("loads"), params);

@@ -78,8 +78,8 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
     FieldDoc {
         path: "numerics.contact_model",
         unit: "",
-        text: "Contact model: \"spring\" (paper Eq. 2, node–face springs with adhesion ω and repulsion ξ) or \"coupling\" \
-               (nodes of different cells closer than c are tied together).",
+        text: "Contact model: \"spring\" (paper Eq. 2: nodes within the cutoff c of another cell's surface adhere with ω \
+               and are repelled with ξ). The paper's node-coupling model is not in this version.",
     },
     FieldDoc {
         path: "numerics.seed",
@@ -143,7 +143,8 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
     FieldDoc {
         path: "cell_types.max_coupling_curvature",
         unit: "1/m",
-        text: "Largest mean curvature H_max at which a node may be coupled to another cell (coupling contact model).",
+        text: "Largest mean curvature H_max at which a node may be coupled to another cell (paper Table 2; used by the \
+               node-coupling contact model, which is not in this version).",
     },
     FieldDoc {
         path: "cell_types.faces",

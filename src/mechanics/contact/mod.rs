@@ -1,0 +1,359 @@
+//! Contacts between cells: the spring model of the paper (Methods, "Intercellular contacts", Eq. 2),
+//! written as an energy so that its forces are exact gradients and overdamped runs never gain energy.
+//!
+//! **Model.** Every node p of a cell A that lies within the cutoff c of another cell B's surface
+//! carries the energy a_p·Φ(d), where d is the signed distance from p to B's surface (positive
+//! outside B), Φ the energy density of Eq. 2 ([`contact_energy_density`], dΦ/dd = σ) and a_p the
+//! area of p (a third of its faces' areas). The paper multiplies σ by a face area; using the node's
+//! own area instead makes the energy continuous when the closest face of B changes, so it is a true
+//! potential. The distance is to B's whole surface (its closest face, found through a spatial grid),
+//! with the inside/outside sign taken from the pseudo-normal of the closest feature (face normal,
+//! sum of the two face normals of an edge, angle-weighted normal of a vertex: Bærentzen & Aanæs
+//! 2005), so the sign flips only where p crosses B's surface, where σ = 0. Pairs deeper than −c
+//! (where Eq. 2's stress vanishes) are ignored.
+//!
+//! **Forces** (exact: the distance's gradient is the unit separation û for p and −w_i·û for the
+//! vertices of B's closest face, w the barycentric weights): p gets −a_p σ û, the vertices of the face
+//! get +a_p σ w_i û (equal and opposite), and the faces around p get −Φ·∇a_p (the area term).
+//!
+//! **Two face types.** A node uses the ω and ξ of its own cell, averaged over the faces around it
+//! (constants of the configuration, so the energy stays a smooth potential; taking the other side's
+//! closest face instead would make ω jump whenever the closest face changes type). Since both
+//! surfaces' nodes sense each other, a contact between a lateral face of A and an apical face of B
+//! is governed by both sides' values, each on its own nodes.
+//!
+//! **Enclosing bodies.** A cell inside the ECM lies inside the ECM's closed surface, so for nodes of
+//! other cells the sign of the distance to an ECM surface is flipped: adhesion from the inside,
+//! repulsion when pushed out through it.
+//!
+//! **Determinism.** Pairs are found in parallel per cell (read-only), then forces are applied in a
+//! fixed order (cell, node), so results do not depend on the thread count.
+
+mod spring;
+
+pub use spring::{contact_energy_density, contact_stress};
+
+use super::CellForces;
+use super::CellTypeParams;
+use crate::geometry::{Real, SpatialGrid, TriangleRegion, Vec3, closest_point_on_triangle};
+use crate::mesh::{Adjacency, CellKind, FaceType, Tissue};
+use rayon::prelude::*;
+
+/// Topology of one cell needed by contacts, cached until its triangles change.
+#[derive(Clone, Debug, Default)]
+struct CellTopology {
+    generation: u64,
+    node_face_offsets: Vec<u32>,
+    node_faces: Vec<u32>,
+    /// The face across each side of each face (u32::MAX at a boundary or non-manifold edge).
+    face_neighbours: Vec<[u32; 3]>,
+}
+
+impl CellTopology {
+    fn update(&mut self, mesh: &crate::mesh::CellMesh) {
+        if self.generation == mesh.topology_generation() && !self.node_face_offsets.is_empty() {
+            return;
+        }
+        let adj = Adjacency::new(mesh);
+        self.node_face_offsets.clear();
+        self.node_faces.clear();
+        self.node_face_offsets.push(0);
+        for n in 0..mesh.node_count() {
+            self.node_faces.extend_from_slice(adj.node_faces(n));
+            self.node_face_offsets.push(self.node_faces.len() as u32);
+        }
+        self.face_neighbours = (0..mesh.face_count())
+            .map(|f| {
+                adj.face_edges(f).map(|e| match adj.edge_faces(e as usize) {
+                    [a, b] => {
+                        if *a as usize == f {
+                            *b
+                        } else {
+                            *a
+                        }
+                    }
+                    _ => u32::MAX,
+                })
+            })
+            .collect();
+        self.generation = mesh.topology_generation();
+    }
+
+    fn faces_of(&self, node: u32) -> &[u32] {
+        &self.node_faces
+            [self.node_face_offsets[node as usize] as usize..self.node_face_offsets[node as usize + 1] as usize]
+    }
+}
+
+/// One node of cell A within the cutoff of cell B's surface.
+#[derive(Clone, Copy, Debug)]
+struct Pair {
+    node: u32,
+    other: u32,
+    face: u32,
+    weights: [Real; 3],
+    /// ∂d/∂p: unit vector from B's closest point towards p, signed so that d grows along it.
+    direction: Vec3,
+    /// Node area a_p (m²).
+    area: Real,
+    /// Φ(d) (J/m²) and σ(d) = dΦ/dd (Pa).
+    phi: Real,
+    sigma: Real,
+}
+
+/// Reusable buffers of the contact stage.
+#[derive(Default)]
+pub struct ContactWorkspace {
+    grid: Option<SpatialGrid>,
+    boxes: Vec<(Vec3, Vec3)>,
+    /// `boxes`, with the faces that cannot be in contact emptied.
+    registered: Vec<(Vec3, Vec3)>,
+    face_offsets: Vec<u32>,
+    topology: Vec<CellTopology>,
+    pairs: Vec<Vec<Pair>>,
+    /// Number of node–surface pairs in the last evaluation.
+    pub pair_count: usize,
+}
+
+/// Angle-weighted normal of a vertex (its pseudo-normal: Bærentzen & Aanæs 2005), from the unit
+/// face normals; only needed when a node's closest point on another cell is that vertex.
+fn vertex_pseudo_normal(mesh: &crate::mesh::CellMesh, topo: &CellTopology, vertex: u32, normals: &[Vec3]) -> Vec3 {
+    let p = mesh.positions();
+    let mut sum = Vec3::zeros();
+    for &f in topo.faces_of(vertex) {
+        let t = mesh.triangles()[f as usize];
+        let k = t.iter().position(|&x| x == vertex).expect("the vertex is a corner of its faces");
+        let (u, v) = (p[t[(k + 1) % 3] as usize] - p[vertex as usize], p[t[(k + 2) % 3] as usize] - p[vertex as usize]);
+        sum += u.cross(&v).norm().atan2(u.dot(&v)) * normals[f as usize];
+    }
+    sum
+}
+
+/// Mean of ω and ξ over the faces around a node.
+fn node_contact_parameters(faces: &[u32], face_types: &[FaceType], p: &CellTypeParams) -> (Real, Real) {
+    let (mut w, mut x) = (0.0, 0.0);
+    for &f in faces {
+        let fp = p.faces.get(face_types[f as usize]);
+        w += fp.adhesion;
+        x += fp.repulsion;
+    }
+    let n = faces.len().max(1) as Real;
+    (w / n, x / n)
+}
+
+impl ContactWorkspace {
+    /// Adds contact forces to `forces` (one entry per cell, internal forces already computed, so
+    /// face normals and areas are current) and their energy to each cell's `energy.contact`.
+    /// Returns the total contact energy (J).
+    pub fn add_contacts(
+        &mut self,
+        tissue: &Tissue,
+        cell_params: &[&CellTypeParams],
+        cutoff: Real,
+        forces: &mut [CellForces],
+    ) -> Real {
+        let cells = tissue.cells();
+        let n = cells.len();
+        self.pair_count = 0;
+        if n < 2 || cutoff <= 0.0 {
+            return 0.0;
+        }
+        self.topology.resize_with(n, CellTopology::default);
+        self.pairs.resize_with(n, Vec::new);
+        // Per-cell topology (cached until the triangles change).
+        self.topology.par_iter_mut().zip(cells.par_iter()).for_each(|(topo, cell)| topo.update(cell.mesh()));
+
+        // Broad phase: every face's box padded by the cutoff, in one grid.
+        self.face_offsets.clear();
+        self.face_offsets.push(0);
+        self.boxes.clear();
+        let mut largest: Real = 0.0;
+        for cell in cells {
+            let p = cell.mesh().positions();
+            for t in cell.mesh().triangles() {
+                let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+                let lo = a.inf(&b).inf(&c).add_scalar(-cutoff);
+                let hi = a.sup(&b).sup(&c).add_scalar(cutoff);
+                largest = largest.max((hi - lo).max());
+                self.boxes.push((lo, hi));
+            }
+            self.face_offsets.push(self.boxes.len() as u32);
+        }
+        if !(largest.is_finite() && largest > 0.0) {
+            return 0.0;
+        }
+        // Cell-level prefilter: each cell's padded box, and for each cell the other cells whose
+        // boxes overlap it. A node is queried only if it lies in one of those boxes.
+        let cell_boxes: Vec<(Vec3, Vec3)> = (0..n)
+            .map(|c| {
+                let faces = &self.boxes[self.face_offsets[c] as usize..self.face_offsets[c + 1] as usize];
+                faces
+                    .iter()
+                    .fold((Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY)), |(lo, hi), (a, b)| {
+                        (lo.inf(a), hi.sup(b))
+                    })
+            })
+            .collect();
+        let overlaps = |a: &(Vec3, Vec3), b: &(Vec3, Vec3)| (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k]);
+        let neighbours: Vec<Vec<usize>> =
+            (0..n).map(|a| (0..n).filter(|&b| b != a && overlaps(&cell_boxes[a], &cell_boxes[b])).collect()).collect();
+        if neighbours.iter().all(Vec::is_empty) {
+            for f in forces.iter_mut() {
+                f.energy.contact = 0.0;
+            }
+            return 0.0;
+        }
+        // Only faces inside another cell's box can be within the cutoff of its nodes; the others
+        // stay out of the grid (an inverted box is skipped by it).
+        self.registered.clear();
+        self.registered.extend_from_slice(&self.boxes);
+        for (a, near) in neighbours.iter().enumerate() {
+            let range = self.face_offsets[a] as usize..self.face_offsets[a + 1] as usize;
+            for bx in &mut self.registered[range] {
+                if !near.iter().any(|&b| overlaps(bx, &cell_boxes[b])) {
+                    *bx = (Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY));
+                }
+            }
+        }
+        let grid = self.grid.get_or_insert_with(|| SpatialGrid::new(largest));
+        if grid.cell_size() != largest {
+            grid.set_cell_size(largest);
+        }
+        grid.rebuild(&self.registered);
+
+        // Narrow phase, per cell in parallel: for each node, the closest face of every other cell
+        // whose padded faces cover it.
+        let grid = &*grid;
+        let face_offsets = &self.face_offsets;
+        let topology = &self.topology;
+        let forces_ro: &[CellForces] = forces;
+        let (neighbours, cell_boxes, boxes) = (&neighbours, &cell_boxes, &self.boxes);
+        self.pairs.par_iter_mut().enumerate().for_each(|(a, pairs)| {
+            pairs.clear();
+            let cell_a = &cells[a];
+            let mesh_a = cell_a.mesh();
+            let mut candidates: Vec<u32> = Vec::new();
+            if neighbours[a].is_empty() {
+                return;
+            }
+            let inside = |p: &Vec3, b: &(Vec3, Vec3)| (0..3).all(|k| b.0[k] <= p[k] && p[k] <= b.1[k]);
+            for (node, p) in mesh_a.positions().iter().enumerate() {
+                if !neighbours[a].iter().any(|&b| inside(p, &cell_boxes[b])) {
+                    continue;
+                }
+                candidates.clear();
+                grid.for_each_at(p, |item| candidates.push(item));
+                if candidates.is_empty() {
+                    continue;
+                }
+                candidates.sort_unstable();
+                candidates.dedup();
+                let mut k = 0;
+                while k < candidates.len() {
+                    let b = face_offsets.partition_point(|&o| o <= candidates[k]) - 1;
+                    let end = face_offsets[b + 1];
+                    let group_start = k;
+                    while k < candidates.len() && candidates[k] < end {
+                        k += 1;
+                    }
+                    if b == a {
+                        continue;
+                    }
+                    let mesh_b = cells[b].mesh();
+                    let pb = mesh_b.positions();
+                    let mut best: Option<(u32, crate::geometry::PointTriangle)> = None;
+                    for &g in &candidates[group_start..k] {
+                        // A face farther than the cutoff cannot matter: skip it unless its padded
+                        // box holds p (a few comparisons instead of an exact distance).
+                        if !inside(p, &boxes[g as usize]) {
+                            continue;
+                        }
+                        let f = g - face_offsets[b];
+                        let t = mesh_b.triangles()[f as usize];
+                        let q =
+                            closest_point_on_triangle(p, &pb[t[0] as usize], &pb[t[1] as usize], &pb[t[2] as usize]);
+                        if best.is_none_or(|(_, bq)| q.distance < bq.distance) {
+                            best = Some((f, q));
+                        }
+                    }
+                    let Some((f, q)) = best else { continue };
+                    if q.distance > cutoff {
+                        continue;
+                    }
+                    let t = mesh_b.triangles()[f as usize];
+                    let normals_b = &forces_ro[b].geometry.normals;
+                    let pseudo = match q.region {
+                        TriangleRegion::Face => normals_b[f as usize],
+                        TriangleRegion::Edge(s) => {
+                            let g = topology[b].face_neighbours[f as usize][s as usize];
+                            normals_b[f as usize] + if g == u32::MAX { Vec3::zeros() } else { normals_b[g as usize] }
+                        }
+                        TriangleRegion::Vertex(v) => {
+                            vertex_pseudo_normal(mesh_b, &topology[b], t[v as usize], normals_b)
+                        }
+                    };
+                    let separation = p - q.point;
+                    let mut sign = if separation.dot(&pseudo) < 0.0 { -1.0 } else { 1.0 };
+                    if cells[b].kind() == CellKind::Ecm && cell_a.kind() != CellKind::Ecm {
+                        sign = -sign;
+                    }
+                    let d = sign * q.distance;
+                    if d < -cutoff {
+                        continue;
+                    }
+                    let direction = match separation.try_normalize(0.0) {
+                        Some(u) => sign * u,
+                        None => sign * normals_b[f as usize],
+                    };
+                    let faces_a = topology[a].faces_of(node as u32);
+                    let (omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
+                    let area: Real =
+                        faces_a.iter().map(|&g| forces_ro[a].geometry.areas[g as usize]).sum::<Real>() / 3.0;
+                    pairs.push(Pair {
+                        node: node as u32,
+                        other: b as u32,
+                        face: f,
+                        weights: q.weights,
+                        direction,
+                        area,
+                        phi: contact_energy_density(d, cutoff, omega, xi),
+                        sigma: contact_stress(d, cutoff, omega, xi),
+                    });
+                }
+            }
+        });
+
+        // Apply in a fixed order.
+        let mut total = 0.0;
+        for a in 0..n {
+            let mut energy = 0.0;
+            for pair in &self.pairs[a] {
+                self.pair_count += 1;
+                energy += pair.area * pair.phi;
+                let push = pair.area * pair.sigma * pair.direction;
+                forces[a].forces[pair.node as usize] -= push;
+                let t = cells[pair.other as usize].mesh().triangles()[pair.face as usize];
+                for (k, &v) in t.iter().enumerate() {
+                    forces[pair.other as usize].forces[v as usize] += pair.weights[k] * push;
+                }
+                // −Φ·∇a_p: a third of each adjacent face's area gradient, ∇_i A = ½ n̂ × (r_k − r_j).
+                if pair.phi != 0.0 {
+                    let mesh_a = cells[a].mesh();
+                    let pa = mesh_a.positions();
+                    for &g in self.topology[a].faces_of(pair.node) {
+                        let tri = mesh_a.triangles()[g as usize];
+                        let half_n = (0.5 * pair.phi / 3.0) * forces[a].geometry.normals[g as usize];
+                        let [i, j, k] = tri.map(|x| x as usize);
+                        let (ri, rj, rk) = (pa[i], pa[j], pa[k]);
+                        forces[a].forces[i] -= half_n.cross(&(rk - rj));
+                        forces[a].forces[j] -= half_n.cross(&(ri - rk));
+                        forces[a].forces[k] -= half_n.cross(&(rj - ri));
+                    }
+                }
+            }
+            forces[a].energy.contact = energy;
+            total += energy;
+        }
+        total
+    }
+}
