@@ -144,3 +144,23 @@ fn overdamped_doublet_with_contacts_never_gains_energy() {
         assert!(w[1] <= w[0] + 1e-15 * w[0].abs(), "energy rose at step {k}: {} -> {}", w[0], w[1]);
     }
 }
+
+#[test]
+fn contacts_give_bitwise_identical_results_on_one_and_two_threads() {
+    let mut p = params();
+    p.simulation.max_steps = 60;
+    p.simulation.sample_every_steps = u64::MAX;
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let mut sim = Simulation::new(doublet(0.2 * 2e-7, 3, 21), &p).unwrap();
+            sim.run(&mut Energies(Vec::new())).unwrap();
+            sim.into_tissue()
+        })
+    };
+    let (a, b) = (run(1), run(2));
+    for (ca, cb) in a.cells().iter().zip(b.cells()) {
+        let same = ca.mesh().positions().iter().zip(cb.mesh().positions()).all(|(x, y)| x.map(f64::to_bits) == y.map(f64::to_bits));
+        assert!(same, "cell {} differs between 1 and 2 threads", ca.id());
+    }
+}
