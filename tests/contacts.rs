@@ -160,7 +160,12 @@ fn contacts_give_bitwise_identical_results_on_one_and_two_threads() {
     };
     let (a, b) = (run(1), run(2));
     for (ca, cb) in a.cells().iter().zip(b.cells()) {
-        let same = ca.mesh().positions().iter().zip(cb.mesh().positions()).all(|(x, y)| x.map(f64::to_bits) == y.map(f64::to_bits));
+        let same = ca
+            .mesh()
+            .positions()
+            .iter()
+            .zip(cb.mesh().positions())
+            .all(|(x, y)| x.map(f64::to_bits) == y.map(f64::to_bits));
         assert!(same, "cell {} differs between 1 and 2 threads", ca.id());
     }
 }
