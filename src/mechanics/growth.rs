@@ -16,10 +16,11 @@ const GROWTH_STREAM: u64 = 1 << 40;
 
 /// Draws N(mean, std) truncated to mean ± 3·std, from `rng`.
 fn truncated_normal(rng: &mut ChaCha8Rng, mean: Real, std: Real) -> Real {
+    // A zero (or, in unvalidated parameters, non-finite) spread draws the mean itself.
+    let Ok(normal) = Normal::new(mean, std) else { return mean };
     if std <= 0.0 {
         return mean;
     }
-    let normal = Normal::new(mean, std).expect("std is positive and finite (validated)");
     loop {
         let x = normal.sample(rng);
         if (x - mean).abs() <= 3.0 * std {
