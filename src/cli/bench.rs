@@ -5,14 +5,17 @@
 //! * `forces-tissue FILE`: internal-force evaluations and full dynamic steps of a tissue file
 //!   (e.g. simucell3d__embryo_1.vtk), no contacts;
 //! * `relax-cube`: force evaluations to equilibrium of a cube cell relaxing to a sphere, FIRE vs
-//!   overdamped integration.
+//!   overdamped integration;
+//! * `contacts-tissue FILE`: a full dynamic step with spring contacts, broken down into internal
+//!   forces, broad phase, narrow phase, force application and integration; then the same tissue
+//!   replicated on a grid (1, 8, 27, 64 copies) to show how the contact stage scales.
 
 use super::Outcome;
 use crate::geometry::{Real, Vec3};
 use crate::io::{ReadOptions, read_tissue};
 use crate::mechanics::{
-    Dynamics, Observer, Parameters, RelaxMethod, Sample, Simulation, TermSet, TissueForces, cell_parameters,
-    integrate_step,
+    ContactWorkspace, Dynamics, Observer, Parameters, RelaxMethod, Sample, Simulation, TermSet, TissueForces,
+    cell_parameters, integrate_step,
 };
 use crate::mesh::shapes::{cube_sphere, subdivided_cube};
 use crate::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
@@ -23,10 +26,10 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// forces-cell, forces-tissue or relax-cube.
-    #[arg(value_parser = ["forces-cell", "forces-tissue", "relax-cube"])]
+    /// forces-cell, forces-tissue FILE, relax-cube or contacts-tissue FILE.
+    #[arg(value_parser = ["forces-cell", "forces-tissue", "relax-cube", "contacts-tissue"])]
     pub scenario: String,
-    /// Tissue file for forces-tissue.
+    /// Tissue file for forces-tissue and contacts-tissue.
     pub file: Option<PathBuf>,
     /// Repetitions (force evaluations or steps) per measurement.
     #[arg(long, default_value_t = 200)]
@@ -143,6 +146,105 @@ fn relax_cube() -> anyhow::Result<serde_json::Value> {
     }))
 }
 
+/// `copies`³ translated copies of `tissue` on a grid with 10 % gaps, every cell epithelial with
+/// parameter set 0 and a fresh id.
+fn replicate(tissue: &Tissue, copies: usize) -> anyhow::Result<Tissue> {
+    let all: Vec<Vec3> = tissue.cells().iter().flat_map(|c| c.mesh().positions().iter().copied()).collect();
+    let (lo, hi) = crate::geometry::bounding_box(&all).context("empty tissue")?;
+    let step = 1.1 * (hi - lo);
+    let mut out = Tissue::new();
+    for i in 0..copies.pow(3) {
+        let shift = Vec3::new((i % copies) as Real, ((i / copies) % copies) as Real, (i / (copies * copies)) as Real)
+            .component_mul(&step);
+        for c in tissue.cells() {
+            let mut mesh = c.mesh().clone();
+            mesh.positions_mut().iter_mut().for_each(|p| *p += shift);
+            let id = out.allocate_id();
+            out.push(Cell::new(id, CellKind::Epithelial, 0, mesh))?;
+        }
+    }
+    Ok(out)
+}
+
+/// Median wall times (s) of the phases of a dynamic step with contacts.
+fn contact_step_times(
+    tissue: &Tissue,
+    params: &Parameters,
+    repeat: usize,
+) -> anyhow::Result<(serde_json::Value, usize)> {
+    let cell_params = cell_parameters(tissue, params)?;
+    let mut forces = TissueForces::default();
+    let mut contacts = ContactWorkspace::default();
+    let mut moving = tissue.clone();
+    let mut momenta: Vec<Vec<Vec3>> =
+        moving.cells().iter().map(|c| vec![Vec3::zeros(); c.mesh().node_count()]).collect();
+    let mut samples: Vec<[Real; 5]> = Vec::new();
+    let mut pairs = 0;
+    for _ in 0..repeat.max(3) {
+        let t = Instant::now();
+        forces.compute(&moving, &cell_params, TermSet::ALL);
+        let internal = t.elapsed().as_secs_f64();
+        contacts.add_contacts(&moving, &cell_params, params.numerics.contact_cutoff, &mut forces.cells);
+        pairs = contacts.pair_count;
+        let t = Instant::now();
+        integrate_step(&mut moving, &forces.cells, &cell_params, &mut momenta, &params.numerics);
+        let integrate = t.elapsed().as_secs_f64();
+        let ct = contacts.timings;
+        samples.push([internal, ct.broad.as_secs_f64(), ct.narrow.as_secs_f64(), ct.apply.as_secs_f64(), integrate]);
+    }
+    let nodes = tissue.node_count() as Real;
+    let median = |k: usize| {
+        let mut v: Vec<Real> = samples.iter().map(|s| s[k]).collect();
+        v.sort_by(Real::total_cmp);
+        v[v.len() / 2] / nodes
+    };
+    let parts = [median(0), median(1), median(2), median(3), median(4)];
+    Ok((
+        json!({
+            "cells": tissue.len(),
+            "nodes": tissue.node_count(),
+            "pairs": pairs,
+            "seconds_per_node_step": parts.iter().sum::<Real>(),
+            "internal_forces": parts[0],
+            "broad_phase": parts[1],
+            "narrow_phase": parts[2],
+            "apply_contacts": parts[3],
+            "integration": parts[4],
+            "contact_stage": parts[1] + parts[2] + parts[3],
+        }),
+        pairs,
+    ))
+}
+
+fn contacts_json(file: &std::path::Path, repeat: usize) -> anyhow::Result<serde_json::Value> {
+    let tissue =
+        read_tissue(file, &ReadOptions::default()).with_context(|| format!("reading {}", file.display()))?.tissue;
+    let params = Parameters::default();
+    let base = replicate(&tissue, 1)?;
+    let t = Instant::now();
+    let (one, _) = contact_step_times(&base, &params, repeat)?;
+    let wall = t.elapsed().as_secs_f64();
+    let mut scaling = Vec::new();
+    for copies in [1, 2, 3, 4] {
+        let big = replicate(&tissue, copies)?;
+        let (v, _) = contact_step_times(&big, &params, 3)?;
+        scaling.push(v);
+    }
+    Ok(json!({
+        "scenario": "contacts-tissue",
+        "file": file.display().to_string(),
+        "threads": rayon::current_num_threads(),
+        "cells": base.len(),
+        "nodes": base.node_count(),
+        "steps": repeat.max(3),
+        "wall_seconds": wall,
+        "seconds_per_node_step": one["seconds_per_node_step"],
+        "contact_model": "spring",
+        "breakdown_seconds_per_node_step": one,
+        "scaling": scaling,
+    }))
+}
+
 pub fn run(args: &BenchArgs) -> anyhow::Result<Outcome> {
     let params = Parameters::default();
     let value = match args.scenario.as_str() {
@@ -159,6 +261,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<Outcome> {
             let mut v = forces_json("forces-tissue", &retyped, &params, args.repeat)?;
             v["file"] = json!(file.display().to_string());
             v
+        }
+        "contacts-tissue" => {
+            let file = args.file.as_ref().context("contacts-tissue needs a tissue FILE")?;
+            contacts_json(file, args.repeat.min(20))?
         }
         _ => relax_cube()?,
     };

@@ -24,7 +24,7 @@ mod tension;
 pub use area_elasticity::{area_elasticity_energy, target_area};
 pub use bending::{Hinge, add_bending_forces, build_hinges};
 pub use cell_geometry::CellGeometry;
-pub use contact::{ContactWorkspace, contact_energy_density, contact_stress};
+pub use contact::{ContactTimings, ContactWorkspace, contact_energy_density, contact_stress};
 pub use fire::*;
 pub use forces::{CellForces, EnergyTerms, TermSet, TissueForces, UnknownCellType, cell_parameters};
 pub use growth::draw_growth_rates;

@@ -113,7 +113,24 @@ pub struct ContactWorkspace {
     pairs: Vec<Vec<Pair>>,
     /// Number of node–surface pairs in the last evaluation.
     pub pair_count: usize,
+    /// Time spent in the last evaluation, per phase.
+    pub timings: ContactTimings,
 }
+
+/// Wall time of the phases of one contact evaluation.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ContactTimings {
+    /// Topology caches, face boxes, cell prefilter and grid rebuild.
+    pub broad: std::time::Duration,
+    /// Closest faces and pair records, in parallel over cells.
+    pub narrow: std::time::Duration,
+    /// Applying the pair forces in a fixed order.
+    pub apply: std::time::Duration,
+}
+
+/// Quantile of the padded face extents used as the grid cell size (measured on embryo_1: 0.75 gives
+/// the fastest contact stage; 1.0, the largest face, is 13 % slower).
+const CELL_QUANTILE: Real = 0.75;
 
 /// Angle-weighted normal of a vertex (its pseudo-normal: Bærentzen & Aanæs 2005), from the unit
 /// face normals; only needed when a node's closest point on another cell is that vertex.
@@ -155,6 +172,8 @@ impl ContactWorkspace {
         let cells = tissue.cells();
         let n = cells.len();
         self.pair_count = 0;
+        self.timings = ContactTimings::default();
+        let started = std::time::Instant::now();
         if n < 2 || cutoff <= 0.0 {
             return 0.0;
         }
@@ -215,15 +234,25 @@ impl ContactWorkspace {
                 }
             }
         }
-        let grid = self.grid.get_or_insert_with(|| SpatialGrid::new(largest));
-        if grid.cell_size() != largest {
-            grid.set_cell_size(largest);
+        // Grid cell = a quantile of the padded face extents: small enough that a lookup returns
+        // few faces, large enough that most faces span at most 2×2×2 cells (bigger ones span more).
+        let mut extents: Vec<Real> =
+            self.boxes.iter().map(|(lo, hi)| (hi - lo).max()).filter(|e| e.is_finite()).collect();
+        let q = ((extents.len() as Real * CELL_QUANTILE) as usize).min(extents.len().saturating_sub(1));
+        let cell_size =
+            if extents.is_empty() { largest } else { *extents.select_nth_unstable_by(q, Real::total_cmp).1 };
+        let grid = self.grid.get_or_insert_with(|| SpatialGrid::new(cell_size));
+        if grid.cell_size() != cell_size {
+            grid.set_cell_size(cell_size);
         }
         grid.rebuild(&self.registered);
+        self.timings.broad = started.elapsed();
+        let started = std::time::Instant::now();
 
         // Narrow phase, per cell in parallel: for each node, the closest face of every other cell
         // whose padded faces cover it.
         let grid = &*grid;
+        let oversized = !grid.oversized_items().is_empty();
         let face_offsets = &self.face_offsets;
         let topology = &self.topology;
         let forces_ro: &[CellForces] = forces;
@@ -242,12 +271,17 @@ impl ContactWorkspace {
                     continue;
                 }
                 candidates.clear();
-                grid.for_each_at(p, |item| candidates.push(item));
+                if oversized {
+                    grid.for_each_at(p, |item| candidates.push(item));
+                    candidates.sort_unstable();
+                    candidates.dedup();
+                } else {
+                    // Already sorted and unique within a grid cell.
+                    candidates.extend_from_slice(grid.items_at(p));
+                }
                 if candidates.is_empty() {
                     continue;
                 }
-                candidates.sort_unstable();
-                candidates.dedup();
                 let mut k = 0;
                 while k < candidates.len() {
                     let b = face_offsets.partition_point(|&o| o <= candidates[k]) - 1;
@@ -323,6 +357,8 @@ impl ContactWorkspace {
             }
         });
 
+        self.timings.narrow = started.elapsed();
+        let started = std::time::Instant::now();
         // Apply in a fixed order.
         let mut total = 0.0;
         for a in 0..n {
@@ -354,6 +390,7 @@ impl ContactWorkspace {
             forces[a].energy.contact = energy;
             total += energy;
         }
+        self.timings.apply = started.elapsed();
         total
     }
 }
