@@ -6,6 +6,7 @@ mod cell_mesh;
 mod ids;
 mod measures;
 mod orient;
+pub mod remesh;
 pub mod shapes;
 mod summary;
 mod tissue;

@@ -179,6 +179,17 @@ impl Cell {
     pub fn orient_outward(&mut self) -> usize {
         self.mesh.orient_outward()
     }
+    /// Runs a local remeshing pass on the surface (see [`super::remesh`]); face types follow their
+    /// faces (children inherit, flipped pairs take the larger face's type), and `momenta`, one per
+    /// node, are shared on splits and summed on collapses. Errors name the cell.
+    pub fn remesh(
+        &mut self,
+        momenta: Option<&mut Vec<crate::geometry::Vec3>>,
+        settings: &super::remesh::RemeshSettings,
+    ) -> Result<super::remesh::RemeshReport, super::remesh::RemeshError> {
+        super::remesh::remesh_cell(&mut self.mesh, momenta, Some(&mut self.face_types), settings)
+            .map_err(|source| super::remesh::RemeshError::Cell { cell: self.id, source: Box::new(source) })
+    }
     pub fn face_types(&self) -> &[FaceType] {
         &self.face_types
     }
