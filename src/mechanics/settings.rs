@@ -51,6 +51,9 @@ pub struct SimulationSettings {
     pub sampling_period: Real,
     /// Steps between two saved frames of an `equilibrium` run. Default 1,000.
     pub sample_every_steps: u64,
+    /// Steps between two local remeshing passes of the moving cells (split edges > 3·l_min, collapse
+    /// edges < l_min, flip poor triangles); 0 = never. Default 0.
+    pub remesh_every_steps: u64,
     /// Equilibrium when the largest nodal force is below this fraction of the typical tension force
     /// γ·l_min (γ: the mean surface tension of the moving cells' faces). Default 1e-3.
     pub force_tolerance: Real,
@@ -69,6 +72,7 @@ impl Default for SimulationSettings {
             max_steps: 200_000,
             sampling_period: 1e-5,
             sample_every_steps: 1_000,
+            remesh_every_steps: 0,
             force_tolerance: 1e-3,
             energy_tolerance: 1e-9,
             volume_tolerance: 1e-9,

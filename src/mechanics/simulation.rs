@@ -84,6 +84,8 @@ pub enum SimulationError {
     InvalidCell { cell: CellId, defect: crate::mesh::MeshDefect },
     #[error("step {step}, cell {cell}: {what}. {hint}")]
     Unhealthy { step: u64, cell: CellId, what: String, hint: &'static str, last_good: LastGood },
+    #[error("step {step}: remeshing failed: {source}")]
+    Remesh { step: u64, source: Box<crate::mesh::remesh::RemeshError> },
     #[error("step {step}: output failed: {source}")]
     Observer { step: u64, source: Box<dyn std::error::Error + Send + Sync> },
 }
@@ -343,6 +345,14 @@ impl<'p> Simulation<'p> {
                 mover = Mover::Integrate;
                 continue;
             }
+            if s.remesh_every_steps > 0 && self.step.is_multiple_of(s.remesh_every_steps) && self.remesh()? {
+                // New nodes: the minimiser starts afresh on the new layout, and the convergence
+                // history restarts (energies of different meshes are not comparable step to step).
+                if let Mover::Fire { .. } = mover {
+                    mover = Mover::fire(self);
+                }
+                previous = None;
+            }
             residual = self.residual();
             observer.progress(self.step, residual);
             if self.step.is_multiple_of(s.sample_every_steps) {
@@ -365,6 +375,9 @@ impl<'p> Simulation<'p> {
         self.sample(observer, residual)?;
         while self.step < steps {
             self.advance(true)?;
+            if s.remesh_every_steps > 0 && self.step.is_multiple_of(s.remesh_every_steps) {
+                self.remesh()?;
+            }
             residual = self.residual();
             observer.progress(self.step, residual);
             if self.step.is_multiple_of(sample_every) || self.step == steps {
@@ -399,6 +412,27 @@ impl<'p> Simulation<'p> {
         self.time += dt;
         self.step += 1;
         self.evaluate()
+    }
+
+    /// Local remeshing of every moving cell (split, collapse, flip; momenta follow their nodes).
+    /// Returns whether any mesh changed; then forces are re-evaluated.
+    fn remesh(&mut self) -> Result<bool, SimulationError> {
+        let settings = crate::mesh::remesh::RemeshSettings::new(self.params.numerics.min_edge_length);
+        let mut changed = false;
+        for (cell, momenta) in self.tissue.cells_mut().iter_mut().zip(self.momenta.iter_mut()) {
+            if cell.kind().is_immobile() {
+                continue;
+            }
+            let before = cell.mesh().topology_generation();
+            cell.remesh(Some(momenta), &settings)
+                .map_err(|e| SimulationError::Remesh { step: self.step, source: Box::new(e) })?;
+            changed |= cell.mesh().topology_generation() != before;
+        }
+        if changed {
+            self.save_good();
+            self.evaluate()?;
+        }
+        Ok(changed)
     }
 
     /// Node offsets of each cell in the packed arrays, and which packed nodes may move.

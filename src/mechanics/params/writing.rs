@@ -210,6 +210,12 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         text: "Steps between saved frames (and stats rows) of an \"equilibrium\" run.",
     },
     FieldDoc {
+        path: "simulation.remesh_every_steps",
+        unit: "",
+        text: "Steps between local remeshing passes of the moving cells (split edges longer than 3·l_min, collapse edges \
+               shorter than l_min, flip poor triangles); 0 = never.",
+    },
+    FieldDoc {
         path: "simulation.force_tolerance",
         unit: "",
         text: "Equilibrium when the largest nodal force is below this fraction of the typical tension force γ·l_min (γ: mean surface tension of the moving cells' faces) ...",
