@@ -273,9 +273,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<Outcome> {
                 .with_context(|| format!("reading {}", file.display()))?
                 .tissue;
             // One parameter set for all cells, whatever their cell_type_id (embryo_1 stores ids there).
-            let retyped = Tissue::from_cells(
-                tissue.cells().iter().map(|c| Cell::new(c.id(), CellKind::Epithelial, 0, c.mesh().clone())).collect(),
-            )?;
+            let retyped = replicate(&tissue, 1)?;
             let mut v = forces_json("forces-tissue", &retyped, &params, args.repeat)?;
             v["file"] = json!(file.display().to_string());
             v

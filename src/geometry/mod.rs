@@ -11,7 +11,7 @@ mod triangle;
 
 pub use closest_point::*;
 pub use spatial_grid::*;
-pub use triangle::{triangle_area, triangle_area_vector, triangle_normal};
+pub use triangle::{triangle_area, triangle_area_gradients, triangle_area_vector, triangle_normal};
 
 /// Scalar type of every physical quantity.
 pub type Real = f64;

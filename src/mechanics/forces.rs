@@ -13,7 +13,7 @@ use super::cell_geometry::CellGeometry;
 use super::pressure::pressure_energy;
 use super::tension::tension_energy;
 use super::{CellTypeParams, Parameters};
-use crate::geometry::{Real, Vec3};
+use crate::geometry::{Real, Vec3, triangle_area_gradients};
 use crate::mesh::{Cell, CellId, FaceType, Tissue};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -141,12 +141,11 @@ impl CellForces {
                 let [i, j, k] = t.map(|n| n as usize);
                 let c = coefficient[face_types[f].code() as usize];
                 let push = p_third * g.area_vectors[f];
-                // ∇_i A = ½ n̂ × (r_k − r_j), cyclic.
-                let half_n = 0.5 * c * g.normals[f];
-                let (ri, rj, rk) = (positions[i], positions[j], positions[k]);
-                self.forces[i] += push - half_n.cross(&(rk - rj));
-                self.forces[j] += push - half_n.cross(&(ri - rk));
-                self.forces[k] += push - half_n.cross(&(rj - ri));
+                // c·∇A: the area gradients of the normal scaled by c.
+                let grad = triangle_area_gradients(&positions[i], &positions[j], &positions[k], &(c * g.normals[f]));
+                self.forces[i] += push - grad[0];
+                self.forces[j] += push - grad[1];
+                self.forces[k] += push - grad[2];
             }
         }
         if terms.bending && kb.iter().any(|&k| k != 0.0) {

@@ -35,7 +35,7 @@ pub use spring::{contact_energy_density, contact_stress};
 
 use super::CellForces;
 use super::CellTypeParams;
-use crate::geometry::{Real, SpatialGrid, TriangleRegion, Vec3, closest_point_on_triangle};
+use crate::geometry::{Real, SpatialGrid, TriangleRegion, Vec3, closest_point_on_triangle, triangle_area_gradients};
 use crate::mesh::{Adjacency, CellKind, FaceType, Tissue};
 use rayon::prelude::*;
 
@@ -372,18 +372,17 @@ impl ContactWorkspace {
                 for (k, &v) in t.iter().enumerate() {
                     forces[pair.other as usize].forces[v as usize] += pair.weights[k] * push;
                 }
-                // −Φ·∇a_p: a third of each adjacent face's area gradient, ∇_i A = ½ n̂ × (r_k − r_j).
+                // −Φ·∇a_p: a third of each adjacent face's area gradient.
                 if pair.phi != 0.0 {
                     let mesh_a = cells[a].mesh();
                     let pa = mesh_a.positions();
                     for &g in self.topology[a].faces_of(pair.node) {
-                        let tri = mesh_a.triangles()[g as usize];
-                        let half_n = (0.5 * pair.phi / 3.0) * forces[a].geometry.normals[g as usize];
-                        let [i, j, k] = tri.map(|x| x as usize);
-                        let (ri, rj, rk) = (pa[i], pa[j], pa[k]);
-                        forces[a].forces[i] -= half_n.cross(&(rk - rj));
-                        forces[a].forces[j] -= half_n.cross(&(ri - rk));
-                        forces[a].forces[k] -= half_n.cross(&(rj - ri));
+                        let tri = mesh_a.triangles()[g as usize].map(|x| x as usize);
+                        let scaled = (pair.phi / 3.0) * forces[a].geometry.normals[g as usize];
+                        let grad = triangle_area_gradients(&pa[tri[0]], &pa[tri[1]], &pa[tri[2]], &scaled);
+                        for (v, gv) in tri.iter().zip(grad) {
+                            forces[a].forces[*v] -= gv;
+                        }
                     }
                 }
             }
