@@ -353,6 +353,12 @@ impl Fire {
         &self.velocities
     }
 
+    /// Mutable velocities, for constraints that tie nodes together (node coupling averages the
+    /// velocities of each tied pair).
+    pub fn velocities_mut(&mut self) -> &mut [Vec3] {
+        &mut self.velocities
+    }
+
     /// The settings.
     pub fn settings(&self) -> &FireSettings {
         &self.settings

@@ -16,6 +16,7 @@ mod forces;
 mod growth;
 mod motion;
 mod params;
+mod polarity;
 mod pressure;
 mod settings;
 mod simulation;
@@ -24,15 +25,18 @@ mod tension;
 pub use area_elasticity::{area_elasticity_energy, target_area};
 pub use bending::{Hinge, add_bending_forces, build_hinges};
 pub use cell_geometry::CellGeometry;
-pub use contact::{ContactTimings, ContactWorkspace, contact_energy_density, contact_stress};
+pub use contact::{
+    ContactTimings, ContactWorkspace, CoupledPair, CouplingWorkspace, contact_energy_density, contact_stress,
+};
 pub use fire::*;
 pub use forces::{CellForces, EnergyTerms, TermSet, TissueForces, UnknownCellType, cell_parameters};
 pub use growth::draw_growth_rates;
 pub use motion::integrate_step;
 pub use params::{
-    CellTypeParams, ContactModel, Dynamics, FaceParams, FaceTypeParams, Numerics, ParamError, Parameters,
+    CellTypeParams, ContactModel, Dynamics, FaceParams, FaceTypeParams, Numerics, ParamError, Parameters, Polarity,
     SPHERE_ISOPERIMETRIC_RATIO, TimeStepLimit,
 };
+pub use polarity::polarize_from_contacts;
 pub use pressure::pressure_energy;
 pub use settings::{RelaxMethod, SimulationMode, SimulationSettings};
 pub use simulation::{LastGood, Observer, Sample, Simulation, SimulationError, SimulationSummary};

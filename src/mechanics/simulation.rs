@@ -15,7 +15,11 @@ use super::fire::{Fire, FireSettings};
 use super::forces::{TermSet, TissueForces, UnknownCellType, cell_parameters};
 use super::growth::draw_growth_rates;
 use super::motion::integrate_step;
-use super::{CellForces, CellTypeParams, ContactWorkspace, EnergyTerms, Parameters, RelaxMethod, SimulationMode};
+use super::polarity::polarize_from_contacts;
+use super::{
+    CellForces, CellTypeParams, ContactModel, ContactWorkspace, CouplingWorkspace, EnergyTerms, Parameters, Polarity,
+    RelaxMethod, SimulationMode,
+};
 use crate::geometry::{Real, Vec3};
 use crate::mesh::{CellId, FaceType, Tissue};
 use serde::Serialize;
@@ -121,6 +125,7 @@ pub struct Simulation<'p> {
     cell_params: Vec<&'p CellTypeParams>,
     forces: TissueForces,
     contacts: ContactWorkspace,
+    coupling: CouplingWorkspace,
     momenta: Vec<Vec<Vec3>>,
     growth_rates: Vec<Real>,
     last_good: Vec<Vec<Vec3>>,
@@ -146,10 +151,13 @@ impl<'p> Simulation<'p> {
         let growth_rates = draw_growth_rates(&tissue, &cell_params, params.numerics.seed);
         let momenta = tissue.cells().iter().map(|c| vec![Vec3::zeros(); c.mesh().node_count()]).collect();
         let energy_scale = gamma * tissue.cells().iter().map(|c| c.mesh().area()).sum::<Real>();
+        let mut contacts = ContactWorkspace::default();
+        contacts.set_model(params.numerics.contact_model);
         Ok(Self {
             cell_params,
             forces: TissueForces::default(),
-            contacts: ContactWorkspace::default(),
+            contacts,
+            coupling: CouplingWorkspace::default(),
             momenta,
             growth_rates,
             last_good: Vec::new(),
@@ -196,15 +204,36 @@ impl<'p> Simulation<'p> {
         max.sqrt() / self.force_scale
     }
 
-    /// Evaluates forces at the current positions and checks the state's health.
-    fn evaluate(&mut self) -> Result<(), SimulationError> {
+    /// The node pairs tied by the coupling contact model at the last evaluation (empty with springs).
+    pub fn coupled_pairs(&self) -> &[super::CoupledPair] {
+        self.coupling.pairs()
+    }
+
+    /// Forces at the current positions: node coupling (which snaps tied pairs together), internal
+    /// forces, contacts, and the averaging of tied pairs' forces.
+    fn compute_forces(&mut self) {
+        let numerics = &self.params.numerics;
+        let coupling = numerics.contact_model == ContactModel::Coupling;
+        if coupling {
+            self.coupling.couple(&mut self.tissue, &self.cell_params, numerics.contact_cutoff);
+        }
         self.forces.compute(&self.tissue, &self.cell_params, TermSet::ALL);
-        self.contacts.add_contacts(
-            &self.tissue,
-            &self.cell_params,
-            self.params.numerics.contact_cutoff,
-            &mut self.forces.cells,
-        );
+        self.contacts.add_contacts(&self.tissue, &self.cell_params, numerics.contact_cutoff, &mut self.forces.cells);
+        if coupling {
+            self.coupling.average_forces(&self.tissue, &mut self.forces.cells);
+        }
+    }
+
+    /// Evaluates forces at the current positions (re-typing faces from contacts first, when
+    /// polarity is on) and checks the state's health.
+    fn evaluate(&mut self) -> Result<(), SimulationError> {
+        self.compute_forces();
+        if self.params.numerics.polarity == Polarity::Contacts
+            && polarize_from_contacts(&mut self.tissue, &self.contacts) > 0
+        {
+            // Tensions changed with the face types: the forces must match the new types.
+            self.compute_forces();
+        }
         self.force_evaluations += 1;
         for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.forces.cells).enumerate() {
             let problem = if let Some(n) = cell.mesh().positions().iter().position(|p| !p.iter().all(|v| v.is_finite()))
@@ -390,6 +419,8 @@ impl<'p> Simulation<'p> {
     /// One time step of the equations of motion (forces at the current positions are known).
     fn advance(&mut self, grow: bool) -> Result<(), SimulationError> {
         self.save_good();
+        // Tied pairs share one momentum (forces are already averaged).
+        self.coupling.average_momenta(&self.tissue, &mut self.momenta);
         integrate_step(
             &mut self.tissue,
             &self.forces.cells,
@@ -502,6 +533,8 @@ impl Mover {
                 sim.unpack(offsets, x);
                 sim.step += 1;
                 sim.evaluate()?;
+                // Tied pairs move as one: new pairs take their mean velocity.
+                sim.coupling.average_packed(&sim.tissue, offsets, fire.velocities_mut());
             }
             Mover::Integrate => sim.advance(false)?,
         }

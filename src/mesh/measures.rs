@@ -119,6 +119,12 @@ impl CellMesh {
     /// 2003): Δx_i = (1/2A_i) Σ_j (cot α_ij + cot β_ij)(x_j − x_i) = −2 H_i n_i, and H_i is its
     /// component along the area-weighted node normal. Nodes with no area (unused) get 0.
     pub fn mean_curvature(&self) -> Vec<Real> {
+        self.mean_curvature_and_normals().0
+    }
+
+    /// [`Self::mean_curvature`] and the unit area-weighted normal of every node (zero for a node
+    /// without faces), computed in one pass.
+    pub fn mean_curvature_and_normals(&self) -> (Vec<Real>, Vec<Vec3>) {
         let p = self.positions();
         let n = self.node_count();
         let mut laplace = vec![Vec3::zeros(); n];
@@ -151,15 +157,15 @@ impl CellMesh {
                 };
             }
         }
-        (0..n)
-            .map(|i| {
-                let nrm = normal[i].try_normalize(0.0);
-                match nrm {
-                    Some(nrm) if area[i] > 0.0 => -(laplace[i] / (2.0 * area[i])).dot(&nrm) / 2.0,
-                    _ => 0.0,
-                }
-            })
-            .collect()
+        let mut curvature = vec![0.0; n];
+        for i in 0..n {
+            let nrm = normal[i].try_normalize(0.0).unwrap_or_else(Vec3::zeros);
+            if area[i] > 0.0 {
+                curvature[i] = -(laplace[i] / (2.0 * area[i])).dot(&nrm) / 2.0;
+            }
+            normal[i] = nrm;
+        }
+        (curvature, normal)
     }
 
     /// Minimum, mean and maximum edge length; `None` for a mesh without faces.

@@ -193,6 +193,10 @@ impl Cell {
     pub fn face_types(&self) -> &[FaceType] {
         &self.face_types
     }
+    /// The mesh and mutable face types, one per triangle (polarisation re-types faces in place).
+    pub fn mesh_and_face_types_mut(&mut self) -> (&CellMesh, &mut [FaceType]) {
+        (&self.mesh, &mut self.face_types)
+    }
     /// Target (rest) volume V0 (m³).
     pub fn target_volume(&self) -> Real {
         self.target_volume

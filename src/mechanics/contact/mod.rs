@@ -29,12 +29,15 @@
 //! **Determinism.** Pairs are found in parallel per cell (read-only), then forces are applied in a
 //! fixed order (cell, node), so results do not depend on the thread count.
 
+mod coupling;
 mod spring;
 
+use coupling::couples;
+pub use coupling::{CoupledPair, CouplingWorkspace};
 pub use spring::{contact_energy_density, contact_stress};
 
 use super::CellForces;
-use super::CellTypeParams;
+use super::{CellTypeParams, ContactModel};
 use crate::geometry::{Real, SpatialGrid, TriangleRegion, Vec3, closest_point_on_triangle, triangle_area_gradients};
 use crate::mesh::{Adjacency, CellKind, FaceType, Tissue};
 use rayon::prelude::*;
@@ -96,6 +99,8 @@ struct Pair {
     direction: Vec3,
     /// Node area a_p (m²).
     area: Real,
+    /// Signed distance d (m).
+    distance: Real,
     /// Φ(d) (J/m²) and σ(d) = dΦ/dd (Pa).
     phi: Real,
     sigma: Real,
@@ -113,6 +118,9 @@ pub struct ContactWorkspace {
     pairs: Vec<Vec<Pair>>,
     /// Number of node–surface pairs in the last evaluation.
     pub pair_count: usize,
+    /// Which contact model the springs serve: with [`ContactModel::Coupling`], two coupling cells
+    /// (epithelial or static) only repel each other (their adhesion is the coupling).
+    model: ContactModel,
     /// Time spent in the last evaluation, per phase.
     pub timings: ContactTimings,
 }
@@ -159,6 +167,18 @@ fn node_contact_parameters(faces: &[u32], face_types: &[FaceType], p: &CellTypeP
 }
 
 impl ContactWorkspace {
+    /// Sets the contact model the springs serve (default [`ContactModel::Spring`]).
+    pub fn set_model(&mut self, model: ContactModel) {
+        self.model = model;
+    }
+
+    /// For each node of cell `cell` within the cutoff of another cell's surface at the last
+    /// evaluation: (node, index of the other cell, signed distance d), one entry per other cell,
+    /// nodes ascending.
+    pub fn node_contacts(&self, cell: usize) -> impl Iterator<Item = (u32, u32, Real)> + '_ {
+        self.pairs.get(cell).into_iter().flatten().map(|p| (p.node, p.other, p.distance))
+    }
+
     /// Adds contact forces to `forces` (one entry per cell, internal forces already computed, so
     /// face normals and areas are current) and their energy to each cell's `energy.contact`.
     /// Returns the total contact energy (J).
@@ -257,6 +277,7 @@ impl ContactWorkspace {
         let topology = &self.topology;
         let forces_ro: &[CellForces] = forces;
         let (neighbours, cell_boxes, boxes) = (&neighbours, &cell_boxes, &self.boxes);
+        let coupling = self.model == ContactModel::Coupling;
         self.pairs.par_iter_mut().enumerate().for_each(|(a, pairs)| {
             pairs.clear();
             let cell_a = &cells[a];
@@ -340,7 +361,10 @@ impl ContactWorkspace {
                         None => sign * normals_b[f as usize],
                     };
                     let faces_a = topology[a].faces_of(node as u32);
-                    let (omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
+                    let (mut omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
+                    if coupling && couples(cell_a.kind()) && couples(cells[b].kind()) {
+                        omega = 0.0;
+                    }
                     let area: Real =
                         faces_a.iter().map(|&g| forces_ro[a].geometry.areas[g as usize]).sum::<Real>() / 3.0;
                     pairs.push(Pair {
@@ -350,6 +374,7 @@ impl ContactWorkspace {
                         weights: q.weights,
                         direction,
                         area,
+                        distance: d,
                         phi: contact_energy_density(d, cutoff, omega, xi),
                         sigma: contact_stress(d, cutoff, omega, xi),
                     });

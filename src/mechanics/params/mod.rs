@@ -79,12 +79,33 @@ pub enum ContactModel {
     /// Paper Eq. 2: node–face springs with adhesion ω and repulsion ξ within the cutoff c.
     #[default]
     Spring,
+    /// The paper's second model: node pairs of two epithelial (or static) cells closer than c, both
+    /// flatter than H_max, are tied together (positions, forces and momenta averaged); repulsion ξ
+    /// keeps the other nodes out, and ECM, lumen and nuclei interact by springs.
+    Coupling,
 }
 
 impl ContactModel {
     /// All variants.
-    /// (The paper's node-coupling model, driven by H_max, is not in this version.)
-    pub const ALL: [ContactModel; 1] = [ContactModel::Spring];
+    pub const ALL: [ContactModel; 2] = [ContactModel::Spring, ContactModel::Coupling];
+}
+
+/// How face types (apical/lateral/basal) are assigned during a simulation.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Polarity {
+    /// Face types stay as read from the input file.
+    #[default]
+    None,
+    /// Paper polarisation mode 1, from contacts, every force evaluation: faces of epithelial and
+    /// static cells whose three nodes touch another cell become lateral, those touching the lumen
+    /// apical, and those touching the ECM or nothing (the medium) basal.
+    Contacts,
+}
+
+impl Polarity {
+    /// All variants.
+    pub const ALL: [Polarity; 2] = [Polarity::None, Polarity::Contacts];
 }
 
 /// Numerical parameters (paper Table 2, "Numerical parameters").
@@ -107,6 +128,8 @@ pub struct Numerics {
     pub dynamics: Dynamics,
     /// Contact model. Default [`ContactModel::Spring`].
     pub contact_model: ContactModel,
+    /// Face-type assignment during the simulation. Default [`Polarity::None`].
+    pub polarity: Polarity,
     /// Seed of every random draw (growth rates, division volumes and planes). Default 1.
     pub seed: u64,
 }
@@ -127,6 +150,7 @@ impl Numerics {
             time_step: 1e-7,
             dynamics,
             contact_model: ContactModel::Spring,
+            polarity: Polarity::None,
             seed: 1,
         }
     }

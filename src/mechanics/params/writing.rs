@@ -79,7 +79,15 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         path: "numerics.contact_model",
         unit: "",
         text: "Contact model: \"spring\" (paper Eq. 2: nodes within the cutoff c of another cell's surface adhere with ω \
-               and are repelled with ξ). The paper's node-coupling model is not in this version.",
+               and are repelled with ξ) or \"coupling\" (node pairs of two epithelial or static cells closer than c, both with \
+               mean curvature below max_coupling_curvature, are tied together; the other nodes are repelled with ξ; ECM, \
+               lumen and nuclei use springs).",
+    },
+    FieldDoc {
+        path: "numerics.polarity",
+        unit: "",
+        text: "Face types during the simulation: \"none\" (as in the input file) or \"contacts\" (paper mode 1, every step: \
+               faces touching another cell lateral, the lumen apical, the ECM or the medium basal).",
     },
     FieldDoc {
         path: "numerics.seed",
