@@ -204,6 +204,11 @@ impl<'p> Simulation<'p> {
         max.sqrt() / self.force_scale
     }
 
+    /// The contact stage of the last evaluation (which nodes touch which cell, at what distance).
+    pub fn contacts(&self) -> &ContactWorkspace {
+        &self.contacts
+    }
+
     /// The node pairs tied by the coupling contact model at the last evaluation (empty with springs).
     pub fn coupled_pairs(&self) -> &[super::CoupledPair] {
         self.coupling.pairs()
