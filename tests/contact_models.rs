@@ -255,3 +255,86 @@ fn spring_doublets_adhere_with_a_flat_disc_that_grows_with_adhesion() {
     }
     assert!(areas.windows(2).all(|w| w[1] > w[0]), "contact area not increasing with ω: {areas:?}");
 }
+
+/// A two-type parameter set: type 0 epithelial (as `base`), type 1 of `kind` with tension γ and
+/// repulsion ξ.
+fn with_second_type(mut base: Parameters, kind: CellKind, gamma: Real, xi: Real) -> Parameters {
+    let mut t = tissuefit::mechanics::CellTypeParams::default_for(kind);
+    for ft in FaceType::ALL {
+        let f = t.faces.get_mut(ft);
+        f.surface_tension = gamma;
+        f.repulsion = xi;
+        f.bending_modulus = 0.0;
+    }
+    t.max_pressure = Real::INFINITY;
+    base.cell_types.push(t);
+    for ft in FaceType::ALL {
+        base.cell_types[0].faces.get_mut(ft).repulsion = xi;
+    }
+    base
+}
+
+/// The most negative signed contact distance of cell `c`'s nodes at the last evaluation.
+fn deepest_penetration(sim: &Simulation<'_>, c: usize) -> Real {
+    sim.contacts().node_contacts(c).map(|(_, _, d)| d).fold(Real::INFINITY, Real::min)
+}
+
+/// Nodes of `inner` outside the closed surface of `outer` (winding number below ½).
+fn nodes_outside(inner: &Cell, outer: &Cell) -> usize {
+    inner.mesh().positions().iter().filter(|p| outer.mesh().winding_number(p) < 0.5).count()
+}
+
+#[test]
+fn a_nucleus_stays_inside_its_compressed_cell() {
+    // The cell wants half its volume; its membrane closes around an off-centre nucleus.
+    // A stiff nucleus (K = 1e5 Pa, γ = 1e-4 N/m) keeps its volume; the cell (V0 = V/2, γ = 1e-3 N/m)
+    // settles at a radius of about 2.1 µm, less than the nucleus's far side at 2.7 µm.
+    let mut p = with_second_type(spring_params(0.0), CellKind::Nucleus, 1e-4, 1e11);
+    p.cell_types[1].bulk_modulus = 1e5;
+    p.simulation.max_steps = 3000;
+    let cell = icosphere(3e-6, 3, Vec3::zeros());
+    let v = cell.signed_volume();
+    let cell = Cell::new(CellId(1), CellKind::Epithelial, 0, cell).with_target_volume(0.5 * v);
+    let nucleus = Cell::new(CellId(2), CellKind::Nucleus, 1, icosphere(1.5e-6, 3, Vec3::new(1.2e-6, 0.0, 0.0)));
+    let vn0 = nucleus.mesh().signed_volume();
+    let mut sim = Simulation::new(Tissue::from_cells(vec![cell, nucleus]).unwrap(), &p).unwrap();
+    let s = sim.run(&mut Quiet).unwrap();
+    let t = sim.tissue();
+    let [cell, nucleus] = [&t.cells()[0], &t.cells()[1]];
+    let (vc, vn) = (cell.mesh().signed_volume(), nucleus.mesh().signed_volume());
+    let deepest = deepest_penetration(&sim, 1);
+    eprintln!("cell V = {vc:e} (V0 {:e}), nucleus V = {vn:e} ({vn0:e}), deepest {deepest:e} m, {s:?}", 0.5 * v);
+    assert!(vc < 0.75 * v, "the cell did not shrink: V = {vc:e}, initial {v:e}");
+    assert!(vn > 0.9 * vn0, "the nucleus was crushed: V = {vn:e}, initial {vn0:e}");
+    // Inside up to the spring model's allowed penetration, which is below the cutoff.
+    assert!(deepest > -p.numerics.contact_cutoff, "a nucleus node is {deepest:e} m outside its cell");
+    let outside = nodes_outside(nucleus, cell);
+    assert!(outside < nucleus.mesh().node_count() / 4, "{outside} nucleus nodes outside the cell");
+    for c in t.cells() {
+        c.mesh().validate().unwrap();
+    }
+}
+
+#[test]
+fn a_growing_cell_stays_inside_the_ecm_shell() {
+    // A static ECM sphere of radius 4 µm around a 3 µm cell that wants 8 times its volume.
+    let mut p = with_second_type(spring_params(0.0), CellKind::Ecm, 5e-4, 1e11);
+    p.simulation.max_steps = 3000;
+    let cell = icosphere(3e-6, 3, Vec3::zeros());
+    let v = cell.signed_volume();
+    let cell = Cell::new(CellId(1), CellKind::Epithelial, 0, cell).with_target_volume(8.0 * v);
+    let ecm = Cell::new(CellId(2), CellKind::Ecm, 1, icosphere(4e-6, 4, Vec3::new(3e-7, 0.0, 0.0)));
+    let mut sim = Simulation::new(Tissue::from_cells(vec![cell, ecm]).unwrap(), &p).unwrap();
+    let s = sim.run(&mut Quiet).unwrap();
+    let t = sim.tissue();
+    let [cell, ecm] = [&t.cells()[0], &t.cells()[1]];
+    let (vc, ve) = (cell.mesh().signed_volume(), ecm.mesh().signed_volume());
+    let deepest = deepest_penetration(&sim, 0);
+    eprintln!("cell V = {vc:e} (initial {v:e}, ECM {ve:e}), deepest {deepest:e} m, {s:?}");
+    assert!(vc > 1.5 * v, "the cell did not grow: V = {vc:e}, initial {v:e}");
+    // The repulsion lets nodes sink up to the cutoff into the shell, never through it.
+    let widened = 4.0 / 3.0 * std::f64::consts::PI * (4e-6 + p.numerics.contact_cutoff).powi(3);
+    assert!(vc < widened, "the cell ({vc:e} m³) outgrew the ECM shell ({ve:e} m³, {widened:e} widened by c)");
+    assert!(deepest > -p.numerics.contact_cutoff, "a cell node is {deepest:e} m outside the ECM");
+    cell.mesh().validate().unwrap();
+}

@@ -168,6 +168,22 @@ impl CellMesh {
         (curvature, normal)
     }
 
+    /// Generalised winding number of the closed surface around `p`: the solid angle it subtends
+    /// over 4π (Van Oosterom & Strackee 1983). 1 inside an outward-oriented closed surface, 0
+    /// outside, ½ on it; robust to small defects.
+    pub fn winding_number(&self, p: &Vec3) -> Real {
+        let x = self.positions();
+        let mut total = 0.0;
+        for t in self.triangles() {
+            let (a, b, c) = (x[t[0] as usize] - p, x[t[1] as usize] - p, x[t[2] as usize] - p);
+            let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
+            let numerator = a.dot(&b.cross(&c));
+            let denominator = la * lb * lc + a.dot(&b) * lc + b.dot(&c) * la + c.dot(&a) * lb;
+            total += 2.0 * numerator.atan2(denominator);
+        }
+        total / (4.0 * std::f64::consts::PI)
+    }
+
     /// Minimum, mean and maximum edge length; `None` for a mesh without faces.
     pub fn edge_length_stats(&self) -> Option<EdgeLengthStats> {
         let adj = Adjacency::new(self);

@@ -26,6 +26,10 @@
 //! other cells the sign of the distance to an ECM surface is flipped: adhesion from the inside,
 //! repulsion when pushed out through it.
 //!
+//! Nuclei lie inside their host cell (the cell containing the nucleus's centroid, found at every
+//! evaluation): for a nucleus node the distance to its host's surface is flipped the same way, so
+//! the host's membrane holds the nucleus in.
+//!
 //! **Determinism.** Pairs are found in parallel per cell (read-only), then forces are applied in a
 //! fixed order (cell, node), so results do not depend on the thread count.
 
@@ -233,6 +237,22 @@ impl ContactWorkspace {
                     })
             })
             .collect();
+        // The host cell of each nucleus: the first cell of another kind containing its centroid.
+        let host: Vec<Option<usize>> = cells
+            .par_iter()
+            .map(|cell| {
+                if cell.kind() != CellKind::Nucleus {
+                    return None;
+                }
+                let centroid = cell.mesh().volume_centroid()?;
+                let boxed = |b: &(Vec3, Vec3)| (0..3).all(|k| b.0[k] <= centroid[k] && centroid[k] <= b.1[k]);
+                cells.iter().zip(&cell_boxes).position(|(other, bx)| {
+                    matches!(other.kind(), CellKind::Epithelial | CellKind::Static)
+                        && boxed(bx)
+                        && other.mesh().winding_number(&centroid) > 0.5
+                })
+            })
+            .collect();
         let overlaps = |a: &(Vec3, Vec3), b: &(Vec3, Vec3)| (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k]);
         let neighbours: Vec<Vec<usize>> =
             (0..n).map(|a| (0..n).filter(|&b| b != a && overlaps(&cell_boxes[a], &cell_boxes[b])).collect()).collect();
@@ -276,7 +296,7 @@ impl ContactWorkspace {
         let face_offsets = &self.face_offsets;
         let topology = &self.topology;
         let forces_ro: &[CellForces] = forces;
-        let (neighbours, cell_boxes, boxes) = (&neighbours, &cell_boxes, &self.boxes);
+        let (neighbours, cell_boxes, boxes, host) = (&neighbours, &cell_boxes, &self.boxes, &host);
         let coupling = self.model == ContactModel::Coupling;
         self.pairs.par_iter_mut().enumerate().for_each(|(a, pairs)| {
             pairs.clear();
@@ -349,7 +369,7 @@ impl ContactWorkspace {
                     };
                     let separation = p - q.point;
                     let mut sign = if separation.dot(&pseudo) < 0.0 { -1.0 } else { 1.0 };
-                    if cells[b].kind() == CellKind::Ecm && cell_a.kind() != CellKind::Ecm {
+                    if (cells[b].kind() == CellKind::Ecm && cell_a.kind() != CellKind::Ecm) || host[a] == Some(b) {
                         sign = -sign;
                     }
                     let d = sign * q.distance;
