@@ -233,8 +233,7 @@ fn coordinates_agree_with_vtkio_where_vtkio_can_read() {
 
 #[test]
 #[ignore = "needs ../shared/data/real"]
-fn real_simucell3d_tissues_relax_without_contacts() {
-    // Internal forces only (contacts come with the next stage): each cell relaxes on its own.
+fn real_simucell3d_tissues_relax_with_default_parameters() {
     use tissuefit::mechanics::{Observer, Parameters, Sample, Simulation};
     struct Quiet;
     impl Observer for Quiet {
@@ -258,6 +257,63 @@ fn real_simucell3d_tissues_relax_without_contacts() {
     let t = read_tissue(&real("simucell3d__embryo_1.vtk"), &ReadOptions::default()).unwrap().tissue;
     let err = Simulation::new(t, &Parameters::default()).err().expect("undefined cell types are an error").to_string();
     assert!(err.contains("cell_type 5") && err.contains("[[cell_types]]"), "{err}");
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn real_simucell3d_tissues_relax_with_each_contact_model() {
+    // FIRE with remeshing every 20 steps, for a bounded number of steps: no NaN, valid meshes, and
+    // no node deeper than the cutoff inside another cell.
+    use tissuefit::mechanics::{CellTypeParams, ContactModel, Observer, Parameters, Polarity, Sample, Simulation};
+    use tissuefit::mesh::CellKind;
+    struct Quiet;
+    impl Observer for Quiet {
+        fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            Ok(())
+        }
+    }
+    for model in [ContactModel::Spring, ContactModel::Coupling] {
+        for (name, steps) in [
+            ("simucell3d__cell_doublet.vtk", 400),
+            ("simucell3d__cell_triplet.vtk", 400),
+            ("simucell3d__embryo_1.vtk", 100),
+        ] {
+            // embryo_1's cell 24 has two flipped faces: re-orient.
+            let options = ReadOptions { orient: true, ..ReadOptions::default() };
+            let t = read_tissue(&real(name), &options).unwrap().tissue;
+            let mut p = Parameters::default();
+            // embryo_1 stores per-cell ids in cell_type_id: one (identical) parameter set per id.
+            let types = t.cells().iter().map(|c| c.cell_type()).max().unwrap() as usize + 1;
+            p.cell_types = (0..types)
+                .map(|k| CellTypeParams {
+                    name: format!("type{k}"),
+                    ..CellTypeParams::default_for(CellKind::Epithelial)
+                })
+                .collect();
+            p.numerics.contact_model = model;
+            p.numerics.polarity = Polarity::Contacts;
+            p.simulation.max_steps = steps;
+            p.simulation.remesh_every_steps = 20;
+            p.simulation.sample_every_steps = u64::MAX;
+            let cutoff = p.numerics.contact_cutoff;
+            let mut sim = Simulation::new(t, &p).unwrap();
+            let s = sim.run(&mut Quiet).unwrap_or_else(|e| panic!("{name}, {model:?}: {e}"));
+            assert!(s.residual.is_finite() && s.energy.total().is_finite(), "{name}, {model:?}: {s:?}");
+            let mut deepest = f64::INFINITY;
+            for (i, c) in sim.tissue().cells().iter().enumerate() {
+                assert_eq!(c.mesh().validate(), Ok(()), "{name}, {model:?}: cell {} after relaxation", c.id());
+                deepest = sim.contacts().node_contacts(i).map(|x| x.2).fold(deepest, f64::min);
+            }
+            eprintln!(
+                "{name}, {model:?}: {} steps, residual {:.3}, deepest {:.1} nm, {} coupled pairs",
+                s.steps,
+                s.residual,
+                deepest * 1e9,
+                sim.coupled_pairs().len()
+            );
+            assert!(deepest > -cutoff, "{name}, {model:?}: a node is {deepest:e} m inside another cell");
+        }
+    }
 }
 
 #[test]
