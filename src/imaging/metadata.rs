@@ -28,6 +28,8 @@ pub(crate) struct StackMetadata {
     pub source: Option<VoxelSizeSource>,
     pub channels: Option<u64>,
     pub frames: Option<u64>,
+    /// ImageJ `xorigin`, `yorigin`, `zorigin`: the voxel index (x, y, z) of the physical origin.
+    pub origin_voxels: [Option<Real>; 3],
     /// Notes for the user (ignored or odd metadata).
     pub warnings: Vec<String>,
 }
@@ -100,6 +102,7 @@ fn parse_imagej(desc: &str, xres: Option<Real>, yres: Option<Real>, meta: &mut S
     let number = |key: &str| value(key).and_then(|v| v.parse::<Real>().ok());
     meta.channels = number("channels").map(|c| c as u64);
     meta.frames = number("frames").map(|f| f as u64);
+    meta.origin_voxels = [number("xorigin"), number("yorigin"), number("zorigin")];
     let unit = value("unit");
     let Some(factor) = unit.and_then(unit_metres) else {
         if let Some(u) = unit.filter(|u| !matches!(*u, "" | "pixel" | "pixels")) {
@@ -145,11 +148,23 @@ fn parse_ome(desc: &str, meta: &mut StackMetadata) {
     }
 }
 
-/// The ImageJ hyperstack description tissuefit writes (units: micron).
-pub(crate) fn imagej_description(slices: usize, z_spacing_um: Real, max_label: u32) -> String {
-    format!(
-        "ImageJ=1.11a\nimages={slices}\nslices={slices}\nunit=micron\nspacing={z_spacing_um}\nloop=false\nmin=0.0\nmax={max_label}.0\n"
-    )
+/// The ImageJ hyperstack description tissuefit writes (units: micron). `origin_voxels` (x, y, z) is
+/// the voxel index of the physical origin, ImageJ's `xorigin`/`yorigin`/`zorigin`; written when
+/// non-zero.
+pub(crate) fn imagej_description(
+    slices: usize,
+    z_spacing_um: Real,
+    max_label: u32,
+    origin_voxels: [Real; 3],
+) -> String {
+    let mut d = format!("ImageJ=1.11a\nimages={slices}\nslices={slices}\nunit=micron\nspacing={z_spacing_um}\n");
+    for (key, v) in ["xorigin", "yorigin", "zorigin"].iter().zip(origin_voxels) {
+        if v != 0.0 && v.is_finite() {
+            d.push_str(&format!("{key}={v}\n"));
+        }
+    }
+    d.push_str(&format!("loop=false\nmin=0.0\nmax={max_label}.0\n"));
+    d
 }
 
 #[cfg(test)]

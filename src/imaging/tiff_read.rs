@@ -29,8 +29,9 @@ pub const FALLBACK_VOXEL_SIZE: Real = 1e-6;
 pub struct LabelReadOptions {
     /// Voxel size `[sz, sy, sx]` (m) to use instead of the file's metadata.
     pub voxel_size: Option<[Real; 3]>,
-    /// Centre (x, y, z m) of voxel `[0, 0, 0]`; default the coordinate origin.
-    pub origin: Vec3,
+    /// Centre (x, y, z m) of voxel `[0, 0, 0]` to use instead of the file's ImageJ
+    /// `xorigin`/`yorigin`/`zorigin` (absent: the coordinate origin).
+    pub origin: Option<Vec3>,
     /// Size (m) assumed, with a warning, for every axis that neither the file nor the caller sizes.
     /// Default [`FALLBACK_VOXEL_SIZE`] (1 µm).
     pub fallback_voxel_size: Real,
@@ -38,7 +39,7 @@ pub struct LabelReadOptions {
 
 impl Default for LabelReadOptions {
     fn default() -> Self {
-        Self { voxel_size: None, origin: Vec3::zeros(), fallback_voxel_size: FALLBACK_VOXEL_SIZE }
+        Self { voxel_size: None, origin: None, fallback_voxel_size: FALLBACK_VOXEL_SIZE }
     }
 }
 
@@ -148,7 +149,10 @@ pub fn read_label_tiff(path: &Path, options: &LabelReadOptions) -> Result<LabelR
 
     let mut warnings = meta.warnings.clone();
     let (voxel_size, voxel_size_source) = resolve_voxel_size(&meta, options, &mut warnings, path);
-    let volume = LabelVolume::new(labels, voxel_size, options.origin)
+    let [sz, sy, sx] = voxel_size;
+    let from_file = |a: usize, s: Real| meta.origin_voxels[a].map_or(0.0, |o| -o * s);
+    let origin = options.origin.unwrap_or_else(|| Vec3::new(from_file(0, sx), from_file(1, sy), from_file(2, sz)));
+    let volume = LabelVolume::new(labels, voxel_size, origin)
         .map_err(|e| ImagingError::Unsupported { path: path.to_path_buf(), message: e.to_string() })?;
     Ok(LabelRead { volume, voxel_size_source, bits: pixel.bits, signed: pixel.signed, compression, warnings })
 }

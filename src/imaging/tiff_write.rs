@@ -92,7 +92,13 @@ pub fn write_label_tiff(
     let page = Page {
         width,
         height,
-        description: imagej_description(nz, tidy(sz * 1e6), max_label),
+        // ImageJ: physical x = (i − xorigin)·sx, so xorigin = −origin.x / sx.
+        description: imagej_description(
+            nz,
+            tidy(sz * 1e6),
+            max_label,
+            [tidy(-volume.origin().x / sx), tidy(-volume.origin().y / sy), tidy(-volume.origin().z / sz)],
+        ),
         x_resolution: rational(1.0 / (sx * 1e6)),
         y_resolution: rational(1.0 / (sy * 1e6)),
     };
