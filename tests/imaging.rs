@@ -452,3 +452,139 @@ fn reads_the_derived_cshaper_labels_and_our_voxelisation_of_its_mesh_matches_the
         assert!(iou > 0.99, "label {}: IoU {iou}", info.label);
     }
 }
+
+fn tissuefit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
+}
+
+fn ok(out: &Output) -> String {
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn generate_labels_writes_a_seeded_aggregate_with_its_lumen() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.tif");
+    let b = dir.path().join("b.tif");
+    let args = |out: &Path, seed: &str| {
+        tissuefit(&[
+            "generate",
+            "labels",
+            "--kind",
+            "aggregate",
+            "--cells",
+            "12",
+            "--lumen",
+            "--shape",
+            "30,40,40",
+            "--voxel-size",
+            "0.5um,250nm,2.5e-7",
+            "--seed",
+            seed,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let stdout = ok(&args(&a, "4"));
+    assert!(stdout.contains("a.tif") && stdout.contains("12 cells") && stdout.contains("lumen label 13"), "{stdout}");
+    ok(&args(&b, "4"));
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "same seed, same file");
+    let read = read_label_tiff(&a, &LabelReadOptions::default()).unwrap();
+    assert_eq!(read.volume.shape(), [30, 40, 40]);
+    assert_eq!(read.volume.label_stats().len(), 13);
+    for (got, want) in read.volume.voxel_size().iter().zip([0.5e-6, 0.25e-6, 0.25e-6]) {
+        assert!(rel_close(*got, want, 1e-9));
+    }
+    ok(&args(&b, "5"));
+    assert_ne!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "another seed, another packing");
+
+    // Errors: exit 2 with the reason, and no output file.
+    let c = dir.path().join("c.tif");
+    let out = tissuefit(&["generate", "labels", "--kind", "blob", "--out", c.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("aggregate"));
+    let out = tissuefit(&[
+        "generate",
+        "labels",
+        "--kind",
+        "aggregate",
+        "--cells",
+        "500",
+        "--shape",
+        "5",
+        "--out",
+        c.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("too coarse"), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = tissuefit(&[
+        "generate",
+        "labels",
+        "--kind",
+        "sphere",
+        "--voxel-size",
+        "1 furlong",
+        "--out",
+        c.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("furlong"));
+    assert!(!c.exists());
+}
+
+#[test]
+fn voxelize_command_matches_mesh_volumes_and_reproduces_a_grid_with_like() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/cell_quartet.vtk");
+    let demo = demo.to_str().unwrap();
+    let first = dir.path().join("first.tif");
+    let stdout = ok(&tissuefit(&["voxelize", demo, "--voxel-size", "0.2um", "--out", first.to_str().unwrap()]));
+    assert!(stdout.contains("first.tif") && stdout.contains("4 cells"), "{stdout}");
+    let read = read_label_tiff(&first, &LabelReadOptions::default()).unwrap();
+    let stats = read.volume.label_stats();
+    assert_eq!(stats.len(), 4);
+    let tissue = read_tissue(&PathBuf::from(demo), &ReadOptions::default()).unwrap().tissue;
+    for (info, cell) in stats.iter().zip(tissue.cells()) {
+        assert_eq!(info.label, cell.id().0);
+        assert!(!info.touches_border(read.volume.shape()), "the automatic grid has a margin");
+        // ~4.4e-16 m³ cells on a 0.2 µm grid (~55,000 voxels each): within 0.5 %.
+        let v = info.voxels as Real * read.volume.voxel_volume();
+        assert!(rel_close(v, cell.mesh().signed_volume(), 0.005), "{v}");
+    }
+    // The same grid again through --like (origin included), on 1 thread: the same file.
+    let again = dir.path().join("again.tif");
+    ok(&tissuefit(&[
+        "voxelize",
+        demo,
+        "--like",
+        first.to_str().unwrap(),
+        "--out",
+        again.to_str().unwrap(),
+        "--threads",
+        "1",
+    ]));
+    assert_eq!(std::fs::read(&first).unwrap(), std::fs::read(&again).unwrap());
+    // An explicit shape centred on the tissue, anisotropic voxels.
+    let shaped = dir.path().join("shaped.tif");
+    ok(&tissuefit(&[
+        "voxelize",
+        demo,
+        "--voxel-size",
+        "0.4,0.2,0.2um",
+        "--shape",
+        "50,100,100",
+        "--out",
+        shaped.to_str().unwrap(),
+        "--compress",
+        "deflate",
+    ]));
+    let read = read_label_tiff(&shaped, &LabelReadOptions::default()).unwrap();
+    assert_eq!(read.volume.shape(), [50, 100, 100]);
+    assert_eq!(read.compression, 8);
+    assert_eq!(read.volume.label_stats().len(), 4);
+    // No grid given: a clear error.
+    let out = tissuefit(&["voxelize", demo, "--out", dir.path().join("none.tif").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--voxel-size"));
+}
