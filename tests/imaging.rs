@@ -22,7 +22,7 @@ fn rel_close(a: Real, b: Real, tol: Real) -> bool {
 fn sample_volume(max_label: u32) -> LabelVolume {
     let labels = Array3::from_shape_fn((5, 7, 9), |(z, y, x)| {
         let v = (z * 63 + y * 9 + x) as u32;
-        if v % 5 == 0 { 0 } else { (v * 2654435761u32.wrapping_mul(1)) % max_label + 1 }
+        if v.is_multiple_of(5) { 0 } else { v.wrapping_mul(2_654_435_761) % max_label + 1 }
     });
     let mut labels = labels;
     labels[[4, 6, 8]] = max_label;

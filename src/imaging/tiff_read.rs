@@ -78,12 +78,13 @@ pub fn read_label_tiff(path: &Path, options: &LabelReadOptions) -> Result<LabelR
     let file_size = file.metadata().map_err(|source| ImagingError::Open { path: path.to_path_buf(), source })?.len();
     let corrupt = |e: tiff::TiffError| corrupt(path, e);
     let decoder = Decoder::new(BufReader::with_capacity(1 << 16, file)).map_err(corrupt)?;
-    // No tag value or compressed chunk can be larger than the file; decoded pages are checked below.
+    // No tag value or compressed chunk can be larger than the file, and no decoded buffer larger than
+    // the file expanded by the largest compression ratio; each page is also checked below.
     let mut limits = Limits::default();
     let cap = usize::try_from(file_size).unwrap_or(usize::MAX);
     limits.ifd_value_size = cap;
     limits.intermediate_buffer_size = cap.max(1 << 20);
-    limits.decoding_buffer_size = usize::MAX;
+    limits.decoding_buffer_size = usize::try_from(file_size.saturating_mul(MAX_EXPANSION)).unwrap_or(usize::MAX);
     let mut decoder = decoder.with_limits(limits);
 
     let meta = first_page_metadata(&mut decoder);

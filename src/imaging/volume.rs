@@ -71,7 +71,7 @@ impl VoxelGrid {
             let first = (lo[a] / s).floor() - margin as Real;
             let last = (hi[a] / s).ceil() + margin as Real;
             let n = last - first + 1.0;
-            if !(n < 1e9) {
+            if !n.is_finite() || n >= 1e9 {
                 return Err(ImagingError::Grid(format!(
                     "covering {}..{} m with {s} m voxels needs {n} voxels along one axis",
                     lo[a], hi[a]
