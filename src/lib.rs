@@ -7,6 +7,7 @@
 
 pub mod cli;
 pub mod geometry;
+pub mod imaging;
 pub mod io;
 pub mod mechanics;
 pub mod mesh;

@@ -3,8 +3,11 @@
 mod bench;
 mod config;
 mod convert;
+mod generate;
 mod inspect;
+mod label_args;
 mod simulate;
+mod voxelize;
 
 use crate::io::{LengthScale, ReadOptions};
 use clap::{Parser, Subcommand};
@@ -42,6 +45,13 @@ pub enum Command {
     /// Simulation parameters: print the commented defaults, or check a config file.
     #[command(subcommand)]
     Config(config::ConfigCommand),
+    /// Rasterise a tissue's cells into a label TIFF (labels = cell ids), on the grid of an existing
+    /// label volume (--like) or of a given voxel size.
+    Voxelize(voxelize::VoxelizeArgs),
+    /// Synthetic inputs: `generate labels` writes a label volume (sphere, ellipsoid, cube, doublet,
+    /// aggregate).
+    #[command(subcommand)]
+    Generate(generate::GenerateCommand),
 }
 
 /// How a successful run ended.
@@ -88,6 +98,8 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Config(cmd) => config::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
         Command::Bench(args) => bench::run(&args),
+        Command::Voxelize(args) => voxelize::run(&args),
+        Command::Generate(cmd) => generate::run(&cmd),
     })
 }
 

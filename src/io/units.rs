@@ -48,25 +48,49 @@ impl FromStr for LengthScale {
         {
             return Ok(LengthScale(Vec3::repeat(f)));
         }
-        // Number part, then unit: the unit starts at the first letter other than an exponent `e`.
-        let split = s.find(|c: char| (c.is_alphabetic() && c != 'e' && c != 'E') || c == 'µ').unwrap_or(s.len());
-        let (numbers, unit) = (&s[..split], s[split..].trim());
-        let factor =
-            unit_factor(unit).ok_or_else(|| format!("unknown length unit `{unit}` in `{s}`; use m, mm, um or nm"))?;
-        let values: Result<Vec<Real>, _> = numbers.split(',').map(|v| v.trim().parse::<Real>()).collect();
-        let values = values.map_err(|_| {
-            format!("cannot read `{s}` as a length scale; examples: um, 1e-6, 0.15um, 0.15,0.15,0.235um")
+        let values = parse_lengths(s).map_err(|e| {
+            format!("{e}; a length scale is a unit or lengths, e.g. um, 1e-6, 0.15um, 0.15,0.15,0.235um")
         })?;
         let v = match values.as_slice() {
             [a] => Vec3::repeat(*a),
             [x, y, z] => Vec3::new(*x, *y, *z),
             _ => return Err(format!("`{s}`: give one length or three (x,y,z)")),
-        } * factor;
-        if !v.iter().all(|c| c.is_finite() && *c > 0.0) {
-            return Err(format!("`{s}`: a length scale must be positive and finite"));
-        }
+        };
         Ok(LengthScale(v))
     }
+}
+
+/// Parses one length or a comma-separated list of lengths in metres. Each is a number with an
+/// optional unit (`m`, `mm`, `um`/`µm`/`micron`, `nm`); a unit written only after the last number
+/// applies to all of them, and a number without any unit is metres: `0.235um`, `235nm`, `2.35e-7`,
+/// `0.235,0.15,0.15um`, `0.235um,150nm,150nm`. Every length must be positive and finite.
+pub fn parse_lengths(s: &str) -> Result<Vec<Real>, String> {
+    let parts: Vec<(Real, Option<Real>)> = s
+        .split(',')
+        .map(|part| {
+            let part = part.trim();
+            // Number, then unit: the unit starts at the first letter other than an exponent `e`.
+            let split =
+                part.find(|c: char| (c.is_alphabetic() && c != 'e' && c != 'E') || c == 'µ').unwrap_or(part.len());
+            let (number, unit) = (part[..split].trim(), part[split..].trim());
+            let value = number.parse::<Real>().map_err(|_| format!("cannot read `{part}` as a length"))?;
+            let factor = if unit.is_empty() {
+                None
+            } else {
+                Some(
+                    unit_factor(unit)
+                        .ok_or_else(|| format!("unknown length unit `{unit}` in `{s}`; use m, mm, um or nm"))?,
+                )
+            };
+            Ok((value, factor))
+        })
+        .collect::<Result<_, String>>()?;
+    let trailing = parts.last().and_then(|p| p.1).unwrap_or(1.0);
+    let values: Vec<Real> = parts.iter().map(|(v, f)| v * f.unwrap_or(trailing)).collect();
+    if !values.iter().all(|v| v.is_finite() && *v > 0.0) {
+        return Err(format!("`{s}`: lengths must be positive and finite"));
+    }
+    Ok(values)
 }
 
 impl fmt::Display for LengthScale {
@@ -92,5 +116,21 @@ mod tests {
         assert!("furlong".parse::<LengthScale>().is_err());
         assert!("-1um".parse::<LengthScale>().is_err());
         assert!("1,2um".parse::<LengthScale>().is_err());
+    }
+
+    #[test]
+    fn parses_lengths_with_units() {
+        let close =
+            |a: &[Real], b: &[Real]| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-12 * y);
+        assert!(close(&parse_lengths("0.235um").unwrap(), &[0.235e-6]));
+        assert!(close(&parse_lengths("235nm").unwrap(), &[235e-9]));
+        assert!(close(&parse_lengths("2.35e-7").unwrap(), &[2.35e-7]));
+        assert!(close(&parse_lengths("2.35e-7m").unwrap(), &[2.35e-7]));
+        assert!(close(&parse_lengths("0.235, 0.15,0.15 µm").unwrap(), &[0.235e-6, 0.15e-6, 0.15e-6]));
+        assert!(close(&parse_lengths("0.235um,150nm,150nm").unwrap(), &[0.235e-6, 150e-9, 150e-9]));
+        assert!(close(&parse_lengths("1,2,3").unwrap(), &[1.0, 2.0, 3.0]));
+        for bad in ["", "um", "1 furlong", "0um", "-1nm", "1,,2", "nan", "inf"] {
+            assert!(parse_lengths(bad).is_err(), "{bad}");
+        }
     }
 }

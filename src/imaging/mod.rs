@@ -1,0 +1,27 @@
+//! Label volumes: the segmented image a tissue comes from, and what simulated tissues are rasterised
+//! back onto for comparison.
+//!
+//! - [`LabelVolume`]: `u32` labels indexed `[z, y, x]` (0 = background), voxel size `[sz, sy, sx]` in
+//!   metres and the position of voxel `[0, 0, 0]`'s centre; label statistics, per-label padded masks
+//!   ([`LabelMask`], the mesher's input) and border tests. The coordinate convention is stated once,
+//!   in `volume.rs`: voxel `[k, j, i]` has its centre at `origin + (i·sx, j·sy, k·sz)`, and mesh
+//!   coordinates are `(x, y, z)` metres.
+//! - TIFF in ([`read_label_tiff`]) and out ([`write_label_tiff`]) with ImageJ/OME voxel sizes.
+//! - [`voxelize`]: closed cell surfaces → labels, by exact ray–triangle crossings along x.
+//! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate).
+
+mod error;
+mod generate;
+mod metadata;
+mod tiff_read;
+mod tiff_write;
+mod volume;
+mod voxelize;
+
+pub use error::ImagingError;
+pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels};
+pub use metadata::VoxelSizeSource;
+pub use tiff_read::{FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff};
+pub use tiff_write::{LabelDtype, LabelWriteOptions, TiffCompression, write_label_tiff};
+pub use volume::{LabelInfo, LabelMask, LabelVolume, VoxelGrid};
+pub use voxelize::{VoxelizeStats, voxelize, voxelize_with_stats};
