@@ -14,8 +14,8 @@ use super::Outcome;
 use crate::geometry::{Real, Vec3};
 use crate::io::{ReadOptions, read_tissue};
 use crate::mechanics::{
-    ContactWorkspace, Dynamics, Observer, Parameters, RelaxMethod, Sample, Simulation, TermSet, TissueForces,
-    cell_parameters, integrate_step,
+    ContactModel, ContactWorkspace, CouplingWorkspace, Dynamics, Observer, Parameters, RelaxMethod, Sample, Simulation,
+    TermSet, TissueForces, cell_parameters, integrate_step,
 };
 use crate::mesh::shapes::{cube_sphere, subdivided_cube};
 use crate::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
@@ -34,6 +34,9 @@ pub struct BenchArgs {
     /// Repetitions (force evaluations or steps) per measurement.
     #[arg(long, default_value_t = 200)]
     pub repeat: usize,
+    /// Contact model of contacts-tissue: spring or coupling.
+    #[arg(long, default_value = "spring", value_parser = ["spring", "coupling"])]
+    pub contact_model: String,
 }
 
 /// A ~1,000-node sphere: a 13×13-subdivided cube projected onto a 5 µm sphere (1,016 nodes).
@@ -193,22 +196,42 @@ fn contact_step_times(
     let cell_params = cell_parameters(tissue, params)?;
     let mut forces = TissueForces::default();
     let mut contacts = ContactWorkspace::default();
+    contacts.set_model(params.numerics.contact_model);
+    let coupled = params.numerics.contact_model == ContactModel::Coupling;
+    let mut coupling = CouplingWorkspace::default();
     let mut moving = tissue.clone();
     let mut momenta: Vec<Vec<Vec3>> =
         moving.cells().iter().map(|c| vec![Vec3::zeros(); c.mesh().node_count()]).collect();
-    let mut samples: Vec<[Real; 5]> = Vec::new();
+    let mut samples: Vec<[Real; 6]> = Vec::new();
     let mut pairs = 0;
+    let mut coupled_pairs = 0;
     for _ in 0..repeat.max(3) {
+        let t = Instant::now();
+        if coupled {
+            coupled_pairs = coupling.couple(&mut moving, &cell_params, params.numerics.contact_cutoff);
+        }
+        let couple = t.elapsed().as_secs_f64();
         let t = Instant::now();
         forces.compute(&moving, &cell_params, TermSet::ALL);
         let internal = t.elapsed().as_secs_f64();
         contacts.add_contacts(&moving, &cell_params, params.numerics.contact_cutoff, &mut forces.cells);
         pairs = contacts.pair_count;
         let t = Instant::now();
+        if coupled {
+            coupling.average_forces(&moving, &mut forces.cells);
+            coupling.average_momenta(&moving, &mut momenta);
+        }
         integrate_step(&mut moving, &forces.cells, &cell_params, &mut momenta, &params.numerics);
         let integrate = t.elapsed().as_secs_f64();
         let ct = contacts.timings;
-        samples.push([internal, ct.broad.as_secs_f64(), ct.narrow.as_secs_f64(), ct.apply.as_secs_f64(), integrate]);
+        samples.push([
+            internal,
+            ct.broad.as_secs_f64(),
+            ct.narrow.as_secs_f64(),
+            ct.apply.as_secs_f64(),
+            integrate,
+            couple,
+        ]);
     }
     let nodes = tissue.node_count() as Real;
     let median = |k: usize| {
@@ -216,7 +239,7 @@ fn contact_step_times(
         v.sort_by(Real::total_cmp);
         v[v.len() / 2] / nodes
     };
-    let parts = [median(0), median(1), median(2), median(3), median(4)];
+    let parts = [median(0), median(1), median(2), median(3), median(4), median(5)];
     Ok((
         json!({
             "cells": tissue.len(),
@@ -228,16 +251,19 @@ fn contact_step_times(
             "narrow_phase": parts[2],
             "apply_contacts": parts[3],
             "integration": parts[4],
-            "contact_stage": parts[1] + parts[2] + parts[3],
+            "node_coupling": parts[5],
+            "coupled_pairs": coupled_pairs,
+            "contact_stage": parts[1] + parts[2] + parts[3] + parts[5],
         }),
         pairs,
     ))
 }
 
-fn contacts_json(file: &std::path::Path, repeat: usize) -> anyhow::Result<serde_json::Value> {
+fn contacts_json(file: &std::path::Path, repeat: usize, model: ContactModel) -> anyhow::Result<serde_json::Value> {
     let tissue =
         read_tissue(file, &ReadOptions::default()).with_context(|| format!("reading {}", file.display()))?.tissue;
-    let params = Parameters::default();
+    let mut params = Parameters::default();
+    params.numerics.contact_model = model;
     let base = replicate(&tissue, 1)?;
     let t = Instant::now();
     let (one, _) = contact_step_times(&base, &params, repeat)?;
@@ -257,7 +283,7 @@ fn contacts_json(file: &std::path::Path, repeat: usize) -> anyhow::Result<serde_
         "steps": repeat.max(3),
         "wall_seconds": wall,
         "seconds_per_node_step": one["seconds_per_node_step"],
-        "contact_model": "spring",
+        "contact_model": model,
         "breakdown_seconds_per_node_step": one,
         "scaling": scaling,
     }))
@@ -280,7 +306,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<Outcome> {
         }
         "contacts-tissue" => {
             let file = args.file.as_ref().context("contacts-tissue needs a tissue FILE")?;
-            contacts_json(file, args.repeat.min(20))?
+            let model = if args.contact_model == "coupling" { ContactModel::Coupling } else { ContactModel::Spring };
+            contacts_json(file, args.repeat.min(20), model)?
         }
         _ => relax_cube()?,
     };
