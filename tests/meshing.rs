@@ -223,3 +223,125 @@ fn bad_input_is_a_clear_error() {
         assert!(matches!(err, MeshingError::InvalidSettings { .. }), "{err}");
     }
 }
+
+/// Ray-parity voxelisation of a closed surface (test-only): voxel centres at `origin + step·(x, y, z)`
+/// on a grid covering the mesh with a 2-voxel margin; a centre is inside when a ray along +x from it
+/// crosses the surface an odd number of times. Rays are offset by a tiny irrational fraction of a
+/// voxel so that they never pass exactly through a vertex or an edge of the input.
+fn voxelise(mesh: &CellMesh, step: Real) -> (Array3<bool>, Vec3) {
+    let p = mesh.positions();
+    let lo = p.iter().fold(Vec3::repeat(Real::INFINITY), |a, q| a.inf(q));
+    let hi = p.iter().fold(Vec3::repeat(Real::NEG_INFINITY), |a, q| a.sup(q));
+    let origin = (lo / step).map(|c| c.floor() - 2.0) * step;
+    let dims = ((hi - origin) / step).map(|c| c.ceil() as usize + 3);
+    let (nx, ny, nz) = (dims.x, dims.y, dims.z);
+    let (jy, jz) = (1.234_567e-4 * step, 2.345_678e-4 * step);
+    let mut columns: Vec<Vec<Real>> = vec![Vec::new(); ny * nz];
+    for t in mesh.triangles() {
+        let [a, b, c] = t.map(|i| p[i as usize]);
+        let ymin = ((a.y.min(b.y).min(c.y) - origin.y - jy) / step).floor().max(0.0) as usize;
+        let ymax = (((a.y.max(b.y).max(c.y) - origin.y - jy) / step).ceil() as usize).min(ny - 1);
+        let zmin = ((a.z.min(b.z).min(c.z) - origin.z - jz) / step).floor().max(0.0) as usize;
+        let zmax = (((a.z.max(b.z).max(c.z) - origin.z - jz) / step).ceil() as usize).min(nz - 1);
+        let det = (b.y - a.y) * (c.z - a.z) - (c.y - a.y) * (b.z - a.z);
+        if det == 0.0 {
+            continue;
+        }
+        for k in zmin..=zmax {
+            for j in ymin..=ymax {
+                let (y, z) = (origin.y + j as Real * step + jy, origin.z + k as Real * step + jz);
+                let u = ((y - a.y) * (c.z - a.z) - (c.y - a.y) * (z - a.z)) / det;
+                let v = ((b.y - a.y) * (z - a.z) - (y - a.y) * (b.z - a.z)) / det;
+                if u > 0.0 && v > 0.0 && u + v < 1.0 {
+                    columns[j + ny * k].push(a.x + u * (b.x - a.x) + v * (c.x - a.x));
+                }
+            }
+        }
+    }
+    let mut mask = Array3::from_elem((nz, ny, nx), false);
+    for k in 0..nz {
+        for j in 0..ny {
+            let xs = &mut columns[j + ny * k];
+            assert!(xs.len() % 2 == 0, "a ray crossed the closed surface an odd number of times");
+            xs.sort_by(|a, b| a.total_cmp(b));
+            for pair in xs.chunks(2) {
+                for i in 0..nx {
+                    let x = origin.x + i as Real * step;
+                    if pair[0] < x && x < pair[1] {
+                        mask[[k, j, i]] = true;
+                    }
+                }
+            }
+        }
+    }
+    (mask, origin)
+}
+
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn real_c_elegans_cells_are_remeshed_from_their_voxelisation() {
+    // The 4-cell C. elegans embryo (CShaper segmentation, delaunay-watershed mesh), coordinates in
+    // voxel units: each cell voxelised at 1 unit (as in the DERIVED label TIFF), then meshed. This
+    // also re-triangulates a multi-material mesh at a chosen resolution.
+    use tissuefit::io::{ReadOptions, read_tissue};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/real/foambryo-runner__Cshaper_4_cells_min-d-3.vtk");
+    assert!(path.exists(), "{} is missing", path.display());
+    let tissue = read_tissue(&path, &ReadOptions::default()).unwrap().tissue;
+    assert_eq!(tissue.len(), 4);
+    for cell in tissue.cells() {
+        let source_volume = cell.mesh().signed_volume();
+        let (mask, origin) = voxelise(cell.mesh(), 1.0);
+        let voxels = voxel_count(&mask) as Real;
+        assert!((voxels / source_volume - 1.0).abs() < 0.01, "cell {}: voxelisation off", cell.id());
+        let l_min = default_l_min(voxels, DEFAULT_TARGET_NODES).unwrap();
+        let settings = MeshingSettings::new(l_min, [1.0; 3]);
+        let start = std::time::Instant::now();
+        let meshed =
+            mesh_mask(mask.view(), [1.0; 3], origin, &settings).unwrap_or_else(|e| panic!("cell {}: {e}", cell.id()));
+        let seconds = start.elapsed().as_secs_f64();
+        let mesh = &meshed.mesh;
+        assert_eq!(mesh.validate(), Ok(()), "cell {}", cell.id());
+        let ratio = mesh.signed_volume() / source_volume;
+        let in_range = edges_in_range(mesh, l_min);
+        eprintln!(
+            "cell {}: {} voxels, {} nodes (source {}), {seconds:.3} s, volume ratio {ratio:.4}, edges in range \
+             {in_range:.3}, holes {} (largest {}), removed faces {}, unused samples {}, faces/radius {:?}, without joins {}",
+            cell.id(),
+            voxels,
+            mesh.node_count(),
+            cell.mesh().node_count(),
+            meshed.holes_filled,
+            meshed.largest_hole,
+            meshed.removed_faces,
+            meshed.unused_samples,
+            meshed.faces_per_radius,
+            meshed.without_joins,
+        );
+        assert!((ratio - 1.0).abs() < 0.03, "cell {}: mesh / source volume = {ratio}", cell.id());
+        assert!(in_range >= 0.95, "cell {}: {in_range} of the edges in range", cell.id());
+    }
+}
+
+#[test]
+#[ignore = "timing figure for the report; run with --release -- --ignored --nocapture"]
+fn timing_of_a_40_voxel_sphere() {
+    let v = [0.2 * UM; 3];
+    let c = Vec3::repeat(43.0 * v[0]);
+    let mask = mask_of([87, 87, 87], v, |p| (p - c).norm() <= 40.0 * v[0]);
+    let volume = voxel_count(&mask) as Real * v[0].powi(3);
+    for target in [DEFAULT_TARGET_NODES, 2000] {
+        let l_min = default_l_min(volume, target).unwrap();
+        let start = std::time::Instant::now();
+        let cell = mesh_mask(mask.view(), v, Vec3::zeros(), &MeshingSettings::new(l_min, v)).unwrap();
+        let seconds = start.elapsed().as_secs_f64();
+        assert_eq!(cell.mesh.validate(), Ok(()));
+        let ratio = cell.mesh.signed_volume() / volume;
+        eprintln!(
+            "40-voxel sphere, target {target}: {} nodes, {seconds:.3} s, volume ratio {ratio:.4}, edges in range {:.3}",
+            cell.mesh.node_count(),
+            edges_in_range(&cell.mesh, l_min)
+        );
+        assert!((ratio - 1.0).abs() < 0.03);
+    }
+}

@@ -13,14 +13,23 @@
 //!   from o. The ball centre moves on the circle about the edge midpoint m perpendicular to the edge;
 //!   for every point k within ρ + |c − m| of m, the ball touching i, j, k (on the outer side of the
 //!   candidate (j, i, k)) sits at some angle along that circle; the smallest angle is the first point
-//!   hit. The triangle (j, i, k) is added when k is not an interior vertex, the edges i→k and k→j are
-//!   not already used in that direction (that would break manifoldness or orientation), and its
-//!   normal agrees with the three point normals. Otherwise the edge stays on the boundary.
+//!   hit. The triangle (j, i, k) is added when the edges i→k and k→j are not already used in that
+//!   direction (that would break manifoldness or orientation), its normal agrees with the three point
+//!   normals, and k is unused, or a front neighbour of i or j (the triangle fills a corner of the
+//!   front), or on another piece of the surface (the pieces merge). Otherwise the edge stays open.
+//!   A "join" of two parts of one piece's front (k on the front, not next to i or j) splits the front
+//!   in two; closing both can wrap a handle around unmeshed surface. Joins are allowed in the first
+//!   pass only when asked (`joins`): with the smallest ball they are how the front closes around the
+//!   cell, and leave few, small holes. With the larger balls of later passes they bridged concave
+//!   folds of real cells into handles, so later passes never join. Without joins, with only grow,
+//!   corner and merge steps, every piece stays a topological disk and the closed surface has genus
+//!   0 whatever the geometry; the price is a long seam where the front meets itself, left to hole
+//!   filling (the fallback of [`super::mesh_mask`] when a surface with joins is not valid).
 //! * Radii: a pass with each radius in increasing order. Later passes only pivot from the edges
 //!   still open (no new seeds), which closes gaps where the samples are sparse.
 //!
-//! "Join" steps (k on the front but not adjacent to i or j) can leave pinched vertices; the repair
-//! step removes them. Decisions never depend on hash order: the front is a FIFO queue, candidates are
+//! Merge steps leave pinched vertices (two fans) until the gap between the pieces closes; the repair
+//! step removes the smaller fans of those that remain. Decisions never depend on hash order: the front is a FIFO queue, candidates are
 //! ranked by (angle, index), so the output is a function of the input points.
 
 use super::point_grid::PointGrid;
@@ -65,6 +74,8 @@ struct Pivoting<'a> {
     used: Vec<bool>,
     /// Open (boundary) directed edges touching each point.
     open: Vec<u32>,
+    /// Union-find parent of each point: points joined by triangles share a root.
+    parent: Vec<u32>,
     queue: VecDeque<(u32, u32)>,
     grid: PointGrid,
     scratch: Vec<u32>,
@@ -72,8 +83,14 @@ struct Pivoting<'a> {
 }
 
 /// Triangulates oriented points (unit outward `normals`) with balls of the given radii (increasing);
-/// returns triangles wound outward and what was done.
-pub(crate) fn ball_pivot(points: &[Vec3], normals: &[Vec3], radii: &[Real]) -> (Vec<[u32; 3]>, PivotStats) {
+/// returns triangles wound outward and what was done. With `joins`, the first pass may join two
+/// parts of one piece's front (the original algorithm); later passes never do.
+pub(crate) fn ball_pivot(
+    points: &[Vec3],
+    normals: &[Vec3],
+    radii: &[Real],
+    joins: bool,
+) -> (Vec<[u32; 3]>, PivotStats) {
     let mut stats = PivotStats::default();
     let Some(&largest) = radii.iter().max_by(|a, b| a.total_cmp(b)) else {
         return (Vec::new(), stats);
@@ -89,6 +106,7 @@ pub(crate) fn ball_pivot(points: &[Vec3], normals: &[Vec3], radii: &[Real]) -> (
         half: HashMap::new(),
         used: vec![false; points.len()],
         open: vec![0; points.len()],
+        parent: (0..points.len() as u32).collect(),
         queue: VecDeque::new(),
         grid,
         scratch: Vec::new(),
@@ -101,7 +119,7 @@ pub(crate) fn ball_pivot(points: &[Vec3], normals: &[Vec3], radii: &[Real]) -> (
         }
         loop {
             while let Some((i, j)) = state.queue.pop_front() {
-                state.pivot(i, j, rho);
+                state.pivot(i, j, rho, joins && pass == 0);
             }
             if pass > 0 || !state.seed(rho) {
                 break;
@@ -120,7 +138,20 @@ impl Pivoting<'_> {
         t.iter().all(|&i| n.dot(&self.normals[i as usize]) > 0.0)
     }
 
+    fn root(&mut self, mut i: u32) -> u32 {
+        while self.parent[i as usize] != i {
+            let up = self.parent[self.parent[i as usize] as usize];
+            self.parent[i as usize] = up;
+            i = up;
+        }
+        i
+    }
+
     fn add_face(&mut self, t: [u32; 3]) {
+        for k in 1..3 {
+            let (a, b) = (self.root(t[0]), self.root(t[k]));
+            self.parent[a.max(b) as usize] = a.min(b);
+        }
         let f = self.faces.len() as u32;
         self.faces.push(t);
         for s in 0..3 {
@@ -203,7 +234,7 @@ impl Pivoting<'_> {
     }
 
     /// Pivots the ball of the face on the open edge i→j; adds the triangle found, if any.
-    fn pivot(&mut self, i: u32, j: u32, rho: Real) {
+    fn pivot(&mut self, i: u32, j: u32, rho: Real, joins: bool) {
         if self.half.contains_key(&(j, i)) {
             return; // closed since it was queued
         }
@@ -239,9 +270,18 @@ impl Pivoting<'_> {
         }
         self.scratch = near;
         let Some((_, k)) = best else { return };
-        let interior = self.used[k as usize] && self.open[k as usize] == 0;
-        if interior || self.half.contains_key(&(i, k)) || self.half.contains_key(&(k, j)) {
+        if self.half.contains_key(&(i, k)) || self.half.contains_key(&(k, j)) {
             return;
+        }
+        // A used k must be the front neighbour of i or j (the triangle fills a corner of the front)
+        // or lie on another piece (the pieces merge at k): joining two parts of the same piece's
+        // front would split its boundary and could close a handle around unmeshed surface.
+        if self.used[k as usize] {
+            let corner = self.half.contains_key(&(k, i)) || self.half.contains_key(&(j, k));
+            let interior = self.open[k as usize] == 0;
+            if interior || (!joins && !corner && self.root(k) == self.root(i)) {
+                return;
+            }
         }
         let t = [j, i, k];
         if self.normals_agree(t) {
@@ -275,7 +315,7 @@ mod tests {
         let sphere = icosphere(1.0, 3, Vec3::zeros());
         let pts = sphere.positions().to_vec();
         let normals: Vec<Vec3> = pts.iter().map(|p| p.normalize()).collect();
-        let (faces, stats) = ball_pivot(&pts, &normals, &[0.12]);
+        let (faces, stats) = ball_pivot(&pts, &normals, &[0.12], true);
         assert_eq!(stats.seeds, 1);
         let mesh = CellMesh::from_triangles(pts, faces).unwrap();
         assert_eq!(mesh.validate(), Ok(()));

@@ -28,6 +28,96 @@ impl Field {
     pub fn position(&self, x: Real, y: Real, z: Real) -> Vec3 {
         self.origin + Vec3::new(x * self.spacing[0], y * self.spacing[1], z * self.spacing[2])
     }
+
+    /// Trilinearly interpolated value and its gradient (per metre) at the physical point `p`;
+    /// `None` outside the grid.
+    pub fn sample(&self, p: &Vec3) -> Option<(Real, Vec3)> {
+        let mut cell = [0usize; 3];
+        let mut t = [0.0; 3];
+        for a in 0..3 {
+            let g = (p[a] - self.origin[a]) / self.spacing[a];
+            if !(g >= 0.0 && g <= (self.dims[a] - 1) as Real) || self.dims[a] < 2 {
+                return None;
+            }
+            cell[a] = (g.floor() as usize).min(self.dims[a] - 2);
+            t[a] = g - cell[a] as Real;
+        }
+        let v = |dx: usize, dy: usize, dz: usize| {
+            Real::from(self.values[self.index(cell[0] + dx, cell[1] + dy, cell[2] + dz)])
+        };
+        let lerp = |a: Real, b: Real, s: Real| a + (b - a) * s;
+        // Values on the four x-edges, then the two y-lines, then z.
+        let e =
+            [[v(0, 0, 0), v(1, 0, 0)], [v(0, 1, 0), v(1, 1, 0)], [v(0, 0, 1), v(1, 0, 1)], [v(0, 1, 1), v(1, 1, 1)]];
+        let x = e.map(|[a, b]| lerp(a, b, t[0]));
+        let dx = e.map(|[a, b]| b - a);
+        let (y0, y1) = (lerp(x[0], x[1], t[1]), lerp(x[2], x[3], t[1]));
+        let value = lerp(y0, y1, t[2]);
+        let gx = lerp(lerp(dx[0], dx[1], t[1]), lerp(dx[2], dx[3], t[1]), t[2]);
+        let gy = lerp(x[1] - x[0], x[3] - x[2], t[2]);
+        let gz = y1 - y0;
+        Some((value, Vec3::new(gx / self.spacing[0], gy / self.spacing[1], gz / self.spacing[2])))
+    }
+
+    /// Smooth gradient (per metre) at `p`: central differences at the grid points, interpolated
+    /// trilinearly (the trilinear interpolant's own gradient is one-sided at cell faces). `None`
+    /// outside the grid.
+    pub fn smooth_gradient(&self, p: &Vec3) -> Option<Vec3> {
+        let mut cell = [0usize; 3];
+        let mut t = [0.0; 3];
+        for a in 0..3 {
+            let g = (p[a] - self.origin[a]) / self.spacing[a];
+            if !(g >= 0.0 && g <= (self.dims[a] - 1) as Real) || self.dims[a] < 2 {
+                return None;
+            }
+            cell[a] = (g.floor() as usize).min(self.dims[a] - 2);
+            t[a] = g - cell[a] as Real;
+        }
+        let at = |c: [usize; 3]| Real::from(self.values[self.index(c[0], c[1], c[2])]);
+        let mut gradient = Vec3::zeros();
+        for corner in 0..8 {
+            let c = [0, 1, 2].map(|a| cell[a] + ((corner >> a) & 1));
+            let w: Real = (0..3).map(|a| if (corner >> a) & 1 == 1 { t[a] } else { 1.0 - t[a] }).product();
+            for a in 0..3 {
+                let (mut lo, mut hi) = (c, c);
+                lo[a] = c[a].saturating_sub(1);
+                hi[a] = (c[a] + 1).min(self.dims[a] - 1);
+                let d = (at(hi) - at(lo)) / ((hi[a] - lo[a]) as Real * self.spacing[a]);
+                gradient[a] += w * d;
+            }
+        }
+        Some(gradient)
+    }
+
+    /// Moves `p` onto the level `level` of the interpolated field by Newton steps along the gradient
+    /// (each at most one voxel); returns the point and the unit outward normal (down the smooth
+    /// gradient).
+    /// `None` when the gradient vanishes, the point leaves the grid or ends more than two voxels away.
+    pub fn project_to_level(&self, p: &Vec3, level: Real) -> Option<(Vec3, Vec3)> {
+        let largest = self.spacing.iter().copied().fold(0.0, Real::max);
+        let smallest = self.spacing.iter().copied().fold(Real::INFINITY, Real::min);
+        let mut q = *p;
+        for _ in 0..8 {
+            let (f, g) = self.sample(&q)?;
+            let g2 = g.norm_squared();
+            if g2 == 0.0 || !g2.is_finite() {
+                return None;
+            }
+            let mut step = g * ((f - level) / g2);
+            let len = step.norm();
+            if len > largest {
+                step *= largest / len;
+            }
+            q -= step;
+            if len < 1e-6 * smallest {
+                break;
+            }
+        }
+        let (f, _) = self.sample(&q)?;
+        let close = (f - level).abs() < 1e-4 && (q - p).norm() <= 2.0 * largest;
+        let normal = (-self.smooth_gradient(&q)?).try_normalize(0.0)?;
+        close.then_some((q, normal))
+    }
 }
 
 /// What preparing the mask found.
@@ -255,6 +345,26 @@ mod tests {
         let (x, y, z) = (best % f.dims[0], (best / f.dims[0]) % f.dims[1], best / (f.dims[0] * f.dims[1]));
         let p = f.position(x as Real, y as Real, z as Real);
         assert!((p - Vec3::new(1.4, 2.6, 3.6)).norm() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn projection_lands_on_the_level_with_an_outward_normal() {
+        let n = 21;
+        let mut m = Array3::from_elem((n, n, n), false);
+        let c = 10.0;
+        for ((z, y, x), v) in m.indexed_iter_mut() {
+            *v = ((x as Real - c).powi(2) + (y as Real - c).powi(2) + (z as Real - c).powi(2)).sqrt() <= 7.0;
+        }
+        let (f, _) = prepare_field(m.view(), [1.0; 3], Vec3::zeros(), 0.5).unwrap();
+        let centre = Vec3::repeat(c);
+        for dir in [Vec3::x(), Vec3::new(1.0, 1.0, 0.0).normalize(), Vec3::new(-1.0, 2.0, -2.0).normalize()] {
+            let (q, normal) = f.project_to_level(&(centre + dir * 6.0), 0.5).unwrap();
+            assert!((f.sample(&q).unwrap().0 - 0.5).abs() < 1e-4);
+            assert!(((q - centre).norm() - 7.0).abs() < 0.6, "radius {}", (q - centre).norm());
+            assert!(normal.dot(&dir) > 0.9, "normal {normal} vs {dir}: {}", normal.dot(&dir));
+        }
+        // Far outside the grid: no projection.
+        assert!(f.project_to_level(&Vec3::repeat(-100.0), 0.5).is_none());
     }
 
     #[test]

@@ -5,9 +5,12 @@
 //!    the faces of the others are removed (repeated until every vertex has one fan).
 //! 2. Only the largest edge-connected piece is kept.
 //! 3. Each boundary loop, walked against the winding of the faces along it, is triangulated by
-//!    repeatedly cutting the ear with the smallest interior angle (measured about the loop's Newell
-//!    normal, reflex corners counting 2π − φ) whose closing diagonal is not already an edge. The new
-//!    faces keep the surface's winding. Long diagonals are later split by remeshing.
+//!    repeatedly cutting the ear with the smallest interior angle whose closing diagonal is not
+//!    already an edge. The angle at a corner is measured about that point's own outward normal
+//!    (reflex corners count 2π − φ), not a normal of the whole loop: the typical hole left by the
+//!    pivoting is a long seam where the front met itself, curved around the cell, and zipping it
+//!    from its sharp ends needs the local sense of "convex". The new faces keep the surface's
+//!    winding. Long diagonals are later split by remeshing.
 
 use super::MeshingError;
 use crate::geometry::{Real, Vec3};
@@ -32,6 +35,7 @@ const MAX_FAN_ROUNDS: usize = 32;
 /// Repairs `faces` (consistently wound, each directed edge used at most once) over `points`.
 pub(crate) fn close_surface(
     points: &[Vec3],
+    normals: &[Vec3],
     mut faces: Vec<[u32; 3]>,
 ) -> Result<(Vec<[u32; 3]>, RepairStats), MeshingError> {
     let mut stats = RepairStats::default();
@@ -84,7 +88,7 @@ pub(crate) fn close_surface(
         }
         stats.holes += 1;
         stats.largest_hole = stats.largest_hole.max(hole.len());
-        let added = fill_hole(points, hole, &mut all_edges, &mut faces)?;
+        let added = fill_hole(points, normals, hole, &mut all_edges, &mut faces)?;
         stats.hole_faces += added;
     }
     Ok((faces, stats))
@@ -180,6 +184,7 @@ fn largest_piece(faces: Vec<[u32; 3]>) -> Vec<[u32; 3]> {
 /// returns the number of faces added.
 fn fill_hole(
     points: &[Vec3],
+    normals: &[Vec3],
     mut hole: Vec<u32>,
     all_edges: &mut HashSet<(u32, u32)>,
     faces: &mut Vec<[u32; 3]>,
@@ -188,12 +193,9 @@ fn fill_hole(
     let mut added = 0;
     while hole.len() > 3 {
         let n = hole.len();
-        // Newell normal of the loop: the outward normal of a filling wound like the loop.
-        let mut normal = Vec3::zeros();
-        for q in 0..n {
-            normal += p(hole[q]).cross(&p(hole[(q + 1) % n]));
-        }
-        let mut best: Option<(Real, usize)> = None;
+        // Ears whose triangle faces the way of its corners' normals come first (a folded ear
+        // would wrap the filling across the hole); among them the smallest interior angle.
+        let mut best: Option<(bool, Real, usize)> = None;
         for q in 0..n {
             let (a, v, b) = (hole[(q + n - 1) % n], hole[q], hole[(q + 1) % n]);
             if all_edges.contains(&(a.min(b), a.max(b))) {
@@ -201,12 +203,15 @@ fn fill_hole(
             }
             let (da, db) = (p(a) - p(v), p(b) - p(v));
             let phi = da.angle(&db);
-            let convex = (p(v) - p(a)).cross(&(p(b) - p(v))).dot(&normal) >= 0.0;
+            let face_normal = (p(v) - p(a)).cross(&(p(b) - p(v)));
+            let convex = face_normal.dot(&normals[v as usize]) >= 0.0;
             let interior = if convex { phi } else { std::f64::consts::TAU - phi };
-            if best.is_none_or(|(x, _)| interior < x) {
-                best = Some((interior, q));
+            let folded = [a, v, b].iter().any(|&k| face_normal.dot(&normals[k as usize]) <= 0.0);
+            if best.is_none_or(|(f, x, _)| (folded, interior) < (f, x)) {
+                best = Some((folded, interior, q));
             }
         }
+        let best = best.map(|(_, x, q)| (x, q));
         let Some((_, q)) = best else {
             return Err(MeshingError::Repair {
                 reason: format!("a hole of {n} edges has no ear whose diagonal is not already an edge"),
@@ -237,7 +242,8 @@ mod tests {
             (0..pts.len()).max_by(|&a, &b| (pts[a] - pts[0]).norm().total_cmp(&(pts[b] - pts[0]).norm())).unwrap();
         let faces: Vec<[u32; 3]> =
             sphere.triangles().iter().copied().filter(|t| !t.contains(&0) && !t.contains(&(far as u32))).collect();
-        let (closed, stats) = close_surface(&pts, faces).unwrap();
+        let normals: Vec<Vec3> = pts.iter().map(|p| p.normalize()).collect();
+        let (closed, stats) = close_surface(&pts, &normals, faces).unwrap();
         assert_eq!(stats.holes, 2);
         assert_eq!(stats.largest_hole, 5);
         let mut mesh = CellMesh::from_triangles(pts, closed).unwrap();
@@ -255,7 +261,8 @@ mod tests {
         pts.push(pts[0] * 1.3 + Vec3::new(0.1, 0.0, 0.0));
         pts.push(pts[0] * 1.3 + Vec3::new(0.0, 0.1, 0.0));
         faces.push([0, base, base + 1]);
-        let (closed, stats) = close_surface(&pts, faces).unwrap();
+        let normals: Vec<Vec3> = pts.iter().map(|p| p.normalize()).collect();
+        let (closed, stats) = close_surface(&pts, &normals, faces).unwrap();
         assert_eq!(stats.removed_faces, 1);
         assert_eq!(stats.holes, 0);
         let mut mesh = CellMesh::from_triangles(pts, closed).unwrap();
