@@ -262,7 +262,7 @@ fn voxelise(mesh: &CellMesh, step: Real) -> (Array3<bool>, Vec3) {
     for k in 0..nz {
         for j in 0..ny {
             let xs = &mut columns[j + ny * k];
-            assert!(xs.len() % 2 == 0, "a ray crossed the closed surface an odd number of times");
+            assert!(xs.len().is_multiple_of(2), "a ray crossed the closed surface an odd number of times");
             xs.sort_by(|a, b| a.total_cmp(b));
             for pair in xs.chunks(2) {
                 for i in 0..nx {
@@ -344,4 +344,45 @@ fn timing_of_a_40_voxel_sphere() {
         );
         assert!((ratio - 1.0).abs() < 0.03);
     }
+}
+
+#[test]
+fn random_blobs_are_meshed_into_valid_cells() {
+    // Irregular shapes: unions of 2–5 random balls (radii 4–9 voxels), some touching the border.
+    // Every one must give a valid mesh close to its voxel volume; the no-join fallback may be used.
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2026);
+    let v = [0.2 * UM; 3];
+    let mut fallbacks = 0;
+    for case in 0..12 {
+        let balls: Vec<(Vec3, Real)> = (0..rng.random_range(2..=5))
+            .map(|_| {
+                let c =
+                    Vec3::new(rng.random_range(8.0..22.0), rng.random_range(8.0..22.0), rng.random_range(8.0..22.0));
+                (c * v[0], rng.random_range(4.0..9.0) * v[0])
+            })
+            .collect();
+        let mask = mask_of([30, 30, 30], v, |p| balls.iter().any(|(c, r)| (p - c).norm() <= *r));
+        let volume = voxel_count(&mask) as Real * v[0].powi(3);
+        let l_min = default_l_min(volume, 300).unwrap();
+        let mut settings = MeshingSettings::new(l_min, v);
+        settings.seed = case;
+        let cell = mesh_mask(mask.view(), v, Vec3::zeros(), &settings).unwrap_or_else(|e| panic!("blob {case}: {e}"));
+        assert_eq!(cell.mesh.validate(), Ok(()), "blob {case}");
+        // Compared with the kept voxels (a ball may be a separate, dropped piece). Looser than the
+        // 3 % of the smooth shapes: balls of 4–5 voxels radius lose more to chords (the deficit
+        // grows like (l_min/R)²), and the creases where balls meet are concave, which a ball of
+        // radius ≥ 1.2·l_min rolling outside cannot enter: it bridges them (measured 3–6 %).
+        let ratio = cell.mesh.signed_volume() / cell.voxel_volume;
+        assert!((ratio - 1.0).abs() < 0.08, "blob {case}: volume ratio {ratio}");
+        assert!(edges_in_range(&cell.mesh, l_min) >= 0.95, "blob {case}");
+        fallbacks += usize::from(cell.without_joins);
+        eprintln!(
+            "blob {case}: {} nodes, ratio {ratio:.4}, holes {}, without joins {}",
+            cell.mesh.node_count(),
+            cell.holes_filled,
+            cell.without_joins
+        );
+    }
+    eprintln!("{fallbacks} of 12 blobs used the no-join fallback");
 }

@@ -184,8 +184,8 @@ pub(crate) fn prepare_field(
 
     let mut values: Vec<f32> = inside.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect();
     if sigma > 0.0 {
-        for axis in 0..3 {
-            blur_axis(&mut values, dims, axis, sigma / spacing[axis]);
+        for (axis, s) in spacing.iter().enumerate() {
+            blur_axis(&mut values, dims, axis, sigma / s);
         }
     }
     let first = [0, 1, 2].map(|a| lo[a] as Real - pad[a] as Real);
@@ -287,7 +287,7 @@ fn blur_axis(values: &mut [f32], dims: [usize; 3], axis: usize, sigma: Real) {
     let mut line = vec![0.0f32; n];
     for start in 0..values.len() {
         // Visit each line once, from the grid point whose coordinate along `axis` is 0.
-        if (start / stride) % n != 0 {
+        if !(start / stride).is_multiple_of(n) {
             continue;
         }
         for (k, l) in line.iter_mut().enumerate() {
