@@ -207,6 +207,9 @@ fn bad_input_is_a_clear_error() {
     let err = mesh_mask(block.view(), v, Vec3::zeros(), &settings).unwrap_err();
     assert!(matches!(err, MeshingError::TooFewSamples { .. }), "{err}");
     assert!(err.to_string().contains("l_min"), "{err}");
+    let err =
+        mesh_mask(block.view(), v, Vec3::zeros(), &MeshingSettings { l_min: 1e-12, ..settings.clone() }).unwrap_err();
+    assert!(matches!(err, MeshingError::ResolutionTooFine { .. }), "{err}");
     let err = mesh_mask(block.view(), [0.2 * UM, 0.0, 0.2 * UM], Vec3::zeros(), &settings).unwrap_err();
     assert!(matches!(err, MeshingError::InvalidVoxelSize { .. }), "{err}");
     let err = mesh_mask(block.view(), v, Vec3::new(Real::NAN, 0.0, 0.0), &settings).unwrap_err();

@@ -19,6 +19,11 @@ pub(crate) struct Surface {
 }
 
 impl Surface {
+    /// Total area (m²).
+    pub fn area(&self) -> Real {
+        self.triangles.iter().map(|t| self.face_area_vector(t).norm()).sum()
+    }
+
     /// Enclosed volume (m³), positive for an outward surface.
     pub fn volume(&self) -> Real {
         let o = self.positions.first().copied().unwrap_or_default();
