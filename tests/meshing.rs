@@ -211,6 +211,13 @@ fn bad_input_is_a_clear_error() {
     let err =
         mesh_mask(block.view(), v, Vec3::zeros(), &MeshingSettings { l_min: 1e-12, ..settings.clone() }).unwrap_err();
     assert!(matches!(err, MeshingError::ResolutionTooFine { .. }), "{err}");
+    // A 10-voxel ball at l_min = 0.8·R gets ~14 samples: a valid polyhedron with ~60 % of the
+    // volume, refused rather than returned.
+    let c = Vec3::repeat(11.0 * v[0]);
+    let ball = mask_of([23, 23, 23], v, |p| (p - c).norm() <= 10.0 * v[0]);
+    let coarse = MeshingSettings { l_min: 1.6 * UM, ..settings.clone() };
+    let err = mesh_mask(ball.view(), v, Vec3::zeros(), &coarse).unwrap_err();
+    assert!(matches!(err, MeshingError::VolumeMismatch { .. }), "{err}");
     let err = mesh_mask(block.view(), [0.2 * UM, 0.0, 0.2 * UM], Vec3::zeros(), &settings).unwrap_err();
     assert!(matches!(err, MeshingError::InvalidVoxelSize { .. }), "{err}");
     let err = mesh_mask(block.view(), v, Vec3::new(Real::NAN, 0.0, 0.0), &settings).unwrap_err();

@@ -29,7 +29,8 @@
 //!    hole fillings and flips slivers; the result must pass [`CellMesh::validate`].
 //!
 //! A cell that cannot be made valid is an `Err` naming the stage and the defect, never a silently
-//! wrong mesh. The function is deterministic (same mask, settings and seed → identical mesh) and
+//! wrong mesh; so is a valid surface whose volume is more than [`MAX_VOLUME_ERROR`] off the voxel
+//! volume. The function is deterministic (same mask, settings and seed → identical mesh) and
 //! single-threaded: callers run cells in parallel with one seed per cell.
 //!
 //! Volume: the 0.5 level of a binary mask passes through the faces of the boundary voxels on flat
@@ -81,6 +82,11 @@ pub enum MeshingError {
     NoTriangles { samples: usize },
     #[error("closing the pivoted surface failed: {reason}")]
     Repair { reason: String },
+    #[error(
+        "the mesh encloses {mesh_volume:e} m³ but the voxels {voxel_volume:e} m³ (off by more than {max_error}): \
+         l_min is too coarse for this shape"
+    )]
+    VolumeMismatch { mesh_volume: Real, voxel_volume: Real, max_error: Real },
     #[error("the mesh after {stage} is not a valid cell surface: {defect}")]
     InvalidMesh { stage: &'static str, defect: MeshDefect },
     #[error(transparent)]
@@ -221,6 +227,10 @@ fn pivot_and_close(
 
 /// Fewest voxels meshed: smaller masks are segmentation debris, not cells.
 pub const MIN_VOXELS: usize = 8;
+/// Largest relative difference between the mesh volume and the voxel volume accepted: beyond it
+/// the surface, although valid, does not represent the cell (typically l_min too coarse for it;
+/// at the default resolution the difference is 1–5 %).
+pub const MAX_VOLUME_ERROR: Real = 0.25;
 /// Most nodes per cell: a guard against an l_min far too small for the cell (memory, time).
 pub const MAX_NODES: usize = 1_000_000;
 /// Fewest samples for ball pivoting to make a closed surface (an octahedron has 6 corners).
@@ -281,6 +291,10 @@ pub fn mesh_mask(
     let unused_samples = samples.points.len() - mesh.node_count();
     let remesh = remesh_cell(&mut mesh, None, None, &RemeshSettings::new(settings.l_min))?;
     mesh.validate().map_err(|defect| MeshingError::InvalidMesh { stage: "remeshing", defect })?;
+    let mesh_volume = mesh.signed_volume();
+    if !((mesh_volume / voxel_volume - 1.0).abs() <= MAX_VOLUME_ERROR) {
+        return Err(MeshingError::VolumeMismatch { mesh_volume, voxel_volume, max_error: MAX_VOLUME_ERROR });
+    }
     Ok(MeshedCell {
         mesh,
         voxel_volume,
