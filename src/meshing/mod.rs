@@ -292,7 +292,8 @@ pub fn mesh_mask(
     let remesh = remesh_cell(&mut mesh, None, None, &RemeshSettings::new(settings.l_min))?;
     mesh.validate().map_err(|defect| MeshingError::InvalidMesh { stage: "remeshing", defect })?;
     let mesh_volume = mesh.signed_volume();
-    if !((mesh_volume / voxel_volume - 1.0).abs() <= MAX_VOLUME_ERROR) {
+    let error = (mesh_volume / voxel_volume - 1.0).abs();
+    if error.is_nan() || error > MAX_VOLUME_ERROR {
         return Err(MeshingError::VolumeMismatch { mesh_volume, voxel_volume, max_error: MAX_VOLUME_ERROR });
     }
     Ok(MeshedCell {
