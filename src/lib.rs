@@ -3,7 +3,7 @@
 //! Stages (see `DESIGN.md`): mesh the labelled cells into closed triangle surfaces, simulate the
 //! SimuCell3D deformable-cell model to equilibrium, measure morphology, and fit surface tension and
 //! adhesion so that simulated and observed morphology agree. Dependencies point one way:
-//! `geometry ← mesh ← mechanics ← io ← cli`.
+//! `geometry ← mesh ← {meshing, mechanics} ← io ← cli`.
 
 pub mod cli;
 pub mod geometry;
@@ -11,3 +11,4 @@ pub mod imaging;
 pub mod io;
 pub mod mechanics;
 pub mod mesh;
+pub mod meshing;
