@@ -10,3 +10,4 @@ pub mod geometry;
 pub mod io;
 pub mod mechanics;
 pub mod mesh;
+pub mod morphology;
