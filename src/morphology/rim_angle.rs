@@ -96,3 +96,36 @@ pub fn contact_angle(rim_a: &[RimEdge], rim_b: &[RimEdge], delta: Real) -> Optio
     }
     (count > 0).then(|| (sum / count as Real, count))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn edge(partner: u32, midpoint: Vec3, free_normal: Vec3) -> RimEdge {
+        RimEdge { partner, midpoint, free_normal, length: 0.1 }
+    }
+
+    /// Sphere normals at the rim of two caps on a disc of radius R·sin β: θ = 2β.
+    #[test]
+    fn contact_angle_of_cap_normals_is_twice_the_cap_angle() {
+        let beta: Real = 0.4;
+        let a = [edge(1, Vec3::new(1.0, 0.0, 0.0), Vec3::new(beta.sin(), 0.0, beta.cos()))];
+        let b = [edge(0, Vec3::new(1.0, 0.0, 0.01), Vec3::new(beta.sin(), 0.0, -beta.cos()))];
+        let (theta, n) = contact_angle(&a, &b, 0.01).unwrap();
+        assert_eq!(n, 2);
+        assert!((theta - 2.0 * beta).abs() < 1e-12, "θ = {theta}");
+        // Rim edges too far apart to be the same rim are not matched.
+        let far = [edge(0, Vec3::new(5.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -1.0))];
+        assert_eq!(contact_angle(&a, &far, 0.01), None);
+        assert_eq!(contact_angle(&a, &[], 0.01), None);
+    }
+
+    #[test]
+    fn rim_toward_selects_one_partner() {
+        let rims: Vec<RimEdge> =
+            [0u32, 2, 2, 5].iter().map(|&p| edge(p, Vec3::zeros(), Vec3::new(0.0, 0.0, 1.0))).collect();
+        assert_eq!(rim_toward(&rims, 2).len(), 2);
+        assert!(rim_toward(&rims, 3).is_empty());
+        assert_eq!(rim_toward(&rims, 5)[0].partner, 5);
+    }
+}
