@@ -151,10 +151,11 @@ fn doublet_contact_area_fraction_and_rim_angle_match_the_caps() {
         assert_eq!(cell.neighbours, 1);
         assert!((cell.contact_fraction / (disc_area / total) - 1.0).abs() < 0.04, "φ = {}", cell.contact_fraction);
     }
-    // Rim angle: a free face's normal is the surface normal half a face away from the rim, so θ is
-    // overestimated by about the angle one free face spans, (120°/48 + 120°/40)/2 = 2.75° here.
+    // Rim angle: the free-surface normal extrapolated to the rim is second-order accurate; plain free-face
+    // normals would be off by the angle one free face spans, (120°/48 + 120°/40)/2 = 2.75° here. Measured
+    // 0.012°; 0.3° leaves room for rounding of the rim assignment, not for a first-order bias.
     let theta = c.contact_angle_deg.expect("the doublet has a free rim");
-    assert!(theta > 120.0 && theta < 120.0 + 4.0, "θ = {theta}°, expected 120° + ≈2.75°");
+    assert!((theta - 120.0).abs() < 0.3, "θ = {theta}°, expected 120°");
     assert!(c.rim_edges >= 2 * 96, "rim edges {}", c.rim_edges);
     assert_eq!(m.summary.mean_contact_angle_deg, Some(theta));
 }
@@ -162,15 +163,13 @@ fn doublet_contact_area_fraction_and_rim_angle_match_the_caps() {
 #[test]
 fn doublet_rim_angle_converges_under_refinement_at_another_angle() {
     let (radius, disc) = (4e-6, 4e-6 * (PI / 4.0).sin()); // θ = 90°
-    // The estimator overestimates θ by about the angle one free face spans across the rim, which is
-    // (rim polar angle)/(rings) on each cap: (135°/12 + 135°/10)/2 ≈ 12.4° coarse, a quarter of it fine.
-    let error = |fine| measure(&doublet(radius, disc, fine)).contacts[0].contact_angle_deg.unwrap() - 90.0;
+    // Plain free-face normals would overestimate θ by the angle one free face spans across the rim,
+    // (135°/12 + 135°/10)/2 ≈ 12.4° on the coarse caps; the extrapolated rim normal leaves a second-order
+    // error (measured 0.20° coarse, 0.018° at 4× the resolution: ≈ 1/16, as h² predicts).
+    let error = |fine| (measure(&doublet(radius, disc, fine)).contacts[0].contact_angle_deg.unwrap() - 90.0).abs();
     let (coarse, fine) = (error(1), error(4));
-    let predicted = |fine: f64| (135.0 / (12.0 * fine) + 135.0 / (10.0 * fine)) / 2.0;
-    for (e, f) in [(coarse, 1.0), (fine, 4.0)] {
-        assert!(e > 0.5 * predicted(f) && e < 1.5 * predicted(f), "|θ − 90°| = {e}, predicted ≈ {}", predicted(f));
-    }
-    assert!(fine < coarse / 3.0, "refinement must reduce the rim-angle error: {coarse} → {fine}");
+    assert!(coarse < 0.5 && fine < 0.05, "|θ − 90°| = {coarse} coarse, {fine} fine");
+    assert!(fine < coarse / 6.0, "second-order convergence expected: {coarse} → {fine}");
 }
 
 #[test]
@@ -396,6 +395,32 @@ fn hexagonal_layer_interior_cells_have_six_neighbours() {
         }
     }
     assert!(interior >= 9, "only {interior} interior cells found");
+}
+
+/// SimuCell3D's relaxed doublet is close to two spherical caps (its cap-model area is within 0.2 % of
+/// the measured one): θ should match 2·arcsin(a/R), with a from the measured contact area and R from the
+/// cell volume V = πh²(3R − h)/3, h = R + √(R² − a²). 3° allows for the cells not being exact caps.
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn real_doublet_contact_angle_matches_the_spherical_cap_model() {
+    let read = read_tissue(&real("simucell3d__cell_doublet.vtk"), &ReadOptions::default()).unwrap();
+    let m = measure(&read.tissue);
+    assert_eq!(m.contacts.len(), 1);
+    let c = &m.contacts[0];
+    let a = (c.area / PI).sqrt();
+    let volume = (m.cells[0].volume + m.cells[1].volume) / 2.0;
+    let cap_volume = |r: f64| {
+        let h = r + (r * r - a * a).sqrt();
+        PI * h * h * (3.0 * r - h) / 3.0
+    };
+    let (mut lo, mut hi) = (a, 10.0 * a);
+    for _ in 0..200 {
+        let mid = (lo + hi) / 2.0;
+        if cap_volume(mid) < volume { lo = mid } else { hi = mid }
+    }
+    let expected = 2.0 * (a / lo).asin().to_degrees();
+    let theta = c.contact_angle_deg.unwrap();
+    assert!((theta - expected).abs() < 3.0, "θ = {theta}°, cap model {expected}°");
 }
 
 #[test]
