@@ -8,9 +8,11 @@
 //! straddle a contact rim about where the rim crosses them, so the contact area's discretisation error
 //! stays of the order of (rim length × edge length) with both signs, not one-sided.
 //!
-//! Broad phase: one [`SpatialGrid`] over all participating faces, each box padded by δ; a centroid reads
-//! the single cube it falls in. Parallel over bodies with rayon; every result depends only on the input
-//! (ties are broken by index, not by visiting order), so 1 and N threads give identical partitions.
+//! Broad phase: a [`SpatialGrid`] per body over its faces' boxes padded by δ, and one over the bodies'
+//! padded boxes; a face centroid reads, for each other body whose padded box holds it, the single cube
+//! of that body's grid it falls in, so a cell's own faces are never candidates. Parallel over bodies with
+//! rayon; every result depends only on the input (ties are broken by index, not by visiting order), so 1
+//! and N threads give identical partitions.
 
 use crate::geometry::{Real, SpatialGrid, Vec3, closest_point_on_triangle};
 use crate::mesh::Tissue;
@@ -34,69 +36,104 @@ pub struct FaceContacts {
 /// `delta` is the contact distance δ (m), finite and positive (checked by the caller).
 pub fn detect_face_contacts(tissue: &Tissue, participates: &[bool], delta: Real) -> Vec<FaceContacts> {
     let cells = tissue.cells();
-    let mut boxes: Vec<(Vec3, Vec3)> = Vec::with_capacity(tissue.face_count());
-    let mut owner: Vec<u32> = Vec::with_capacity(tissue.face_count());
-    let mut owner_face: Vec<u32> = Vec::with_capacity(tissue.face_count());
     let pad = Vec3::repeat(delta);
-    for (i, cell) in cells.iter().enumerate() {
-        if !participates[i] {
-            continue;
-        }
-        let mesh = cell.mesh();
-        for (f, t) in mesh.triangles().iter().enumerate() {
-            let [a, b, c] = t.map(|k| mesh.positions()[k as usize]);
-            boxes.push((a.inf(&b).inf(&c) - pad, a.sup(&b).sup(&c) + pad));
-            owner.push(i as u32);
-            owner_face.push(f as u32);
-        }
-    }
-    if boxes.is_empty() {
+    // One grid per body over its faces' padded boxes: a centroid then reads only the grids of the bodies
+    // whose padded box holds it, never its own faces (which were most of the candidates of a single grid).
+    let grids: Vec<Option<BodyGrid>> = cells
+        .par_iter()
+        .zip(participates)
+        .map(|(cell, &take)| if take { BodyGrid::new(cell.mesh(), pad) } else { None })
+        .collect();
+    // Body-level broad phase: for each body, the other bodies whose padded boxes overlap its own.
+    let body_boxes: Vec<(Vec3, Vec3)> = grids
+        .iter()
+        .map(|g| g.as_ref().map_or((Vec3::repeat(Real::NAN), Vec3::repeat(Real::NAN)), |g| (g.lo, g.hi)))
+        .collect();
+    let extents: Vec<Real> =
+        body_boxes.iter().map(|(lo, hi)| (hi - lo).max()).filter(|e| e.is_finite() && *e > 0.0).collect();
+    if extents.is_empty() {
         return cells.iter().map(|c| free_partition(c.mesh().face_count())).collect();
     }
-    // Cube edge: the mean padded box extent, so a typical box spans at most 2 cubes per axis (the
-    // grid keeps the few much larger boxes in its oversized list).
-    let mean_extent = boxes.iter().map(|(lo, hi)| (hi - lo).max()).sum::<Real>() / boxes.len() as Real;
-    let cell_size = if mean_extent.is_finite() && mean_extent > 0.0 { mean_extent } else { 2.0 * delta };
-    let mut grid = SpatialGrid::new(cell_size);
-    grid.rebuild(&boxes);
+    let mut body_grid = SpatialGrid::new(extents.iter().sum::<Real>() / extents.len() as Real);
+    body_grid.rebuild(&body_boxes);
 
     (0..cells.len())
         .into_par_iter()
         .map(|i| {
             let mesh = cells[i].mesh();
-            if !participates[i] {
-                return free_partition(mesh.face_count());
-            }
+            let Some(own) = &grids[i] else { return free_partition(mesh.face_count()) };
+            let mut others = Vec::new();
+            body_grid.collect_candidates(&own.lo, &own.hi, &mut others);
+            others.retain(|&j| j as usize != i);
             let p = mesh.positions();
             let mut partner = Vec::with_capacity(mesh.face_count());
             let mut distance = Vec::with_capacity(mesh.face_count());
             for t in mesh.triangles() {
                 let centroid = (p[t[0] as usize] + p[t[1] as usize] + p[t[2] as usize]) / 3.0;
                 let (mut best, mut best_d) = (FREE, Real::INFINITY);
-                grid.for_each_at(&centroid, |item| {
-                    let item = item as usize;
-                    let b = owner[item];
-                    if b as usize == i {
-                        return;
-                    }
-                    let (lo, hi) = &boxes[item];
-                    if !(0..3).all(|k| lo[k] <= centroid[k] && centroid[k] <= hi[k]) {
-                        return;
+                for &b in &others {
+                    let Some(g) = &grids[b as usize] else { continue };
+                    if !inside(&centroid, &(g.lo, g.hi)) {
+                        continue;
                     }
                     let other = cells[b as usize].mesh();
-                    let [x, y, z] = other.triangles()[owner_face[item] as usize].map(|k| other.positions()[k as usize]);
-                    let d = closest_point_on_triangle(&centroid, &x, &y, &z).distance;
-                    if d <= delta && (d < best_d || (d == best_d && b < best)) {
-                        best = b;
-                        best_d = d;
-                    }
-                });
+                    g.grid.for_each_at(&centroid, |f| {
+                        if !inside(&centroid, &g.boxes[f as usize]) {
+                            return;
+                        }
+                        let [x, y, z] = other.triangles()[f as usize].map(|k| other.positions()[k as usize]);
+                        let d = closest_point_on_triangle(&centroid, &x, &y, &z).distance;
+                        if d <= delta && (d < best_d || (d == best_d && b < best)) {
+                            best = b;
+                            best_d = d;
+                        }
+                    });
+                }
                 partner.push(best);
                 distance.push(best_d);
             }
             FaceContacts { partner, distance }
         })
         .collect()
+}
+
+fn inside(p: &Vec3, (lo, hi): &(Vec3, Vec3)) -> bool {
+    (0..3).all(|k| lo[k] <= p[k] && p[k] <= hi[k])
+}
+
+/// The faces of one body in a grid of their boxes padded by δ, and the union of those boxes.
+struct BodyGrid {
+    boxes: Vec<(Vec3, Vec3)>,
+    grid: SpatialGrid,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl BodyGrid {
+    /// `None` for a body without faces.
+    fn new(mesh: &crate::mesh::CellMesh, pad: Vec3) -> Option<Self> {
+        let p = mesh.positions();
+        let boxes: Vec<(Vec3, Vec3)> = mesh
+            .triangles()
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|k| p[k as usize]);
+                (a.inf(&b).inf(&c) - pad, a.sup(&b).sup(&c) + pad)
+            })
+            .collect();
+        let (lo, hi) = boxes.iter().fold((Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY)), |acc, b| {
+            (acc.0.inf(&b.0), acc.1.sup(&b.1))
+        });
+        if boxes.is_empty() || !(lo.iter().chain(hi.iter()).all(|v| v.is_finite())) {
+            return None;
+        }
+        // Cube edge: the mean padded box extent, so a typical box spans at most 2 cubes per axis (the
+        // grid keeps the few much larger boxes in its oversized list).
+        let mean_extent = boxes.iter().map(|(lo, hi)| (hi - lo).max()).sum::<Real>() / boxes.len() as Real;
+        let mut grid = SpatialGrid::new(mean_extent);
+        grid.rebuild(&boxes);
+        Some(Self { boxes, grid, lo, hi })
+    }
 }
 
 fn free_partition(faces: usize) -> FaceContacts {
