@@ -347,7 +347,7 @@ fn static_cells_are_left_out_of_statistics_unless_asked() {
 #[test]
 fn bad_settings_and_empty_tissues_are_errors() {
     let t = tissue(vec![(CellKind::Epithelial, icosphere(1e-6, 1, Vec3::zeros()))]);
-    for bad in [0.0, -1e-7, f64::NAN, f64::INFINITY] {
+    for bad in [0.0, -1e-7, f64::NAN, f64::INFINITY, 1e-310] {
         let s = MeasureSettings { contact_distance: Some(bad), ..Default::default() };
         assert!(matches!(measure_tissue(&t, &s), Err(MorphologyError::InvalidContactDistance { .. })), "{bad}");
     }

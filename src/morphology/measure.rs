@@ -92,7 +92,7 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
         return Err(MorphologyError::EmptyTissue);
     }
     let delta = match settings.contact_distance {
-        Some(d) if d.is_finite() && d > 0.0 => d,
+        Some(d) if d.is_finite() && d > 0.0 && (1.0 / d).is_finite() => d,
         Some(d) => return Err(MorphologyError::InvalidContactDistance { value: d }),
         None => match mean_edge_length(tissue) {
             Some(h) if h.is_finite() && h > 0.0 => DEFAULT_CONTACT_DISTANCE_FACTOR * h,

@@ -40,7 +40,7 @@ use crate::geometry::Real;
 /// Why a tissue could not be measured.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MorphologyError {
-    #[error("contact distance {value} m must be finite and positive")]
+    #[error("contact distance {value} m must be finite, positive and not subnormal")]
     InvalidContactDistance { value: Real },
     #[error("exterior free-area fraction {value} must lie in [0, 1]")]
     InvalidExteriorFraction { value: Real },
