@@ -40,14 +40,14 @@ use crate::geometry::Real;
 /// Why a tissue could not be measured.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MorphologyError {
-    #[error("contact distance {value} m must be finite, positive and not subnormal")]
+    #[error("contact distance {value:e} m must be finite, positive and not subnormal")]
     InvalidContactDistance { value: Real },
     #[error("exterior free-area fraction {value} must lie in [0, 1]")]
     InvalidExteriorFraction { value: Real },
     #[error("the tissue has no cells to measure")]
     EmptyTissue,
     #[error(
-        "cannot derive the default contact distance: the mean edge length is {mean_edge} m; give a contact distance"
+        "cannot derive the default contact distance: the mean edge length is {mean_edge:e} m; give a contact distance"
     )]
     NoEdgeLength { mean_edge: Real },
 }
