@@ -14,7 +14,8 @@
 //!
 //! Not here yet: IoU between two tissues (χ = 1 − IoU) needs the voxeliser of `imaging`; measuring
 //! label volumes directly (voxel-face adjacency) will fill the same [`CellMorphology`] and
-//! [`MorphologySummary`] rows through [`MorphologySummary::from_rows`].
+//! [`MorphologySummary`] rows through [`MorphologySummary::from_rows`]; a lumen that is not a body (the
+//! background cavity of a segmented organoid) needs a voxel flood fill before layers can be counted.
 
 mod cell_morphology;
 mod contact_morphology;
