@@ -498,3 +498,36 @@ fn measure_cli_writes_the_documented_files() {
         .unwrap();
     assert_eq!(bad.status.code(), Some(2));
 }
+
+#[test]
+fn measure_cli_reports_the_doublet_contact() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("doublet.vtk");
+    let (radius, disc) = (5e-6, 5e-6 * (PI / 3.0).sin());
+    tissuefit::io::write_tissue(&file, &doublet(radius, disc, 2), &[]).unwrap();
+    let out = dir.path().join("m");
+    let run = Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(["measure", file.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(0), "{}", String::from_utf8_lossy(&run.stderr));
+    let mut contacts = csv::Reader::from_path(out.join("contacts.csv")).unwrap();
+    let rows: Vec<csv::StringRecord> = contacts.records().map(|r| r.unwrap()).collect();
+    assert_eq!(rows.len(), 1);
+    let header = contacts.headers().unwrap().clone();
+    let field = |name: &str| rows[0][header.iter().position(|h| h == name).unwrap()].to_string();
+    assert_eq!((field("cell_a"), field("cell_b")), ("1".to_string(), "2".to_string()));
+    let theta: f64 = field("contact_angle_deg").parse().unwrap();
+    assert!((theta - 120.0).abs() < 0.5, "θ = {theta}");
+    let area: f64 = field("area").parse().unwrap();
+    assert!((area / (PI * disc * disc) - 1.0).abs() < 0.05, "area {area}");
+    let mut cells = csv::Reader::from_path(out.join("cells.csv")).unwrap();
+    let header = cells.headers().unwrap().clone();
+    let z = header.iter().position(|h| h == "neighbours").unwrap();
+    let nucleus = header.iter().position(|h| h == "nucleus_volume").unwrap();
+    for row in cells.records() {
+        let row = row.unwrap();
+        assert_eq!(&row[z], "1");
+        assert_eq!(&row[nucleus], "", "no nucleus: empty field");
+    }
+}
