@@ -69,6 +69,15 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
     let morphology =
         measure_tissue(&read.tissue, &settings).with_context(|| format!("measuring {}", args.tissue.display()))?;
     let wall_seconds = start.elapsed().as_secs_f64();
+    let inside_out: Vec<String> =
+        morphology.cells.iter().filter(|c| c.volume <= 0.0).map(|c| c.cell.to_string()).collect();
+    if !inside_out.is_empty() {
+        tracing::warn!(
+            "{}: cells {} have no positive volume (inside-out or open surfaces; sphericity reads 0); --orient repairs mixed windings",
+            args.tissue.display(),
+            inside_out.join(", ")
+        );
+    }
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     write_outputs(&args.out, &args.tissue, &morphology, wall_seconds)?;
     print_summary(&mut std::io::stdout().lock(), &args.tissue, &morphology, wall_seconds)?;
@@ -140,11 +149,11 @@ fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_second
     )?;
     writeln!(
         out,
-        "  sphericity ⟨Ψ⟩ = {}, contact fraction ⟨φ⟩ = {}, coordination ⟨z⟩ = {}, contact angle ⟨θ⟩ = {}°, layers N = {}",
+        "  sphericity ⟨Ψ⟩ = {}, contact fraction ⟨φ⟩ = {}, coordination ⟨z⟩ = {}, contact angle ⟨θ⟩ = {}, layers N = {}",
         opt(s.mean_sphericity, 4),
         opt(s.mean_contact_fraction, 4),
         opt(s.mean_coordination, 2),
-        opt(s.mean_contact_angle_deg, 1),
+        s.mean_contact_angle_deg.map_or("n/a".to_string(), |a| format!("{a:.1}°")),
         s.layers.map_or("n/a".to_string(), |n| n.to_string())
     )
 }
