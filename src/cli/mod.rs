@@ -6,6 +6,7 @@ mod convert;
 mod generate;
 mod inspect;
 mod label_args;
+mod measure;
 mod simulate;
 mod voxelize;
 
@@ -37,6 +38,9 @@ pub enum Command {
     Inspect(inspect::InspectArgs),
     /// Convert a tissue file: .vtk (SimuCell3D legacy or multi-material) or .vtp → .vtp or .vtk.
     Convert(convert::ConvertArgs),
+    /// Measure morphology: per-cell volume, area, sphericity, neighbours, contact fraction, contact
+    /// angles, layers, nuclei → DIR/cells.csv, DIR/contacts.csv, DIR/summary.json.
+    Measure(measure::MeasureArgs),
     /// Simulate a tissue: relax it to mechanical equilibrium, or run it for a time span with growth.
     /// Exits with 1 when an equilibrium run ends unconverged.
     Simulate(simulate::SimulateArgs),
@@ -97,6 +101,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Convert(args) => convert::run(&args),
         Command::Config(cmd) => config::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
+        Command::Measure(args) => measure::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Voxelize(args) => voxelize::run(&args),
         Command::Generate(cmd) => generate::run(&cmd),
