@@ -152,7 +152,7 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         path: "cell_types.max_coupling_curvature",
         unit: "1/m",
         text: "Largest mean curvature H_max at which a node may be coupled to another cell (paper Table 2; used by the \
-               node-coupling contact model, which is not in this version).",
+               node-coupling contact model, numerics.contact_model = \"coupling\").",
     },
     FieldDoc {
         path: "cell_types.faces",
