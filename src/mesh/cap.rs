@@ -14,7 +14,6 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Uniform};
 use spade::handles::FixedVertexHandle;
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
-use std::collections::HashMap;
 
 /// Candidates tried around one active sample before it is retired (Bridson's k).
 const CANDIDATES: usize = 30;
@@ -64,27 +63,68 @@ pub(super) fn triangulate_cap(
     Ok(PlanarCap { interior, triangles })
 }
 
-/// Uniform grid of points, cell size 1 (the spacing): a point closer than 1 to a stored one lies in
-/// the 3×3 block of cells around it.
-#[derive(Default)]
+/// Uniform grid of unit cells over the polygon's bounding box, holding the points placed so far (loop
+/// nodes and samples) and the loop segments near each cell: a point closer than 1 to a stored point lies
+/// in the 3×3 block of cells around it, and a segment closer than [`SEGMENT_CLEARANCE`] to a point is
+/// registered in the point's cell.
 struct Grid {
-    cells: HashMap<(i64, i64), Vec<[Real; 2]>>,
+    lo: [Real; 2],
+    nx: usize,
+    ny: usize,
+    points: Vec<Vec<[Real; 2]>>,
+    segments: Vec<Vec<u32>>,
 }
 
 impl Grid {
-    fn key(p: &[Real; 2]) -> (i64, i64) {
-        (p[0].floor() as i64, p[1].floor() as i64)
+    fn new(polygon: &[[Real; 2]], lo: [Real; 2], hi: [Real; 2]) -> Self {
+        let lo = [lo[0].floor() - 1.0, lo[1].floor() - 1.0];
+        let (nx, ny) = ((hi[0] - lo[0]).ceil() as usize + 2, (hi[1] - lo[1]).ceil() as usize + 2);
+        let mut grid = Self { lo, nx, ny, points: vec![Vec::new(); nx * ny], segments: vec![Vec::new(); nx * ny] };
+        for (k, a) in polygon.iter().enumerate() {
+            let b = &polygon[(k + 1) % polygon.len()];
+            let (i0, j0) = grid.cell_clamped(&[a[0].min(b[0]) - SEGMENT_CLEARANCE, a[1].min(b[1]) - SEGMENT_CLEARANCE]);
+            let (i1, j1) = grid.cell_clamped(&[a[0].max(b[0]) + SEGMENT_CLEARANCE, a[1].max(b[1]) + SEGMENT_CLEARANCE]);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    grid.segments[i + nx * j].push(k as u32);
+                }
+            }
+            grid.insert(*a);
+        }
+        grid
+    }
+
+    fn cell_clamped(&self, p: &[Real; 2]) -> (usize, usize) {
+        let i = ((p[0] - self.lo[0]).floor().max(0.0) as usize).min(self.nx - 1);
+        let j = ((p[1] - self.lo[1]).floor().max(0.0) as usize).min(self.ny - 1);
+        (i, j)
+    }
+
+    /// The cell of `p`, `None` outside the grid (and so outside the polygon).
+    fn cell(&self, p: &[Real; 2]) -> Option<(usize, usize)> {
+        let (x, y) = ((p[0] - self.lo[0]).floor(), (p[1] - self.lo[1]).floor());
+        (x >= 0.0 && y >= 0.0 && x < self.nx as Real && y < self.ny as Real).then_some((x as usize, y as usize))
     }
 
     fn insert(&mut self, p: [Real; 2]) {
-        self.cells.entry(Self::key(&p)).or_default().push(p);
+        let (i, j) = self.cell(&p).expect("points are inserted inside the grid");
+        self.points[i + self.nx * j].push(p);
     }
 
-    fn has_point_within_one(&self, p: &[Real; 2]) -> bool {
-        let (i, j) = Self::key(p);
-        (i - 1..=i + 1).any(|a| {
-            (j - 1..=j + 1).any(|b| self.cells.get(&(a, b)).is_some_and(|pts| pts.iter().any(|q| dist2(p, q) < 1.0)))
-        })
+    /// Whether `p` may be added: inside the grid, at least 1 from every stored point and at least
+    /// [`SEGMENT_CLEARANCE`] from every loop segment.
+    fn is_free(&self, p: &[Real; 2], polygon: &[[Real; 2]]) -> bool {
+        let Some((i, j)) = self.cell(p) else { return false };
+        let near_point = (j.saturating_sub(1)..=(j + 1).min(self.ny - 1)).any(|b| {
+            (i.saturating_sub(1)..=(i + 1).min(self.nx - 1))
+                .any(|a| self.points[a + self.nx * b].iter().any(|q| dist2(p, q) < 1.0))
+        });
+        let clearance2 = SEGMENT_CLEARANCE * SEGMENT_CLEARANCE;
+        !near_point
+            && self.segments[i + self.nx * j].iter().all(|&k| {
+                let (a, b) = (&polygon[k as usize], &polygon[(k as usize + 1) % polygon.len()]);
+                segment_dist2(p, a, b) >= clearance2
+            })
     }
 }
 
@@ -100,16 +140,11 @@ fn segment_dist2(p: &[Real; 2], a: &[Real; 2], b: &[Real; 2]) -> Real {
     dist2(p, &[a[0] + t * dx, a[1] + t * dy])
 }
 
-/// Whether `p` lies inside the closed polygon (even–odd rule) and at least [`SEGMENT_CLEARANCE`] from
-/// every edge.
-fn inside_with_clearance(p: &[Real; 2], polygon: &[[Real; 2]]) -> bool {
+/// Whether `p` lies inside the closed polygon (even–odd rule).
+fn inside(p: &[Real; 2], polygon: &[[Real; 2]]) -> bool {
     let mut inside = false;
-    let clearance2 = SEGMENT_CLEARANCE * SEGMENT_CLEARANCE;
     for (i, a) in polygon.iter().enumerate() {
         let b = &polygon[(i + 1) % polygon.len()];
-        if segment_dist2(p, a, b) < clearance2 {
-            return false;
-        }
         if (a[1] > p[1]) != (b[1] > p[1]) && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]) {
             inside = !inside;
         }
@@ -131,9 +166,8 @@ fn poisson_disk_in_polygon(polygon: &[[Real; 2]], seed: u64) -> Vec<[Real; 2]> {
         return Vec::new();
     };
     let unit = Uniform::new(0.0, 1.0).expect("the unit interval is a valid range");
-    let mut grid = Grid::default();
-    polygon.iter().for_each(|p| grid.insert(*p));
-    let acceptable = |p: &[Real; 2], grid: &Grid| inside_with_clearance(p, polygon) && !grid.has_point_within_one(p);
+    let mut grid = Grid::new(polygon, lo, hi);
+    let acceptable = |p: &[Real; 2], grid: &Grid| grid.is_free(p, polygon) && inside(p, polygon);
 
     let mut samples: Vec<[Real; 2]> = Vec::new();
     let mut active: Vec<usize> = Vec::new();
@@ -251,7 +285,8 @@ mod tests {
         // A maximal unit-spacing packing of the 9×9 usable square holds roughly 9²/0.7 ≈ 115 points.
         assert!(s.len() > 60 && s.len() < 140, "{}", s.len());
         for (i, p) in s.iter().enumerate() {
-            assert!(inside_with_clearance(p, &poly));
+            assert!(inside(p, &poly));
+            assert!(poly.iter().enumerate().all(|(k, a)| segment_dist2(p, a, &poly[(k + 1) % 4]) >= 0.25));
             for q in &s[..i] {
                 assert!(dist2(p, q) >= 1.0);
             }
