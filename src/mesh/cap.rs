@@ -171,12 +171,9 @@ fn poisson_disk_in_polygon(polygon: &[[Real; 2]], seed: u64) -> Vec<[Real; 2]> {
 
     let mut samples: Vec<[Real; 2]> = Vec::new();
     let mut active: Vec<usize> = Vec::new();
-    loop {
-        // Seed a front with a dart; stop when no dart lands on free space.
-        let Some(dart) = (0..DARTS).map(|_| [ux.sample(&mut rng), uy.sample(&mut rng)]).find(|p| acceptable(p, &grid))
-        else {
-            break;
-        };
+    // Seed a front with a dart; stop when no dart lands on free space.
+    while let Some(dart) = (0..DARTS).map(|_| [ux.sample(&mut rng), uy.sample(&mut rng)]).find(|p| acceptable(p, &grid))
+    {
         grid.insert(dart);
         active.push(samples.len());
         samples.push(dart);
@@ -248,11 +245,11 @@ fn constrained_triangulation(polygon: &[[Real; 2]], samples: &[[Real; 2]]) -> Re
             if e.is_constraint_edge() {
                 continue;
             }
-            if let Some(g) = e.rev().face().as_inner() {
-                if !outside[g.fix().index()] {
-                    outside[g.fix().index()] = true;
-                    stack.push(g.fix());
-                }
+            if let Some(g) = e.rev().face().as_inner()
+                && !outside[g.fix().index()]
+            {
+                outside[g.fix().index()] = true;
+                stack.push(g.fix());
             }
         }
     }
