@@ -1,8 +1,11 @@
 //! Cell surfaces: `CellMesh` (closed, outward-oriented triangle surface with `u32` indices), its
-//! adjacency, invariant checks, measures, analytic shapes, and the `Tissue` that groups cells.
+//! adjacency, invariant checks, measures, analytic shapes, division by a plane, and the `Tissue` that
+//! groups cells.
 
 mod adjacency;
+mod cap;
 mod cell_mesh;
+mod divide;
 mod ids;
 mod measures;
 mod orient;
@@ -15,6 +18,10 @@ mod validate;
 
 pub use adjacency::Adjacency;
 pub use cell_mesh::CellMesh;
+pub use divide::{
+    CAP_SPACING, Daughter, DaughterSide, DivisionError, DivisionPlane, SNAP_FRACTION, divide_mesh, division_plane,
+    division_plane_normal,
+};
 pub use ids::{CellId, FaceId, NodeId};
 pub use measures::{EdgeLengthStats, PrincipalAxes, sphericity};
 pub use summary::CellSummary;
