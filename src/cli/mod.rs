@@ -7,6 +7,7 @@ mod generate;
 mod inspect;
 mod label_args;
 mod measure;
+mod mesh;
 mod simulate;
 mod voxelize;
 
@@ -41,6 +42,9 @@ pub enum Command {
     /// Measure morphology: per-cell volume, area, sphericity, neighbours, contact fraction, contact
     /// angles, layers, nuclei → DIR/cells.csv, DIR/contacts.csv, DIR/summary.json.
     Measure(measure::MeasureArgs),
+    /// Mesh a label volume: every label → a closed cell surface → TISSUE.vtp/.vtk, plus a per-label
+    /// report (kept/static/dropped and why). Exits with 2 when no cell could be meshed.
+    Mesh(mesh::MeshArgs),
     /// Simulate a tissue: relax it to mechanical equilibrium, or run it for a time span with growth.
     /// Exits with 1 when an equilibrium run ends unconverged.
     Simulate(simulate::SimulateArgs),
@@ -102,6 +106,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Config(cmd) => config::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
         Command::Measure(args) => measure::run(&args),
+        Command::Mesh(args) => mesh::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Voxelize(args) => voxelize::run(&args),
         Command::Generate(cmd) => generate::run(&cmd),

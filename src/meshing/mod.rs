@@ -28,6 +28,8 @@
 //! 6. **Clean-up**: [`crate::mesh::remesh::remesh_cell`] with l_max = 3·l_min splits the long edges of
 //!    hole fillings and flips slivers; the result must pass [`CellMesh::validate`].
 //!
+//! [`mesh_labels`] (`labels.rs`) runs this for every label of a volume, in parallel, and builds the tissue.
+//!
 //! A cell that cannot be made valid is an `Err` naming the stage and the defect, never a silently
 //! wrong mesh; so is a valid surface whose volume is more than [`MAX_VOLUME_ERROR`] off the voxel
 //! volume. The function is deterministic (same mask, settings and seed → identical mesh) and
@@ -45,11 +47,16 @@
 
 mod ball_pivot;
 mod field;
+mod labels;
 mod point_grid;
 mod poisson;
 mod repair;
 mod surface_nets;
 
+pub use labels::{
+    BorderPolicy, DEFAULT_MIN_VOXELS, LabelMeshing, LabelMeshingError, LabelMeshingOptions, LabelReport, LabelStatus,
+    MASK_MARGIN, label_seed, mesh_labels, mesh_labels_with_progress,
+};
 pub use poisson::SurfaceSamples;
 
 use crate::geometry::{Real, Vec3};
