@@ -31,7 +31,7 @@ pub fn polarize_from_contacts(tissue: &mut Tissue, contacts: &ContactWorkspace) 
     let mut changed = 0;
     let mut touch: Vec<(Touch, f64)> = Vec::new();
     for (c, cell) in tissue.cells_mut().iter_mut().enumerate() {
-        if !matches!(cell.kind(), CellKind::Epithelial | CellKind::Static) {
+        if !cell.kind().is_cell() {
             continue;
         }
         touch.clear();

@@ -53,6 +53,12 @@ impl CellKind {
     pub fn is_immobile(self) -> bool {
         matches!(self, CellKind::Ecm | CellKind::Static)
     }
+
+    /// Whether this kind is a cell of the tissue proper (epithelial or static): what couples, gets
+    /// polarised, hosts nuclei and forms the contact graph, as opposed to the ECM, lumen and nuclei.
+    pub fn is_cell(self) -> bool {
+        matches!(self, CellKind::Epithelial | CellKind::Static)
+    }
 }
 
 impl fmt::Display for CellKind {

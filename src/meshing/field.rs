@@ -29,9 +29,9 @@ impl Field {
         self.origin + Vec3::new(x * self.spacing[0], y * self.spacing[1], z * self.spacing[2])
     }
 
-    /// Trilinearly interpolated value and its gradient (per metre) at the physical point `p`;
-    /// `None` outside the grid.
-    pub fn sample(&self, p: &Vec3) -> Option<(Real, Vec3)> {
+    /// The grid cell holding the physical point `p` (its lowest corner) and the fractional position
+    /// inside it; `None` outside the grid or on a grid thinner than two points along an axis.
+    fn locate(&self, p: &Vec3) -> Option<([usize; 3], [Real; 3])> {
         let mut cell = [0usize; 3];
         let mut t = [0.0; 3];
         for a in 0..3 {
@@ -42,6 +42,13 @@ impl Field {
             cell[a] = (g.floor() as usize).min(self.dims[a] - 2);
             t[a] = g - cell[a] as Real;
         }
+        Some((cell, t))
+    }
+
+    /// Trilinearly interpolated value and its gradient (per metre) at the physical point `p`;
+    /// `None` outside the grid.
+    pub fn sample(&self, p: &Vec3) -> Option<(Real, Vec3)> {
+        let (cell, t) = self.locate(p)?;
         let v = |dx: usize, dy: usize, dz: usize| {
             Real::from(self.values[self.index(cell[0] + dx, cell[1] + dy, cell[2] + dz)])
         };
@@ -63,16 +70,7 @@ impl Field {
     /// trilinearly (the trilinear interpolant's own gradient is one-sided at cell faces). `None`
     /// outside the grid.
     pub fn smooth_gradient(&self, p: &Vec3) -> Option<Vec3> {
-        let mut cell = [0usize; 3];
-        let mut t = [0.0; 3];
-        for a in 0..3 {
-            let g = (p[a] - self.origin[a]) / self.spacing[a];
-            if !(g >= 0.0 && g <= (self.dims[a] - 1) as Real) || self.dims[a] < 2 {
-                return None;
-            }
-            cell[a] = (g.floor() as usize).min(self.dims[a] - 2);
-            t[a] = g - cell[a] as Real;
-        }
+        let (cell, t) = self.locate(p)?;
         let at = |c: [usize; 3]| Real::from(self.values[self.index(c[0], c[1], c[2])]);
         let mut gradient = Vec3::zeros();
         for corner in 0..8 {

@@ -71,6 +71,6 @@ pub struct CellMorphology {
 impl CellMorphology {
     /// Whether a body of this kind is a cell (a node of the contact graph): epithelial or static.
     pub fn is_cell_kind(kind: CellKind) -> bool {
-        matches!(kind, CellKind::Epithelial | CellKind::Static)
+        kind.is_cell()
     }
 }

@@ -23,7 +23,7 @@
 
 use crate::geometry::{Real, SpatialGrid, Vec3};
 use crate::mechanics::{CellForces, CellTypeParams};
-use crate::mesh::{CellKind, Tissue};
+use crate::mesh::Tissue;
 use rayon::prelude::*;
 
 /// One tied node pair: (cell index, node index) of each side, `a` before `b` in tissue order.
@@ -31,11 +31,6 @@ use rayon::prelude::*;
 pub struct CoupledPair {
     pub a: (u32, u32),
     pub b: (u32, u32),
-}
-
-/// Whether a cell of this kind takes part in node coupling.
-pub(crate) fn couples(kind: CellKind) -> bool {
-    matches!(kind, CellKind::Epithelial | CellKind::Static)
 }
 
 /// Reusable buffers of the coupling stage.
@@ -63,7 +58,7 @@ impl CouplingWorkspace {
     pub fn couple(&mut self, tissue: &mut Tissue, cell_params: &[&CellTypeParams], cutoff: Real) -> usize {
         self.pairs.clear();
         let cells = tissue.cells();
-        let eligible_cells = cells.iter().filter(|c| couples(c.kind())).count();
+        let eligible_cells = cells.iter().filter(|c| c.kind().is_cell()).count();
         if eligible_cells < 2 || cutoff.is_nan() || cutoff <= 0.0 {
             return 0;
         }
@@ -72,7 +67,7 @@ impl CouplingWorkspace {
             .par_iter()
             .zip(cell_params.par_iter())
             .map(|(cell, p)| {
-                if !couples(cell.kind()) {
+                if !cell.kind().is_cell() {
                     return Vec::new();
                 }
                 let (curvature, normals) = cell.mesh().mean_curvature_and_normals();

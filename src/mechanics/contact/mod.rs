@@ -36,7 +36,6 @@
 mod coupling;
 mod spring;
 
-use coupling::couples;
 pub use coupling::{CoupledPair, CouplingWorkspace};
 pub use spring::{contact_energy_density, contact_stress};
 
@@ -247,9 +246,7 @@ impl ContactWorkspace {
                 let centroid = cell.mesh().volume_centroid()?;
                 let boxed = |b: &(Vec3, Vec3)| (0..3).all(|k| b.0[k] <= centroid[k] && centroid[k] <= b.1[k]);
                 cells.iter().zip(&cell_boxes).position(|(other, bx)| {
-                    matches!(other.kind(), CellKind::Epithelial | CellKind::Static)
-                        && boxed(bx)
-                        && other.mesh().winding_number(&centroid) > 0.5
+                    other.kind().is_cell() && boxed(bx) && other.mesh().winding_number(&centroid) > 0.5
                 })
             })
             .collect();
@@ -382,7 +379,7 @@ impl ContactWorkspace {
                     };
                     let faces_a = topology[a].faces_of(node as u32);
                     let (mut omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
-                    if coupling && couples(cell_a.kind()) && couples(cells[b].kind()) {
+                    if coupling && cell_a.kind().is_cell() && cells[b].kind().is_cell() {
                         omega = 0.0;
                     }
                     let area: Real =
