@@ -8,11 +8,13 @@
 //!   coordinates are `(x, y, z)` metres.
 //! - TIFF in ([`read_label_tiff`]) and out ([`write_label_tiff`]) with ImageJ/OME voxel sizes.
 //! - [`voxelize`]: closed cell surfaces → labels, by exact ray–triangle crossings along x.
+//! - [`label_overlap`]: per-label IoU and χ = 1 − IoU of two label volumes on one grid.
 //! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate).
 
 mod error;
 mod generate;
 mod metadata;
+mod overlap;
 mod tiff_read;
 mod tiff_write;
 mod volume;
@@ -21,6 +23,7 @@ mod voxelize;
 pub use error::ImagingError;
 pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels};
 pub use metadata::VoxelSizeSource;
+pub use overlap::{LabelOverlap, label_overlap};
 pub use tiff_read::{FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff};
 pub use tiff_write::{LabelDtype, LabelWriteOptions, TiffCompression, write_label_tiff};
 pub use volume::{LabelInfo, LabelMask, LabelVolume, VoxelGrid};
