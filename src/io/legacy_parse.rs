@@ -363,7 +363,8 @@ pub(crate) fn parse_legacy(path: &Path, text: &[u8]) -> Result<LegacyGrid, IoErr
 /// whose counts do not match its length.
 pub(crate) fn polyhedron_faces(stream: &[u32]) -> Result<Vec<&[u32]>, String> {
     let (&faces, mut rest) = stream.split_first().ok_or("empty polyhedron record")?;
-    let mut out = Vec::with_capacity(faces as usize);
+    // Each face takes at least one integer of the stream: a corrupt face count cannot over-allocate.
+    let mut out = Vec::with_capacity((faces as usize).min(rest.len()));
     for f in 0..faces {
         let (&k, tail) =
             rest.split_first().ok_or_else(|| format!("the face stream announces {faces} faces but ends after {f}"))?;
@@ -382,7 +383,8 @@ pub(crate) fn polyhedron_faces(stream: &[u32]) -> Result<Vec<&[u32]>, String> {
 
 /// Legacy (≤ 5.0) cell list: `n` records `k id₁ … id_k`, `size` integers in all.
 fn parse_cell_list(c: &mut Cursor, g: &mut LegacyGrid, n: usize, size: usize) -> Result<(), IoError> {
-    g.offsets.reserve(n + 1);
+    // Declared counts are not trusted for allocation: every record takes at least two characters.
+    g.offsets.reserve(n.min(c.text.len() / 2) + 1);
     g.offsets.push(0);
     g.connectivity.reserve(size.min(c.text.len() / 2));
     let mut consumed = 0usize;
@@ -456,7 +458,7 @@ fn parse_attributes(c: &mut Cursor, n: usize) -> Result<Vec<DataArray>, IoError>
                     return Err(c.err(format!("expected LOOKUP_TABLE after SCALARS {name}, found `{}`", truncate(kw))));
                 }
                 c.expect("the lookup table name")?;
-                let values = read_values(c, n * components, &name)?;
+                let values = read_values(c, n, components, &name)?;
                 c.skip_metadata(components)?;
                 arrays.push(DataArray { name, components, values, line });
                 continue;
@@ -468,7 +470,7 @@ fn parse_attributes(c: &mut Cursor, n: usize) -> Result<Vec<DataArray>, IoError>
                 c.token()?;
                 c.expect("the lookup table name")?;
                 let size = c.count("the lookup table size")?;
-                read_values(c, 4 * size, "LOOKUP_TABLE")?;
+                read_values(c, size, 4, "LOOKUP_TABLE")?;
                 continue;
             }
             _ if is_section(t) => break,
@@ -487,7 +489,7 @@ fn parse_attributes(c: &mut Cursor, n: usize) -> Result<Vec<DataArray>, IoError>
             check_numeric_type(c, t)?;
             components
         };
-        read_values(c, n * components, &name)?;
+        read_values(c, n, components, &name)?;
         c.skip_metadata(components)?;
     }
     Ok(arrays)
@@ -497,7 +499,7 @@ fn parse_attributes(c: &mut Cursor, n: usize) -> Result<Vec<DataArray>, IoError>
 fn parse_field(c: &mut Cursor, tuples: Option<usize>) -> Result<Vec<DataArray>, IoError> {
     c.expect("the field name")?;
     let k = c.count("the number of field arrays")?;
-    let mut arrays = Vec::with_capacity(k);
+    let mut arrays = Vec::with_capacity(k.min(c.text.len() / 2));
     for _ in 0..k {
         let line = c.line;
         let name = c.expect("a field array name")?.to_string();
@@ -514,7 +516,7 @@ fn parse_field(c: &mut Cursor, tuples: Option<usize>) -> Result<Vec<DataArray>, 
                 format!("field array {name} has {n} tuples, expected {expected}"),
             ));
         }
-        let values = read_values(c, n * components, &name)?;
+        let values = read_values(c, n, components, &name)?;
         c.skip_metadata(components)?;
         arrays.push(DataArray { name, components, values, line });
     }
@@ -547,7 +549,11 @@ fn check_numeric_type(c: &Cursor, t: &str) -> Result<(), IoError> {
     }
 }
 
-fn read_values(c: &mut Cursor, count: usize, name: &str) -> Result<Vec<Real>, IoError> {
+/// Reads `tuples`·`components` numbers of array `name`; a declared size that overflows is an error.
+fn read_values(c: &mut Cursor, tuples: usize, components: usize, name: &str) -> Result<Vec<Real>, IoError> {
+    let count = tuples.checked_mul(components).ok_or_else(|| {
+        c.err(format!("array {name} declares {tuples} tuples of {components} components, more than any file holds"))
+    })?;
     let mut v = Vec::with_capacity(count.min(c.text.len() / 2));
     for _ in 0..count {
         let t = c.expect("array values")?;
