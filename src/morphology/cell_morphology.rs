@@ -8,7 +8,7 @@ use serde::Serialize;
 ///
 /// Flat on purpose: it is one CSV row. The first eight fields are the stable interface of
 /// `cells.csv` (DESIGN.md §2); more may be appended. Filled from meshes by
-/// [`super::measure_tissue`] and from voxels by [`super::measure_labels`].
+/// [`super::measure_tissue`] and from voxels by [`super::measure_labels()`].
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CellMorphology {
     /// Cell id (the input label).
@@ -68,7 +68,7 @@ pub struct CellMorphology {
     /// Distance between the nucleus centroid and the cell centroid (m).
     pub nucleus_offset: Option<Real>,
     /// Intersection over union with the same label in a compared tissue or label volume, on a common
-    /// voxel grid (see [`super::compare`]); empty without a comparison.
+    /// voxel grid (see [`super::compare_shapes`]); empty without a comparison.
     pub iou: Option<Real>,
     /// Deformation χ = 1 − IoU.
     pub chi: Option<Real>,

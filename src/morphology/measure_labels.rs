@@ -3,7 +3,7 @@
 //!
 //! - **Volume**: voxel count × voxel volume (the volume of the union of the voxel boxes).
 //! - **Area** and the area toward each neighbour: boundary voxel faces projected on a smoothed surface
-//!   normal ([`super::label_surface`]), not the raw face count, which overestimates smooth surfaces by up
+//!   normal (`label_surface.rs`: surfel projection after Flin et al. 2005), not the raw face count, which overestimates smooth surfaces by up
 //!   to 73 % (50 % on a sphere) whatever the resolution.
 //! - **Contacts**: two labels touch when some voxel face separates them (6-adjacency); the contact area
 //!   is the mean of the two sides' projected areas, like the mean of the two meshes' touching areas.

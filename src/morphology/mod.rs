@@ -12,9 +12,9 @@
 //! sides' touching areas. Units are SI throughout (m, m², m³). This module never depends on
 //! `mechanics`: it measures whatever surfaces it is given.
 //!
-//! Label volumes are measured directly by [`measure_labels`] (voxel counts, voxel-face adjacency and a
-//! staircase-free area, see [`measure_labels`](mod@measure_labels)), filling the same rows; the two routes
-//! agree on smooth shapes (tests/morphology.rs). [`compare_shapes`] and [`compare_tissues`] give the
+//! Label volumes are measured directly by [`measure_labels()`] (voxel counts, voxel-face adjacency and a
+//! staircase-free area, see [the module](mod@measure_labels)), filling the same rows; the two routes
+//! agree on smooth shapes (tests/morphology_labels.rs). [`compare_shapes`] and [`compare_tissues`] give the
 //! per-cell IoU and χ = 1 − IoU on a common voxel grid.
 //!
 //! Not here yet: a lumen that is not a body (the background cavity of a segmented organoid) needs a

@@ -49,7 +49,7 @@ pub struct MorphologySummary {
     /// Contact distance δ used (m); `null` for a label volume (contacts are voxel-face adjacency).
     pub contact_distance: Option<Real>,
     /// Mean deformation χ = 1 − IoU over the counted cells that were compared (see
-    /// [`super::compare`]); `null` without a comparison.
+    /// [`super::compare_shapes`]); `null` without a comparison.
     pub mean_chi: Option<Real>,
     pub include_static: bool,
     pub bodies: BodyCounts,
