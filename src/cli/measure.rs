@@ -327,3 +327,24 @@ fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_second
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+    use crate::imaging::{LabelWriteOptions, write_label_tiff};
+
+    #[test]
+    fn tiffs_are_told_by_extension_or_magic_number() {
+        let dir = tempfile::tempdir().unwrap();
+        let volume = LabelVolume::new(ndarray::Array3::from_elem((2, 3, 4), 1u32), [1e-6; 3], Vec3::zeros()).unwrap();
+        let unnamed = dir.path().join("labels.data");
+        write_label_tiff(&unnamed, &volume, &LabelWriteOptions::default()).unwrap();
+        assert!(is_tiff(&unnamed));
+        assert!(is_tiff(Path::new("missing.TIF")));
+        let text = dir.path().join("tissue.mesh");
+        std::fs::write(&text, "# vtk DataFile Version 4.2\n").unwrap();
+        assert!(!is_tiff(&text));
+        assert!(!is_tiff(&dir.path().join("missing")));
+    }
+}
