@@ -1,22 +1,29 @@
-//! `tissuefit measure TISSUE --out DIR`: morphology of a tissue into `cells.csv`, `contacts.csv` and
-//! `summary.json` (SI units), each written to a temporary name and renamed.
+//! `tissuefit measure TISSUE|LABELS.tif --out DIR [--compare TISSUE|LABELS.tif]`: morphology of a
+//! tissue mesh, or of a label volume measured on its voxels, into `cells.csv`, `contacts.csv` and
+//! `summary.json` (SI units), each written to a temporary name and renamed. With `--compare`, every
+//! cell also gets its IoU and χ = 1 − IoU against the same label of the other input.
 
+use super::label_args::{describe_grid, parse_voxel_size};
 use super::{InputArgs, Outcome};
 use crate::geometry::Real;
+use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, label_overlap, read_label_tiff};
 use crate::io::{LengthScale, read_tissue, write_atomically};
-use crate::mesh::CellKind;
+use crate::mesh::{CellKind, Tissue};
+use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
 use crate::morphology::{
-    ContactMorphology, DEFAULT_EXTERIOR_FREE_FRACTION, MeasureSettings, Morphology, measure_tissue,
+    ContactMorphology, DEFAULT_EXTERIOR_FREE_FRACTION, DroppedLabel, LabelMeasureSettings, MeasureSettings, Morphology,
+    compare_shapes, compare_tissues, mean_edge_length, measure_labels, measure_tissue,
 };
-use anyhow::Context;
+use anyhow::{Context, bail};
 use serde::Serialize;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct MeasureArgs {
-    /// Tissue file (.vtk or .vtp).
+    /// Tissue file (.vtk or .vtp), or a label TIFF (.tif/.tiff or TIFF magic; 0 = background) measured
+    /// directly on its voxels (cell ids = labels).
     pub tissue: PathBuf,
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
@@ -34,6 +41,73 @@ pub struct MeasureArgs {
     pub exterior_free_fraction: Real,
     #[command(flatten)]
     pub input: InputArgs,
+    /// Label TIFF only: voxel size z,y,x (or one for all) overriding the file's metadata (0.235,0.15,0.15um).
+    #[arg(long, value_name = "Z,Y,X", value_parser = parse_voxel_size)]
+    pub voxel_size: Option<[Real; 3]>,
+    /// Label TIFF only: labels touching the image border are kept as cells (default, as `mesh`), flagged
+    /// static (measured, left out of the statistics), or dropped.
+    #[arg(long, default_value_t = BorderPolicy::Keep, value_parser = |s: &str| s.parse::<BorderPolicy>())]
+    pub border: BorderPolicy,
+    /// Label TIFF only: labels that are lumen bodies (for the layer count), comma-separated.
+    #[arg(long, value_delimiter = ',', value_name = "LABELS")]
+    pub lumen_labels: Vec<u32>,
+    /// Label TIFF only: labels with fewer voxels are debris and are dropped (as `mesh`).
+    #[arg(long, default_value_t = DEFAULT_MIN_VOXELS)]
+    pub min_voxels: u64,
+    /// Label TIFF only: σ of the Gaussian smoothing for surface normals (a length, 0.2um). Default: 2 ×
+    /// the largest voxel size.
+    #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
+    pub normal_smoothing: Option<Real>,
+    /// Compare shapes with this tissue or label TIFF (cells matched by id = label): adds `iou` and `chi`
+    /// to cells.csv and `mean_chi` to summary.json. A tissue is voxelised on the label volume's grid; two
+    /// label volumes must share a grid; two tissues are voxelised on a common grid (--compare-voxel-size).
+    #[arg(long, value_name = "FILE")]
+    pub compare: Option<PathBuf>,
+    /// Voxel size of the common grid when both inputs are tissues (z,y,x or one). Default: half the
+    /// mean edge length of the measured tissue.
+    #[arg(long, value_name = "Z,Y,X", value_parser = parse_voxel_size, requires = "compare")]
+    pub compare_voxel_size: Option<[Real; 3]>,
+}
+
+/// Whether `path` is a TIFF: by extension, else by its magic number (II*/MM* classic, II+/MM+ BigTIFF).
+fn is_tiff(path: &Path) -> bool {
+    if let Some(ext) = path.extension().and_then(|e| e.to_str()) {
+        let ext = ext.to_ascii_lowercase();
+        if ext == "tif" || ext == "tiff" {
+            return true;
+        }
+        if ext == "vtk" || ext == "vtp" {
+            return false;
+        }
+    }
+    let mut magic = [0u8; 4];
+    let read = std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut magic));
+    read.is_ok() && matches!(&magic, b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+")
+}
+
+/// A measured or compared input.
+enum Input {
+    Tissue(Tissue),
+    Labels(LabelVolume),
+}
+
+fn read_input(path: &Path, args: &MeasureArgs) -> anyhow::Result<Input> {
+    if is_tiff(path) {
+        let options = LabelReadOptions { voxel_size: args.voxel_size, ..Default::default() };
+        let read =
+            read_label_tiff(path, &options).with_context(|| format!("reading label volume {}", path.display()))?;
+        for w in &read.warnings {
+            tracing::warn!("{}: {w}", path.display());
+        }
+        Ok(Input::Labels(read.volume))
+    } else {
+        let read =
+            read_tissue(path, &args.input.read_options()).with_context(|| format!("reading {}", path.display()))?;
+        for w in &read.warnings {
+            tracing::warn!("{}: {w}", path.display());
+        }
+        Ok(Input::Tissue(read.tissue))
+    }
 }
 
 /// A single length: a number of metres or a number with a unit (m, mm, um, nm).
@@ -48,26 +122,86 @@ fn parse_length(s: &str) -> Result<Real, String> {
 #[derive(Serialize)]
 struct SummaryFile<'a> {
     file: String,
+    /// `tissue` (a mesh) or `labels` (a label volume measured on its voxels).
+    input: &'static str,
+    /// Seconds spent measuring (and comparing), reading excluded.
     wall_seconds: f64,
     threads: usize,
+    /// Label volumes: σ of the normal smoothing (m), and the labels left out as debris or border.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    normal_smoothing: Option<Real>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    dropped_labels: Option<&'a [DroppedLabel]>,
+    /// The file compared with (`--compare`) and how many labels were compared.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    compare: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    compared_cells: Option<usize>,
     #[serde(flatten)]
     summary: &'a crate::morphology::MorphologySummary,
 }
 
 pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
-    let read = read_tissue(&args.tissue, &args.input.read_options())
-        .with_context(|| format!("reading {}", args.tissue.display()))?;
-    for w in &read.warnings {
-        tracing::warn!("{}: {w}", args.tissue.display());
+    let input = read_input(&args.tissue, args)?;
+    let labels_only = args.voxel_size.is_some()
+        || args.border != BorderPolicy::Keep
+        || !args.lumen_labels.is_empty()
+        || args.min_voxels != DEFAULT_MIN_VOXELS
+        || args.normal_smoothing.is_some();
+    if matches!(input, Input::Tissue(_)) && labels_only {
+        bail!(
+            "{} is a tissue mesh: --voxel-size, --border, --lumen-labels, --min-voxels and --normal-smoothing apply to label TIFFs",
+            args.tissue.display()
+        );
     }
-    let settings = MeasureSettings {
-        contact_distance: args.contact_distance,
-        include_static: args.include_static,
-        exterior_free_fraction: args.exterior_free_fraction,
-    };
+    if matches!(input, Input::Labels(_)) && args.contact_distance.is_some() {
+        bail!(
+            "{} is a label volume: contacts are voxel-face adjacency, --contact-distance applies to meshes",
+            args.tissue.display()
+        );
+    }
+    let other = args.compare.as_deref().map(|p| read_input(p, args)).transpose()?;
     let start = Instant::now();
-    let morphology =
-        measure_tissue(&read.tissue, &settings).with_context(|| format!("measuring {}", args.tissue.display()))?;
+    let (mut morphology, label_route) = match &input {
+        Input::Tissue(tissue) => {
+            let settings = MeasureSettings {
+                contact_distance: args.contact_distance,
+                include_static: args.include_static,
+                exterior_free_fraction: args.exterior_free_fraction,
+            };
+            let m =
+                measure_tissue(tissue, &settings).with_context(|| format!("measuring {}", args.tissue.display()))?;
+            (m, None)
+        }
+        Input::Labels(volume) => {
+            let settings = LabelMeasureSettings {
+                include_static: args.include_static,
+                exterior_free_fraction: args.exterior_free_fraction,
+                border: args.border,
+                lumen_labels: args.lumen_labels.clone(),
+                min_voxels: args.min_voxels,
+                normal_smoothing: args.normal_smoothing,
+            };
+            let m = measure_labels(volume, &settings)
+                .with_context(|| format!("measuring {} ({})", args.tissue.display(), describe_grid(volume)))?;
+            for label in &args.lumen_labels {
+                if !m.morphology.cells.iter().any(|c| c.cell == *label) {
+                    tracing::warn!("--lumen-labels: label {label} is not measured in {}", args.tissue.display());
+                }
+            }
+            (m.morphology, Some((m.dropped, m.normal_smoothing)))
+        }
+    };
+    let compared = match (&input, &other) {
+        (_, None) => None,
+        (input, Some(other)) => {
+            let path = args.compare.as_deref().unwrap_or(Path::new(""));
+            let overlaps = compare_inputs(input, other, args)
+                .with_context(|| format!("comparing {} with {}", args.tissue.display(), path.display()))?;
+            morphology.set_overlap(&overlaps);
+            Some((path.display().to_string(), overlaps.iter().filter(|o| o.voxels_a > 0 && o.voxels_b > 0).count()))
+        }
+    };
     let wall_seconds = start.elapsed().as_secs_f64();
     let inside_out: Vec<String> =
         morphology.cells.iter().filter(|c| c.volume <= 0.0).map(|c| c.cell.to_string()).collect();
@@ -78,13 +212,51 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
             inside_out.join(", ")
         );
     }
+    if let Some((dropped, _)) = &label_route {
+        for d in dropped {
+            tracing::info!("{}: label {} left out: {}", args.tissue.display(), d.label, d.reason);
+        }
+    }
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    write_outputs(&args.out, &args.tissue, &morphology, wall_seconds)?;
+    let summary = SummaryFile {
+        file: args.tissue.display().to_string(),
+        input: if label_route.is_some() { "labels" } else { "tissue" },
+        wall_seconds,
+        threads: rayon::current_num_threads(),
+        normal_smoothing: label_route.as_ref().map(|r| r.1),
+        dropped_labels: label_route.as_ref().map(|r| r.0.as_slice()),
+        compare: compared.as_ref().map(|c| c.0.clone()),
+        compared_cells: compared.as_ref().map(|c| c.1),
+        summary: &morphology.summary,
+    };
+    write_outputs(&args.out, &morphology, &summary)?;
     print_summary(&mut std::io::stdout().lock(), &args.tissue, &morphology, wall_seconds)?;
     Ok(Outcome::Success)
 }
 
-fn write_outputs(dir: &Path, input: &Path, m: &Morphology, wall_seconds: f64) -> anyhow::Result<()> {
+/// Per-label overlap of the measured input (`voxels_a`) with the compared one (`voxels_b`).
+fn compare_inputs(input: &Input, other: &Input, args: &MeasureArgs) -> anyhow::Result<Vec<LabelOverlap>> {
+    let swap = |o: Vec<LabelOverlap>| -> Vec<LabelOverlap> {
+        o.into_iter().map(|o| LabelOverlap { voxels_a: o.voxels_b, voxels_b: o.voxels_a, ..o }).collect()
+    };
+    Ok(match (input, other) {
+        (Input::Labels(a), Input::Labels(b)) => label_overlap(a, b)?,
+        (Input::Tissue(a), Input::Labels(b)) => swap(compare_shapes(a, b)?),
+        (Input::Labels(a), Input::Tissue(b)) => compare_shapes(b, a)?,
+        (Input::Tissue(a), Input::Tissue(b)) => {
+            let voxel_size = match args.compare_voxel_size {
+                Some(v) => v,
+                None => match mean_edge_length(a) {
+                    Some(h) if h.is_finite() && h > 0.0 => [h / 2.0; 3],
+                    _ => bail!("cannot derive a comparison grid from the tissue's edges; give --compare-voxel-size"),
+                },
+            };
+            compare_tissues(a, b, voxel_size)?
+        }
+    })
+}
+
+fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> anyhow::Result<()> {
     if let Some(first) = m.cells.first() {
         write_csv(&dir.join("cells.csv"), &m.cells, first)?;
     }
@@ -100,15 +272,9 @@ fn write_outputs(dir: &Path, input: &Path, m: &Morphology, wall_seconds: f64) ->
         rim_edges: 0,
     };
     write_csv(&dir.join("contacts.csv"), &m.contacts, &example)?;
-    let summary = SummaryFile {
-        file: input.display().to_string(),
-        wall_seconds,
-        threads: rayon::current_num_threads(),
-        summary: &m.summary,
-    };
     let path = dir.join("summary.json");
     write_atomically(&path, |w| {
-        serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::other)?;
+        serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
         writeln!(w)
     })
     .with_context(|| format!("writing {}", path.display()))?;
@@ -139,12 +305,12 @@ fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_second
     let opt = |v: Option<Real>, digits: usize| v.map_or("n/a".to_string(), |x| format!("{x:.digits$}"));
     writeln!(
         out,
-        "{}: {} cells measured ({} bodies), {} cell contacts, δ = {:.3e} m, {:.3} s",
+        "{}: {} cells measured ({} bodies), {} cell contacts, {}, {:.3} s",
         input.display(),
         s.cells,
         s.bodies.total,
         s.cell_contacts,
-        s.contact_distance,
+        s.contact_distance.map_or("voxel-face contacts".to_string(), |d| format!("δ = {d:.3e} m")),
         wall_seconds
     )?;
     writeln!(
@@ -155,5 +321,30 @@ fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_second
         opt(s.mean_coordination, 2),
         s.mean_contact_angle_deg.map_or("n/a".to_string(), |a| format!("{a:.1}°")),
         s.layers.map_or("n/a".to_string(), |n| n.to_string())
-    )
+    )?;
+    if let Some(chi) = s.mean_chi {
+        writeln!(out, "  shape deformation ⟨χ⟩ = 1 − ⟨IoU⟩ = {chi:.4}")?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+    use crate::imaging::{LabelWriteOptions, write_label_tiff};
+
+    #[test]
+    fn tiffs_are_told_by_extension_or_magic_number() {
+        let dir = tempfile::tempdir().unwrap();
+        let volume = LabelVolume::new(ndarray::Array3::from_elem((2, 3, 4), 1u32), [1e-6; 3], Vec3::zeros()).unwrap();
+        let unnamed = dir.path().join("labels.data");
+        write_label_tiff(&unnamed, &volume, &LabelWriteOptions::default()).unwrap();
+        assert!(is_tiff(&unnamed));
+        assert!(is_tiff(Path::new("missing.TIF")));
+        let text = dir.path().join("tissue.mesh");
+        std::fs::write(&text, "# vtk DataFile Version 4.2\n").unwrap();
+        assert!(!is_tiff(&text));
+        assert!(!is_tiff(&dir.path().join("missing")));
+    }
 }

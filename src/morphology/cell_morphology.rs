@@ -8,7 +8,7 @@ use serde::Serialize;
 ///
 /// Flat on purpose: it is one CSV row. The first eight fields are the stable interface of
 /// `cells.csv` (DESIGN.md §2); more may be appended. Filled from meshes by
-/// [`super::measure_tissue`]; a label-volume route fills the same struct.
+/// [`super::measure_tissue`] and from voxels by [`super::measure_labels()`].
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CellMorphology {
     /// Cell id (the input label).
@@ -35,10 +35,11 @@ pub struct CellMorphology {
     pub ecm_contact_area: Real,
     /// Own surface area in contact with nothing (m²).
     pub free_area: Real,
-    /// Area of the faces typed apical, lateral and basal (m²), from the input face types.
-    pub apical_area: Real,
-    pub lateral_area: Real,
-    pub basal_area: Real,
+    /// Area of the faces typed apical, lateral and basal (m²), from the input face types; empty for a
+    /// label volume (no face types).
+    pub apical_area: Option<Real>,
+    pub lateral_area: Option<Real>,
+    pub basal_area: Option<Real>,
     /// Semi-axes of the ellipsoid with the same second moments as the solid (m), decreasing.
     pub semi_axis_1: Real,
     pub semi_axis_2: Real,
@@ -66,6 +67,11 @@ pub struct CellMorphology {
     pub nucleus_sphericity: Option<Real>,
     /// Distance between the nucleus centroid and the cell centroid (m).
     pub nucleus_offset: Option<Real>,
+    /// Intersection over union with the same label in a compared tissue or label volume, on a common
+    /// voxel grid (see [`super::compare_shapes`]); empty without a comparison.
+    pub iou: Option<Real>,
+    /// Deformation χ = 1 − IoU.
+    pub chi: Option<Real>,
 }
 
 impl CellMorphology {

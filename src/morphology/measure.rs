@@ -213,9 +213,9 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
                 lumen_contact_area: lumen_area[i],
                 ecm_contact_area: ecm_area[i],
                 free_area: m.free_area,
-                apical_area: m.face_type_area[0],
-                lateral_area: m.face_type_area[1],
-                basal_area: m.face_type_area[2],
+                apical_area: Some(m.face_type_area[0]),
+                lateral_area: Some(m.face_type_area[1]),
+                basal_area: Some(m.face_type_area[2]),
                 semi_axis_1: m.semi_axes[0],
                 semi_axis_2: m.semi_axes[1],
                 semi_axis_3: m.semi_axes[2],
@@ -232,10 +232,12 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
                 nucleus_volume: nucleus.map(|n| measures[n].volume),
                 nucleus_sphericity: nucleus.map(|n| sphericity(measures[n].volume.max(0.0), measures[n].area)),
                 nucleus_offset: nucleus.map(|n| (measures[n].centroid - m.centroid).norm()),
+                iou: None,
+                chi: None,
             }
         })
         .collect();
-    let summary = MorphologySummary::from_rows(&rows, &contacts, delta, settings.include_static, exterior_rule);
+    let summary = MorphologySummary::from_rows(&rows, &contacts, Some(delta), settings.include_static, exterior_rule);
     Ok(Morphology { cells: rows, contacts, summary })
 }
 

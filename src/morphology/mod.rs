@@ -12,27 +12,37 @@
 //! sides' touching areas. Units are SI throughout (m, m², m³). This module never depends on
 //! `mechanics`: it measures whatever surfaces it is given.
 //!
-//! Not here yet: IoU between two tissues (χ = 1 − IoU) needs the voxeliser of `imaging`; measuring
-//! label volumes directly (voxel-face adjacency) will fill the same [`CellMorphology`] and
-//! [`MorphologySummary`] rows through [`MorphologySummary::from_rows`]; a lumen that is not a body (the
-//! background cavity of a segmented organoid) needs a voxel flood fill before layers can be counted.
+//! Label volumes are measured directly by [`measure_labels()`] (voxel counts, voxel-face adjacency and a
+//! staircase-free area, see [the module](mod@measure_labels)), filling the same rows; the two routes
+//! agree on smooth shapes (tests/morphology_labels.rs). [`compare_shapes`] and [`compare_tissues`] give the
+//! per-cell IoU and χ = 1 − IoU on a common voxel grid.
+//!
+//! Not here yet: a lumen that is not a body (the background cavity of a segmented organoid) needs a
+//! voxel flood fill before layers can be counted; contact angles on label volumes (mesh them first).
 
 mod cell_morphology;
+mod compare;
 mod contact_morphology;
 mod distribution;
 pub mod face_contacts;
+mod label_surface;
 pub mod layers;
 mod measure;
+pub mod measure_labels;
 pub mod nucleus;
 pub mod rim_angle;
 mod summary;
 
 pub use cell_morphology::CellMorphology;
+pub use compare::{compare_shapes, compare_tissues};
 pub use contact_morphology::ContactMorphology;
 pub use distribution::Distribution;
 pub use measure::{
     DEFAULT_CONTACT_DISTANCE_FACTOR, DEFAULT_EXTERIOR_FREE_FRACTION, MeasureSettings, Morphology, mean_edge_length,
     measure_tissue,
+};
+pub use measure_labels::{
+    DEFAULT_NORMAL_SMOOTHING_VOXELS, DroppedLabel, LabelMeasureSettings, LabelMorphology, measure_labels,
 };
 pub use summary::{BodyCounts, ExteriorRule, MorphologySummary};
 
@@ -47,6 +57,10 @@ pub enum MorphologyError {
     InvalidExteriorFraction { value: Real },
     #[error("the tissue has no cells to measure")]
     EmptyTissue,
+    #[error("normal smoothing σ = {value:e} m must be finite and not negative")]
+    InvalidNormalSmoothing { value: Real },
+    #[error("cannot compare shapes: {reason}")]
+    Comparison { reason: String },
     #[error(
         "cannot derive the default contact distance: the mean edge length is {mean_edge:e} m; give a contact distance"
     )]

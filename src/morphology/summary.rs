@@ -46,8 +46,11 @@ pub struct MorphologySummary {
     pub mean_layers: Option<Real>,
     /// Mean contact angle (degrees) over cell–cell contacts with a free rim that involve a counted cell.
     pub mean_contact_angle_deg: Option<Real>,
-    /// Contact distance δ used (m).
-    pub contact_distance: Real,
+    /// Contact distance δ used (m); `null` for a label volume (contacts are voxel-face adjacency).
+    pub contact_distance: Option<Real>,
+    /// Mean deformation χ = 1 − IoU over the counted cells that were compared (see
+    /// [`super::compare_shapes`]); `null` without a comparison.
+    pub mean_chi: Option<Real>,
     pub include_static: bool,
     pub bodies: BodyCounts,
     /// Edges of the contact graph: touching pairs of cells (epithelial or static).
@@ -68,7 +71,7 @@ impl MorphologySummary {
     pub fn from_rows(
         cells: &[CellMorphology],
         contacts: &[ContactMorphology],
-        contact_distance: Real,
+        contact_distance: Option<Real>,
         include_static: bool,
         exterior_rule: ExteriorRule,
     ) -> Self {
@@ -85,6 +88,7 @@ impl MorphologySummary {
         statistics.insert("layer", stat(&|c| c.layer.map(Real::from)));
         statistics.insert("nucleus_sphericity", stat(&|c| c.nucleus_sphericity));
         statistics.insert("nucleus_offset", stat(&|c| c.nucleus_offset));
+        statistics.insert("chi", stat(&|c| c.chi));
 
         let counted_ids: HashMap<u32, bool> = cells.iter().map(|c| (c.cell, c.in_statistics)).collect();
         let is_cell = |k: CellKind| CellMorphology::is_cell_kind(k);
@@ -119,6 +123,7 @@ impl MorphologySummary {
             mean_layers,
             mean_contact_angle_deg: angles.mean,
             contact_distance,
+            mean_chi: statistics["chi"].mean,
             include_static,
             bodies,
             cell_contacts: cell_contacts.len(),
