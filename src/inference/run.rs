@@ -11,6 +11,7 @@ use super::{InferenceError, plot};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
 use crate::io::{LengthScale, ReadOptions, read_tissue, write_bytes_atomically};
+use crate::mechanics::ContactModel;
 use crate::mesh::CellKind;
 use crate::meshing::mesh_labels;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -275,6 +276,22 @@ fn assemble(
                 range[0],
                 range[1]
             ));
+        }
+        if rname == "adhesion_over_tension" && model.base.numerics.contact_model == ContactModel::Spring {
+            // The spring model's shape is set by w/(2γ) = ω·c²/(4γ): the dimensionless form.
+            let f = model.base.numerics.contact_cutoff.powi(2) / 4.0;
+            ratios.insert(
+                "adhesion_energy_over_tension".to_string(),
+                RatioResult {
+                    value: value * f,
+                    range: [range[0] * f, range[1] * f],
+                    determined,
+                    meaning: format!(
+                        "w/(2γ) = ω·c²/(4γ), c = {:.3e} m: the spring doublet's Young–Dupré group (cos θ = 1 − w/(2γ))",
+                        model.base.numerics.contact_cutoff
+                    ),
+                },
+            );
         }
         ratios.insert(rname.to_string(), RatioResult { value, range, determined, meaning });
     }
