@@ -174,10 +174,14 @@ struct Case {
 }
 
 fn round_trip(case: &Case, dir: &Path) -> (FitResult, PathBuf) {
+    round_trip_at(case, dir, 12.0)
+}
+
+fn round_trip_at(case: &Case, dir: &Path, voxels_per_diameter: Real) -> (FitResult, PathBuf) {
     let (initial, l_min) = initial_doublet();
     let (g, gl, w) = case.truth;
     let truth = model(case.contact, l_min, g, gl, w);
-    observed_labels(dir, &truth, &initial, 12.0);
+    observed_labels(dir, &truth, &initial, voxels_per_diameter);
     // The base model the fit starts from: wrong values for the fitted parameter (the config sets them).
     let base = model(case.contact, l_min, 1e-3, 1e-3, 0.0);
     let config = write_config(
@@ -192,13 +196,19 @@ fn round_trip(case: &Case, dir: &Path) -> (FitResult, PathBuf) {
     (result, out)
 }
 
-fn check(case: &Case, result: &FitResult) -> Real {
+/// The true value of the case's key ratio.
+fn true_ratio(case: &Case) -> Real {
     let (g, gl, w) = case.truth;
-    let truth = match case.ratio {
+    match case.ratio {
         "lateral_over_apical" => gl / g,
         "adhesion_energy_over_tension" => w_over_2g_truth(w, g),
         _ => w / g,
-    };
+    }
+}
+
+/// Relative error of the recovered key ratio (printed with the fit's figures).
+fn recovery_error(case: &Case, result: &FitResult) -> Real {
+    let truth = true_ratio(case);
     let r = &result.ratios[case.ratio];
     let error = (r.value - truth).abs() / truth;
     eprintln!(
@@ -218,6 +228,13 @@ fn check(case: &Case, result: &FitResult) -> Real {
         result.observed,
         result.best_metrics
     );
+    error
+}
+
+fn check(case: &Case, result: &FitResult) -> Real {
+    let error = recovery_error(case, result);
+    let r = &result.ratios[case.ratio];
+    let truth = true_ratio(case);
     assert!(
         error < 0.10,
         "{:?}: {} recovered {} vs truth {truth} ({:.1} % off)",
@@ -383,5 +400,35 @@ fn bad_configs_are_errors_naming_the_key() {
     for (text, key) in cases {
         let e = FitConfig::from_toml_str(text, "fit.toml").unwrap_err().to_string();
         assert!(e.contains(key) && e.contains("fit.toml"), "error `{e}` should name `{key}`");
+    }
+}
+
+/// The README's resolution figures: recovery error at 10 and 20 voxels per cell diameter, both
+/// contact models (run with `cargo test --release --test fit -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn resolution_study_10_vs_20_voxels_per_diameter() {
+    let (_, l_min) = initial_doublet();
+    let cases = [
+        Case {
+            contact: ContactModel::Coupling,
+            truth: (1e-3, 0.5e-3, 0.0),
+            parameters: COUPLING,
+            ratio: "lateral_over_apical",
+        },
+        Case {
+            contact: ContactModel::Spring,
+            truth: (1e-3, 1e-3, 0.35 * 4.0 * 1e-3 / (l_min * l_min)),
+            parameters: SPRING,
+            ratio: "adhesion_energy_over_tension",
+        },
+    ];
+    for case in &cases {
+        for vpd in [10.0, 20.0] {
+            let dir = tempfile::tempdir().unwrap();
+            let (result, _) = round_trip_at(case, dir.path(), vpd);
+            let error = recovery_error(case, &result);
+            eprintln!("RESOLUTION {:?} {vpd} voxels per diameter: error {:.1} %", case.contact, 100.0 * error);
+        }
     }
 }
