@@ -11,6 +11,14 @@
 //! measurement) or ends unconverged beyond `forward.accept_residual` scores `failure_penalty`; the
 //! reason is kept with the evaluation and the fit goes on.
 //!
+//! Target volumes: the observed volume is data, V0 is not. With V0 = V_observed every cell would
+//! shrink by its Laplace pressure (V = V0·exp(−p/K)), so after the first relaxation each of
+//! `forward.volume_passes` passes sets V0 ← V0·V_observed/V_simulated per cell and relaxes on from
+//! there; the equilibrium volumes then match the observed ones and the absolute tension scale drops out
+//! of the shape. With a label-volume input and `forward.measure_like_data`, each relaxed tissue is
+//! voxelised on the observed grid and meshed again with the observed meshing options before it is
+//! measured, so simulated and observed morphology pass through the same measurement.
+//!
 //! No warm start: every evaluation starts from the observed tissue, so its result depends on its
 //! parameters only (never on which evaluations ran before), which is what makes the cache, the
 //! parallel evaluation and the resumption exact.
