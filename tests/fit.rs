@@ -432,3 +432,108 @@ fn resolution_study_10_vs_20_voxels_per_diameter() {
         }
     }
 }
+
+#[test]
+fn trace_round_trips_exactly_including_missing_metrics_and_failures() {
+    use tissuefit::inference::{Evaluation, Metrics, ParameterConfig, ParameterSpace, Status, write_trace};
+    let mut params = std::collections::BTreeMap::new();
+    params.insert("adhesion".to_string(), ParameterConfig { bounds: Some([1e8, 1e10]), value: None, initial: None });
+    params.insert("surface_tension".to_string(), ParameterConfig { bounds: None, value: Some(1e-3), initial: None });
+    let space = ParameterSpace::from_config(&params).unwrap();
+    let evals = vec![
+        Evaluation {
+            x: vec![(3e9 as Real).ln() + 1e-15],
+            metrics: Metrics { sphericity: Some(0.1 + 0.2), contact_fraction: None, ..Default::default() },
+            objective: 1.0 / 3.0,
+            status: Status::Accepted,
+            reason: String::new(),
+            steps: 1000,
+            residual: 0.0123,
+            wall_seconds: 0.5,
+        },
+        Evaluation {
+            x: vec![(1e10 as Real).ln()],
+            metrics: Metrics::default(),
+            objective: 1e6,
+            status: Status::Failed,
+            reason: "simulation: step 3, cell 1: non-finite force, \"quoted\"".into(),
+            steps: 0,
+            residual: Real::NAN,
+            wall_seconds: 0.01,
+        },
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("trace.csv");
+    write_trace(&path, &space, &evals).unwrap();
+    let back = read_trace(&path, &space).unwrap();
+    assert_eq!(back.len(), 2);
+    assert_eq!(back[0], evals[0]);
+    assert_eq!(back[1].x, evals[1].x);
+    assert_eq!(back[1].reason, evals[1].reason);
+    assert!(back[1].residual.is_nan());
+    // A trace of another parameter space is refused, naming the file.
+    let mut other = params.clone();
+    other.insert(
+        "surface_tension_lateral".into(),
+        ParameterConfig { bounds: Some([1e-4, 1e-3]), value: None, initial: None },
+    );
+    let e = read_trace(&path, &ParameterSpace::from_config(&other).unwrap()).unwrap_err().to_string();
+    assert!(e.contains("trace.csv") && e.contains("columns"), "{e}");
+}
+
+#[test]
+fn cli_fit_writes_the_design_keys_and_refuses_to_overwrite_without_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let (initial, l_min) = initial_doublet();
+    let truth = model(ContactModel::Coupling, l_min, 1e-3, 0.6e-3, 0.0);
+    observed_labels(dir.path(), &truth, &initial, 12.0);
+    let config = write_config(
+        dir.path(),
+        &model(ContactModel::Coupling, l_min, 1e-3, 1e-3, 0.0),
+        COUPLING,
+        "method = \"nelder_mead\"\nmax_evaluations = 3\ntolerance = 0",
+        1,
+    );
+    let out = dir.path().join("out");
+    let run = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+            .args(["--threads", "2", "fit", "--config"])
+            .arg(&config)
+            .arg("--out")
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let first = run(&[]);
+    // The budget of 3 ends the search before the simplex converges: exit code 1.
+    assert_eq!(first.status.code(), Some(1), "{}", String::from_utf8_lossy(&first.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("result.json")).unwrap()).unwrap();
+    for key in ["parameters", "objective", "evaluations", "converged", "wall_seconds"] {
+        assert!(json.get(key).is_some(), "result.json lacks {key}");
+    }
+    let p = &json["parameters"]["surface_tension_lateral"];
+    assert!(p["si"].as_f64().unwrap() > 0.0 && p["dimensionless"].as_f64().unwrap() > 0.0);
+    assert_eq!(p["range"].as_array().unwrap().len(), 2);
+    assert_eq!(json["evaluations"].as_u64(), Some(3));
+    assert_eq!(json["converged"].as_bool(), Some(false));
+    for f in ["trace.csv", "objective.png", "landscape.png", "fit.toml", "model.toml"] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let png = std::fs::read(out.join("objective.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let again = run(&[]);
+    assert_eq!(again.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert!(stderr.contains("--resume"), "{stderr}");
+    // Resuming with a larger budget reuses the three evaluations.
+    let resumed = run(&["--resume", "--max-evaluations", "4"]);
+    assert!(resumed.status.code() == Some(0) || resumed.status.code() == Some(1));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("result.json")).unwrap()).unwrap();
+    assert_eq!(json["evaluations"].as_u64(), Some(4));
+    // Only the fourth point (and at most the new profile) is simulated; the first three come from the trace.
+    let simulated = json["simulated_here"].as_u64().unwrap();
+    assert!(simulated >= 1 && simulated <= 1 + json["profile_evaluations"].as_u64().unwrap(), "{json}");
+}
