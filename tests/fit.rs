@@ -537,3 +537,26 @@ fn cli_fit_writes_the_design_keys_and_refuses_to_overwrite_without_resume() {
     let simulated = json["simulated_here"].as_u64().unwrap();
     assert!(simulated >= 1 && simulated <= 1 + json["profile_evaluations"].as_u64().unwrap(), "{json}");
 }
+
+#[test]
+fn a_failing_evaluation_is_penalised_with_its_reason_not_fatal() {
+    use tissuefit::inference::{
+        ForwardConfig, ForwardModel, ObjectiveConfig, Observation, ParameterConfig, ParameterSpace, Status,
+    };
+    let (initial, l_min) = initial_doublet();
+    let observation = Observation::new(initial, None, None).unwrap();
+    let mut params = std::collections::BTreeMap::new();
+    // Adhesion so stiff that the time step is unstable: the parameters fail validation.
+    params.insert("adhesion".to_string(), ParameterConfig { bounds: Some([1e9, 1e17]), value: None, initial: None });
+    let space = ParameterSpace::from_config(&params).unwrap();
+    let base = model(ContactModel::Spring, l_min, 1e-3, 1e-3, 1e9);
+    let objective = ObjectiveConfig { failure_penalty: 123.0, ..Default::default() };
+    let m = ForwardModel::new(observation, base, space, objective, ForwardConfig::default()).unwrap();
+    let e = m.evaluate(&[(1e17 as Real).ln()]);
+    assert_eq!(e.status, Status::Failed);
+    assert_eq!(e.objective, 123.0);
+    assert!(e.reason.contains("invalid parameters"), "{}", e.reason);
+    // A point outside the bounds is clamped before it is evaluated.
+    let e = m.evaluate(&[(1e18 as Real).ln()]);
+    assert_eq!(e.x, vec![(1e17 as Real).ln()]);
+}
