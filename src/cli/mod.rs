@@ -3,6 +3,7 @@
 mod bench;
 mod config;
 mod convert;
+mod fit;
 mod generate;
 mod inspect;
 mod label_args;
@@ -56,6 +57,10 @@ pub enum Command {
     /// Rasterise a tissue's cells into a label TIFF (labels = cell ids), on the grid of an existing
     /// label volume (--like) or of a given voxel size.
     Voxelize(voxelize::VoxelizeArgs),
+    /// Fit surface tension and adhesion so that simulated equilibrium morphology matches the observed
+    /// one → DIR/trace.csv, result.json, objective.png, landscape.png. Exits with 1 when the optimiser
+    /// stopped on its budget instead of converging.
+    Fit(fit::FitArgs),
     /// Synthetic inputs: `generate labels` writes a label volume (sphere, ellipsoid, cube, doublet,
     /// aggregate).
     #[command(subcommand)]
@@ -110,6 +115,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Bench(args) => bench::run(&args),
         Command::Voxelize(args) => voxelize::run(&args),
         Command::Generate(cmd) => generate::run(&cmd),
+        Command::Fit(args) => fit::run(&args),
     })
 }
 

@@ -1,0 +1,76 @@
+//! `tissuefit fit --config FIT.toml --out DIR`: fit surface tension and adhesion to observed morphology.
+
+use super::Outcome;
+use crate::inference::{FitConfig, FitOptions, run_fit};
+use anyhow::Context;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct FitArgs {
+    /// Fit configuration (TOML; see the README, "Fitting parameters").
+    #[arg(long, value_name = "TOML")]
+    pub config: PathBuf,
+    /// Output folder: trace.csv, result.json, objective.png, landscape.png, fit.toml, model.toml.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated).
+    #[arg(long)]
+    pub resume: bool,
+    /// Overrides optimizer.max_evaluations.
+    #[arg(long)]
+    pub max_evaluations: Option<usize>,
+    /// Overrides optimizer.seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+}
+
+pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
+    let mut config = FitConfig::load(&args.config)?;
+    if let Some(n) = args.max_evaluations {
+        anyhow::ensure!(n > 0, "--max-evaluations must be at least 1");
+        config.optimizer.max_evaluations = n;
+    }
+    if let Some(s) = args.seed {
+        config.optimizer.seed = s;
+    }
+    let options = FitOptions { resume: args.resume, progress: true, plots: true };
+    let result = run_fit(&config, &args.out, &options).with_context(|| format!("fitting {}", args.config.display()))?;
+    let params: Vec<String> = result
+        .parameters
+        .iter()
+        .filter(|(_, p)| p.fitted)
+        .map(|(n, p)| {
+            let d = match p.determined {
+                Some(true) => "determined",
+                Some(false) => "NOT determined",
+                None => "no profile",
+            };
+            format!("{n} = {:.4e} [{:.3e}, {:.3e}] ({d})", p.si, p.range[0], p.range[1])
+        })
+        .collect();
+    let ratios: Vec<String> = result
+        .ratios
+        .iter()
+        .map(|(n, r)| {
+            let d = match r.determined {
+                Some(true) => "determined",
+                Some(false) => "NOT determined",
+                None => "no profile",
+            };
+            format!("{n} = {:.4e} [{:.3e}, {:.3e}] ({d})", r.value, r.range[0], r.range[1])
+        })
+        .collect();
+    eprintln!(
+        "{}: objective {:.4e} after {} evaluations ({}), {:.1} s; {}{}{}; outputs in {}",
+        args.config.display(),
+        result.objective,
+        result.evaluations,
+        if result.converged { "converged".to_string() } else { format!("NOT converged: {}", result.stop_reason) },
+        result.wall_seconds,
+        params.join("; "),
+        if ratios.is_empty() { "" } else { "; " },
+        ratios.join("; "),
+        args.out.display()
+    );
+    Ok(if result.converged { Outcome::Success } else { Outcome::CheckFailed })
+}

@@ -1,0 +1,512 @@
+//! The fit configuration (`tissuefit fit --config FIT.toml`): what was observed, the base model,
+//! which parameters to fit and within which bounds, the objective's weights and scales, the
+//! optimiser and the forward simulation. Every section rejects unknown keys.
+
+use super::InferenceError;
+use crate::geometry::Real;
+use crate::mechanics::Parameters;
+use crate::meshing::{BorderPolicy, DEFAULT_TARGET_NODES, LabelMeshingOptions};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The whole fit configuration. Relative paths are resolved against the config file's folder.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FitConfig {
+    /// The observed tissue.
+    pub observed: ObservedConfig,
+    /// The base model: a path to a simulation config (same schema as `simulate --config`), or absent
+    /// for the built-in defaults; `[model_overrides]` then changes single keys.
+    #[serde(default)]
+    pub model: Option<PathBuf>,
+    /// Keys of the simulation config given inline (same schema as `simulate --config`), applied on
+    /// top of `model`. Default: none.
+    #[serde(default)]
+    pub model_overrides: Option<toml::Table>,
+    /// The parameters to fit or fix, by name: `surface_tension` (every face type),
+    /// `surface_tension_apical`, `surface_tension_lateral`, `surface_tension_basal`, `adhesion`
+    /// (every face type). Applied to every epithelial cell type. Names not listed keep the model's value.
+    pub parameters: BTreeMap<String, ParameterConfig>,
+    /// Objective weights and scales. Default: [`ObjectiveConfig::default`].
+    #[serde(default)]
+    pub objective: ObjectiveConfig,
+    /// Optimiser. Default: [`OptimizerConfig::default`].
+    #[serde(default)]
+    pub optimizer: OptimizerConfig,
+    /// Forward simulation settings. Default: [`ForwardConfig::default`].
+    #[serde(default)]
+    pub forward: ForwardConfig,
+    /// Profile (uncertainty) settings. Default: [`ProfileConfig::default`].
+    #[serde(default)]
+    pub profile: ProfileConfig,
+}
+
+/// The observed input: exactly one of `tissue` or `labels`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObservedConfig {
+    /// A tissue mesh file (.vtk or .vtp, lengths in `length_unit`).
+    #[serde(default)]
+    pub tissue: Option<PathBuf>,
+    /// A label TIFF, meshed first with `[observed.meshing]`.
+    #[serde(default)]
+    pub labels: Option<PathBuf>,
+    /// Length unit of the tissue file's coordinates (as `--length-unit`). Default "m".
+    #[serde(default = "default_length_unit")]
+    pub length_unit: String,
+    /// Voxel size `[z, y, x]` (m) of the label TIFF instead of its metadata. Default: the metadata.
+    #[serde(default)]
+    pub voxel_size: Option<[Real; 3]>,
+    /// How the label TIFF is meshed. Default: [`MeshingConfig::default`].
+    #[serde(default)]
+    pub meshing: MeshingConfig,
+}
+
+fn default_length_unit() -> String {
+    "m".to_string()
+}
+
+/// Meshing of an observed label volume (the options of `tissuefit mesh`).
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshingConfig {
+    /// Minimum edge length l_min (m). Default: chosen from `target_nodes`.
+    #[serde(default)]
+    pub l_min: Option<Real>,
+    /// Nodes of a median-sized cell when l_min is chosen automatically. Default 400.
+    #[serde(default = "default_target_nodes")]
+    pub target_nodes: usize,
+    /// Labels with fewer voxels are dropped. Default 100.
+    #[serde(default = "default_min_voxels")]
+    pub min_voxels: u64,
+    /// Labels touching the image border: "keep" (default), "static" or "drop".
+    #[serde(default = "default_border")]
+    pub border: String,
+    /// Labels meshed as lumen cells. Default none.
+    #[serde(default)]
+    pub lumen_labels: Vec<u32>,
+    /// Sampling seed. Default 0.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+fn default_target_nodes() -> usize {
+    DEFAULT_TARGET_NODES
+}
+fn default_min_voxels() -> u64 {
+    crate::meshing::DEFAULT_MIN_VOXELS
+}
+fn default_border() -> String {
+    "keep".to_string()
+}
+
+impl Default for MeshingConfig {
+    fn default() -> Self {
+        Self {
+            l_min: None,
+            target_nodes: default_target_nodes(),
+            min_voxels: default_min_voxels(),
+            border: default_border(),
+            lumen_labels: Vec::new(),
+            seed: 0,
+        }
+    }
+}
+
+impl MeshingConfig {
+    /// The meshing options, or an error naming the bad key.
+    pub fn options(&self) -> Result<LabelMeshingOptions, InferenceError> {
+        let border: BorderPolicy =
+            self.border.parse().map_err(|e: String| InferenceError::Config(format!("observed.meshing.border: {e}")))?;
+        Ok(LabelMeshingOptions {
+            l_min: self.l_min,
+            target_nodes: self.target_nodes,
+            min_voxels: self.min_voxels,
+            border,
+            lumen_labels: self.lumen_labels.clone(),
+            seed: self.seed,
+        })
+    }
+}
+
+/// One parameter: fitted within `bounds` (SI units), or fixed at `value`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterConfig {
+    /// Search interval `[lo, hi]` (SI, 0 < lo < hi); searched in log space. Absent: fixed.
+    #[serde(default)]
+    pub bounds: Option<[Real; 2]>,
+    /// Fixed value (SI), e.g. a tension measured by micropipette aspiration; excludes `bounds`.
+    #[serde(default)]
+    pub value: Option<Real>,
+    /// Start of the search (SI, within bounds). Default: the geometric mean of the bounds.
+    #[serde(default)]
+    pub initial: Option<Real>,
+}
+
+/// Objective: Σ wᵢ·((simᵢ − obsᵢ)/sᵢ)² / Σ wᵢ over the metrics defined in both tissues, plus
+/// w_shape·(mean(1 − IoU)/s_shape)². A scale sᵢ is the difference one is willing to call "one unit
+/// of misfit" (a measurement tolerance); the objective is then a mean squared misfit in those units,
+/// and the profile's acceptance threshold ([`ProfileConfig::acceptable_increase`]) is in the same units.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectiveConfig {
+    /// Weight of the mean sphericity. Default 1.
+    #[serde(default = "one")]
+    pub sphericity: Real,
+    /// Weight of the mean contact-area fraction φ. Default 1.
+    #[serde(default = "one")]
+    pub contact_fraction: Real,
+    /// Weight of the mean coordination number z. Default 1.
+    #[serde(default = "one")]
+    pub coordination: Real,
+    /// Weight of the mean rim contact angle (where contacts have one). Default 1.
+    #[serde(default = "one")]
+    pub contact_angle: Real,
+    /// Weight of the shape term mean(1 − IoU) of each cell against its observed voxels (needs a
+    /// label-volume input). Default 0 (off).
+    #[serde(default)]
+    pub shape: Real,
+    /// Scale of sphericity differences. Default 0.005.
+    #[serde(default = "default_sphericity_scale")]
+    pub sphericity_scale: Real,
+    /// Scale of contact-fraction differences. Default 0.01.
+    #[serde(default = "default_fraction_scale")]
+    pub contact_fraction_scale: Real,
+    /// Scale of coordination differences. Default 0.25 (a quarter neighbour).
+    #[serde(default = "default_coordination_scale")]
+    pub coordination_scale: Real,
+    /// Scale of contact-angle differences (degrees). Default 1°.
+    #[serde(default = "one")]
+    pub contact_angle_scale: Real,
+    /// Scale of the shape term. Default 0.02.
+    #[serde(default = "default_shape_scale")]
+    pub shape_scale: Real,
+    /// Objective of a failed or unconverged simulation. Default 1e6.
+    #[serde(default = "default_penalty")]
+    pub failure_penalty: Real,
+}
+
+fn one() -> Real {
+    1.0
+}
+fn default_sphericity_scale() -> Real {
+    0.005
+}
+fn default_fraction_scale() -> Real {
+    0.01
+}
+fn default_coordination_scale() -> Real {
+    0.25
+}
+fn default_shape_scale() -> Real {
+    0.02
+}
+fn default_penalty() -> Real {
+    1e6
+}
+
+impl Default for ObjectiveConfig {
+    fn default() -> Self {
+        toml::from_str("").expect("all defaults")
+    }
+}
+
+/// Which optimiser.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum OptimizerMethod {
+    /// argmin's Nelder–Mead on the log parameters; bounds by clamping plus a quadratic penalty.
+    NelderMead,
+    /// argmin's particle swarm, bounded in log space, seeded.
+    ParticleSwarm,
+}
+
+/// The optimiser.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OptimizerConfig {
+    /// "nelder_mead" (default) or "particle_swarm".
+    #[serde(default = "default_method")]
+    pub method: OptimizerMethod,
+    /// Budget of distinct simulations (cache hits are free). Default 60.
+    #[serde(default = "default_max_evaluations")]
+    pub max_evaluations: usize,
+    /// Nelder–Mead stops when the standard deviation of the simplex's objectives falls below this.
+    /// Particle swarm stops when the objective falls below it. Default 1e-3.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: Real,
+    /// Seed of the swarm's random draws. Default 1.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    /// Particles of the swarm. Default 8.
+    #[serde(default = "default_swarm")]
+    pub swarm_size: usize,
+    /// Nelder–Mead initial simplex edge, as a fraction of each parameter's log-range. Default 0.25.
+    #[serde(default = "default_simplex")]
+    pub initial_simplex: Real,
+}
+
+fn default_method() -> OptimizerMethod {
+    OptimizerMethod::NelderMead
+}
+fn default_max_evaluations() -> usize {
+    60
+}
+fn default_tolerance() -> Real {
+    1e-3
+}
+fn default_seed() -> u64 {
+    1
+}
+fn default_swarm() -> usize {
+    8
+}
+fn default_simplex() -> Real {
+    0.25
+}
+
+impl Default for OptimizerConfig {
+    fn default() -> Self {
+        toml::from_str("").expect("all defaults")
+    }
+}
+
+/// The forward simulation (every evaluation).
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForwardConfig {
+    /// Overrides simulation.max_steps of the model. Default: the model's.
+    #[serde(default)]
+    pub max_steps: Option<u64>,
+    /// An unconverged run whose final residual (max force / γ̄·l_min) is at most this is still
+    /// measured and used (the coupling model's residual hovers at 0.005–0.2 while the shape has
+    /// settled). Default 0: every unconverged run is penalised.
+    #[serde(default)]
+    pub accept_residual: Real,
+    /// When the observed tissue was meshed from labels, set numerics.min_edge_length and
+    /// numerics.contact_cutoff to the meshing's l_min. Default true.
+    #[serde(default = "yes")]
+    pub match_mesh_length: bool,
+    /// When the observed input is a label volume, voxelise each relaxed tissue on its grid and mesh it
+    /// again with the same options (and l_min) before measuring, so that simulated and observed
+    /// morphology go through the same measurement (the biases of voxelisation and meshing — gaps at
+    /// contacts, rounded rims — then cancel instead of being fitted). Default true.
+    #[serde(default = "yes")]
+    pub measure_like_data: bool,
+    /// Corrections of the cells' target volumes V0 after the first relaxation: each pass sets
+    /// V0 ← V0·V_observed/V_simulated per cell and relaxes again from where it stopped, so the
+    /// equilibrium volumes match the observed ones (the observed volume is data, V0 is not: starting
+    /// with V0 = V_observed would shrink every cell by its Laplace pressure, exp(−p/K)). 0: keep
+    /// V0 = V_observed. Default 2.
+    #[serde(default = "default_volume_passes")]
+    pub volume_passes: usize,
+}
+
+fn default_volume_passes() -> usize {
+    2
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for ForwardConfig {
+    fn default() -> Self {
+        toml::from_str("").expect("all defaults")
+    }
+}
+
+/// The profile of the objective along each fitted parameter after the optimum.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProfileConfig {
+    /// Points on each side of the optimum per parameter (0: no profile). Default 3.
+    #[serde(default = "default_profile_points")]
+    pub points: usize,
+    /// Largest step from the optimum, as a factor (the points are geometric, up to ×/÷ this).
+    /// Default 2.
+    #[serde(default = "default_profile_span")]
+    pub span: Real,
+    /// A point is acceptable when its objective is at most best + this (objective units, i.e. one
+    /// scale of misfit by default). Default 1.
+    #[serde(default = "one")]
+    pub acceptable_increase: Real,
+}
+
+fn default_profile_points() -> usize {
+    3
+}
+fn default_profile_span() -> Real {
+    2.0
+}
+
+impl Default for ProfileConfig {
+    fn default() -> Self {
+        toml::from_str("").expect("all defaults")
+    }
+}
+
+impl FitConfig {
+    /// Reads a config file; relative paths inside become relative to its folder.
+    pub fn load(path: &Path) -> Result<Self, InferenceError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| InferenceError::Config(format!("reading {}: {e}", path.display())))?;
+        let mut config = Self::from_toml_str(&text, &path.display().to_string())?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let fix = |p: &mut PathBuf| {
+            if p.is_relative() {
+                *p = base.join(&*p);
+            }
+        };
+        config.observed.tissue.as_mut().map(fix);
+        config.observed.labels.as_mut().map(fix);
+        config.model.as_mut().map(fix);
+        Ok(config)
+    }
+
+    /// Parses and checks TOML text; `origin` names it in errors.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, InferenceError> {
+        let config: Self = toml::from_str(text).map_err(|e| InferenceError::Config(format!("{origin}: {e}")))?;
+        config.check().map_err(|e| InferenceError::Config(format!("{origin}: {e}")))?;
+        Ok(config)
+    }
+
+    /// Consistency checks beyond the schema; the message names the key.
+    fn check(&self) -> Result<(), String> {
+        match (&self.observed.tissue, &self.observed.labels) {
+            (Some(_), Some(_)) => return Err("observed: give `tissue` or `labels`, not both".into()),
+            (None, None) => return Err("observed: give `tissue` (a mesh file) or `labels` (a label TIFF)".into()),
+            _ => {}
+        }
+        if self.parameters.is_empty() {
+            return Err("parameters: name at least one parameter to fit".into());
+        }
+        let mut fitted = 0;
+        for (name, p) in &self.parameters {
+            if !super::PARAMETER_NAMES.contains(&name.as_str()) {
+                return Err(format!(
+                    "parameters.{name}: unknown parameter; one of {}",
+                    super::PARAMETER_NAMES.join(", ")
+                ));
+            }
+            match (p.bounds, p.value) {
+                (Some(_), Some(_)) => return Err(format!("parameters.{name}: give `bounds` or `value`, not both")),
+                (None, None) => return Err(format!("parameters.{name}: give `bounds` (to fit) or `value` (fixed)")),
+                (Some([lo, hi]), None) => {
+                    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+                        return Err(format!("parameters.{name}.bounds: need 0 < lo < hi, finite; got [{lo}, {hi}]"));
+                    }
+                    if let Some(x) = p.initial
+                        && !(x >= lo && x <= hi)
+                    {
+                        return Err(format!("parameters.{name}.initial: {x} lies outside the bounds [{lo}, {hi}]"));
+                    }
+                    fitted += 1;
+                }
+                (None, Some(v)) => {
+                    if !(v.is_finite() && v >= 0.0) {
+                        return Err(format!("parameters.{name}.value: need a finite value ≥ 0; got {v}"));
+                    }
+                    if p.initial.is_some() {
+                        return Err(format!("parameters.{name}.initial: only a fitted parameter has a start"));
+                    }
+                }
+            }
+        }
+        if fitted == 0 {
+            return Err("parameters: every parameter is fixed; give `bounds` to at least one".into());
+        }
+        let o = &self.objective;
+        for (key, v) in [
+            ("sphericity", o.sphericity),
+            ("contact_fraction", o.contact_fraction),
+            ("coordination", o.coordination),
+            ("contact_angle", o.contact_angle),
+            ("shape", o.shape),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("objective.{key}: a weight must be finite and ≥ 0; got {v}"));
+            }
+        }
+        for (key, v) in [
+            ("sphericity_scale", o.sphericity_scale),
+            ("contact_fraction_scale", o.contact_fraction_scale),
+            ("coordination_scale", o.coordination_scale),
+            ("contact_angle_scale", o.contact_angle_scale),
+            ("shape_scale", o.shape_scale),
+            ("failure_penalty", o.failure_penalty),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("objective.{key}: must be finite and > 0; got {v}"));
+            }
+        }
+        if o.sphericity + o.contact_fraction + o.coordination + o.contact_angle + o.shape <= 0.0 {
+            return Err("objective: every weight is 0".into());
+        }
+        if o.shape > 0.0 && self.observed.labels.is_none() {
+            return Err("objective.shape: the shape term compares voxels and needs `observed.labels`".into());
+        }
+        let opt = &self.optimizer;
+        if opt.max_evaluations == 0 {
+            return Err("optimizer.max_evaluations: must be at least 1".into());
+        }
+        if !(opt.tolerance.is_finite() && opt.tolerance >= 0.0) {
+            return Err(format!("optimizer.tolerance: must be finite and ≥ 0; got {}", opt.tolerance));
+        }
+        if opt.swarm_size < 2 {
+            return Err(format!("optimizer.swarm_size: need at least 2 particles; got {}", opt.swarm_size));
+        }
+        if !(opt.initial_simplex > 0.0 && opt.initial_simplex <= 1.0) {
+            return Err(format!("optimizer.initial_simplex: must lie in (0, 1]; got {}", opt.initial_simplex));
+        }
+        if !(self.forward.accept_residual.is_finite() && self.forward.accept_residual >= 0.0) {
+            return Err(format!(
+                "forward.accept_residual: must be finite and ≥ 0; got {}",
+                self.forward.accept_residual
+            ));
+        }
+        if !(self.profile.span > 1.0 && self.profile.span.is_finite()) {
+            return Err(format!("profile.span: must be a factor > 1; got {}", self.profile.span));
+        }
+        if !(self.profile.acceptable_increase > 0.0 && self.profile.acceptable_increase.is_finite()) {
+            return Err(format!("profile.acceptable_increase: must be > 0; got {}", self.profile.acceptable_increase));
+        }
+        Ok(())
+    }
+
+    /// The base model: `model` (or the defaults) with `model_overrides` applied, validated.
+    pub fn base_parameters(&self) -> Result<Parameters, InferenceError> {
+        let mut table = match &self.model {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| InferenceError::Config(format!("model: reading {}: {e}", path.display())))?;
+                toml::from_str::<toml::Table>(&text)
+                    .map_err(|e| InferenceError::Config(format!("model: {}: {e}", path.display())))?
+            }
+            None => toml::Table::new(),
+        };
+        if let Some(over) = &self.model_overrides {
+            merge(&mut table, over);
+        }
+        let text = toml::to_string(&table).map_err(|e| InferenceError::Config(format!("model: {e}")))?;
+        let origin = match &self.model {
+            Some(p) => format!("model {} + model_overrides", p.display()),
+            None => "model_overrides".to_string(),
+        };
+        Parameters::from_toml_str(&text, &origin).map_err(|e| InferenceError::Config(e.to_string()))
+    }
+}
+
+/// Deep merge of `over` into `base` (tables merged key by key, other values replaced).
+fn merge(base: &mut toml::Table, over: &toml::Table) {
+    for (key, value) in over {
+        match (base.get_mut(key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            _ => {
+                base.insert(key.clone(), value.clone());
+            }
+        }
+    }
+}

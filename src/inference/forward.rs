@@ -1,0 +1,371 @@
+//! The forward model of one evaluation: start from the observed tissue, write the candidate
+//! parameters into the model, relax to equilibrium (the model's minimiser, FIRE by default), measure
+//! the same morphology as on the observed tissue, and score the difference.
+//!
+//! Objective (see [`ObjectiveConfig`]): J = Σᵢ wᵢ·((simᵢ − obsᵢ)/sᵢ)² / Σᵢ wᵢ over the summary
+//! metrics observed in the data (mean sphericity, mean contact-area fraction φ, mean coordination
+//! number z, mean rim contact angle), plus w_shape·(mean(1 − IoU)/s_shape)² when the shape term is on
+//! (the relaxed cells voxelised on the observed label grid, IoU per cell label). A metric observed but
+//! undefined in the simulation (no contact left to have an angle) counts as a misfit of
+//! [`MISSING_METRIC_MISFIT`] scales. A run that fails (an error of the simulation or of the
+//! measurement) or ends unconverged beyond `forward.accept_residual` scores `failure_penalty`; the
+//! reason is kept with the evaluation and the fit goes on.
+//!
+//! Target volumes: the observed volume is data, V0 is not. With V0 = V_observed every cell would
+//! shrink by its Laplace pressure (V = V0·exp(−p/K)), so after the first relaxation each of
+//! `forward.volume_passes` passes sets V0 ← V0·V_observed/V_simulated per cell and relaxes on from
+//! there; the equilibrium volumes then match the observed ones and the absolute tension scale drops out
+//! of the shape. With a label-volume input and `forward.measure_like_data`, each relaxed tissue is
+//! voxelised on the observed grid and meshed again with the observed meshing options before it is
+//! measured, so simulated and observed morphology pass through the same measurement.
+//!
+//! No warm start: every evaluation starts from the observed tissue, so its result depends on its
+//! parameters only (never on which evaluations ran before), which is what makes the cache, the
+//! parallel evaluation and the resumption exact.
+
+use super::config::{ForwardConfig, ObjectiveConfig};
+use super::space::ParameterSpace;
+use crate::geometry::Real;
+use crate::imaging::{LabelVolume, label_overlap, voxelize};
+use crate::mechanics::{Observer, Parameters, Sample, Simulation};
+use crate::mesh::Tissue;
+use crate::meshing::{LabelMeshingOptions, mesh_labels};
+use crate::morphology::{MeasureSettings, measure_tissue};
+use serde::Serialize;
+use std::time::Instant;
+
+/// Misfit (in scales) of a metric that the data have and the simulation lacks.
+pub const MISSING_METRIC_MISFIT: Real = 10.0;
+
+/// The summary metrics compared by the objective (`None`: undefined for that tissue).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Metrics {
+    pub sphericity: Option<Real>,
+    pub contact_fraction: Option<Real>,
+    pub coordination: Option<Real>,
+    /// Mean rim contact angle (degrees).
+    pub contact_angle: Option<Real>,
+    /// Mean 1 − IoU of the cells against their observed voxels (only with the shape term).
+    pub shape: Option<Real>,
+}
+
+impl Metrics {
+    /// Names of the metric columns, in [`Metrics::values`] order.
+    pub const NAMES: [&'static str; 5] = ["sphericity", "contact_fraction", "coordination", "contact_angle", "shape"];
+
+    pub fn values(&self) -> [Option<Real>; 5] {
+        [self.sphericity, self.contact_fraction, self.coordination, self.contact_angle, self.shape]
+    }
+
+    pub fn from_values(v: [Option<Real>; 5]) -> Self {
+        Self { sphericity: v[0], contact_fraction: v[1], coordination: v[2], contact_angle: v[3], shape: v[4] }
+    }
+
+    /// The summary metrics of a tissue (not the shape term).
+    pub fn measure(tissue: &Tissue) -> Result<Self, String> {
+        let m = measure_tissue(tissue, &MeasureSettings::default()).map_err(|e| format!("measuring: {e}"))?;
+        let s = &m.summary;
+        Ok(Self {
+            sphericity: s.mean_sphericity,
+            contact_fraction: s.mean_contact_fraction,
+            coordination: s.mean_coordination,
+            contact_angle: s.mean_contact_angle_deg,
+            shape: None,
+        })
+    }
+}
+
+/// How an evaluation ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// Reached the equilibrium criterion.
+    Converged,
+    /// Unconverged, but the residual is within `forward.accept_residual`: measured and used.
+    Accepted,
+    /// Unconverged beyond `forward.accept_residual`: penalised.
+    Unconverged,
+    /// The simulation or the measurement failed: penalised.
+    Failed,
+}
+
+impl Status {
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Converged => "converged",
+            Status::Accepted => "accepted",
+            Status::Unconverged => "unconverged",
+            Status::Failed => "failed",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<Self> {
+        [Status::Converged, Status::Accepted, Status::Unconverged, Status::Failed].into_iter().find(|v| v.name() == s)
+    }
+
+    /// Whether the run's morphology is used (not penalised).
+    pub fn usable(self) -> bool {
+        matches!(self, Status::Converged | Status::Accepted)
+    }
+}
+
+/// One evaluation of the forward model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    /// The point (natural logs of the fitted parameters, clamped into the bounds).
+    pub x: Vec<Real>,
+    pub metrics: Metrics,
+    pub objective: Real,
+    pub status: Status,
+    /// Why a run was penalised (empty otherwise).
+    pub reason: String,
+    pub steps: u64,
+    /// Final residual (max force / γ̄·l_min); NaN when the run failed before ending.
+    pub residual: Real,
+    pub wall_seconds: Real,
+}
+
+/// The observed data the forward model compares against.
+#[derive(Clone, Debug)]
+pub struct Observation {
+    /// The tissue every evaluation starts from.
+    pub tissue: Tissue,
+    /// The observed label volume (for the shape term), when the input was one.
+    pub labels: Option<LabelVolume>,
+    /// Labels of the cells whose IoU the shape term averages (the moving cells).
+    pub cell_labels: Vec<u32>,
+    pub metrics: Metrics,
+    /// Length scale l = ⟨V⟩^(1/3) of the moving cells (m), for the dimensionless groups.
+    pub length_scale: Real,
+    /// l_min of the meshing, when the tissue was meshed from labels.
+    pub l_min: Option<Real>,
+    /// How the labels were meshed (with the l_min used), to measure simulations the same way.
+    pub meshing: Option<LabelMeshingOptions>,
+}
+
+impl Observation {
+    /// Measures an observed tissue; with the label volume it was meshed from and the meshing options
+    /// (l_min set to the one used) when it came from labels.
+    pub fn new(
+        tissue: Tissue,
+        labels: Option<LabelVolume>,
+        meshing: Option<LabelMeshingOptions>,
+    ) -> Result<Self, super::InferenceError> {
+        let l_min = meshing.as_ref().and_then(|m| m.l_min);
+        let metrics = Metrics::measure(&tissue).map_err(super::InferenceError::Observed)?;
+        let moving: Vec<&crate::mesh::Cell> =
+            tissue.cells().iter().filter(|c| c.kind().is_cell() && !c.kind().is_immobile()).collect();
+        if moving.is_empty() {
+            return Err(super::InferenceError::Observed("the observed tissue has no moving cell to fit".into()));
+        }
+        let mean_volume = moving.iter().map(|c| c.mesh().signed_volume()).sum::<Real>() / moving.len() as Real;
+        if mean_volume.is_nan() || mean_volume <= 0.0 {
+            return Err(super::InferenceError::Observed(format!(
+                "the observed cells' mean volume is {mean_volume:e} m³; cells must enclose a positive volume"
+            )));
+        }
+        let cell_labels = moving.iter().map(|c| c.id().0).collect();
+        Ok(Self { tissue, labels, cell_labels, metrics, length_scale: mean_volume.cbrt(), l_min, meshing })
+    }
+}
+
+struct Quiet;
+impl Observer for Quiet {
+    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
+}
+
+/// Everything one evaluation needs; shared read-only by parallel evaluations.
+pub struct ForwardModel {
+    pub observation: Observation,
+    pub base: Parameters,
+    pub space: ParameterSpace,
+    pub objective: ObjectiveConfig,
+    pub forward: ForwardConfig,
+}
+
+impl ForwardModel {
+    /// Prepares the base model: the forward settings applied to it (equilibrium mode, max steps,
+    /// mesh length scale), no sampling output.
+    pub fn new(
+        observation: Observation,
+        mut base: Parameters,
+        space: ParameterSpace,
+        objective: ObjectiveConfig,
+        forward: ForwardConfig,
+    ) -> Result<Self, super::InferenceError> {
+        base.simulation.mode = crate::mechanics::SimulationMode::Equilibrium;
+        // Never sample (the largest value a TOML integer holds, so the model still writes out).
+        base.simulation.sample_every_steps = i64::MAX as u64;
+        if let Some(n) = forward.max_steps {
+            base.simulation.max_steps = n;
+        }
+        if forward.match_mesh_length
+            && let Some(l) = observation.l_min
+        {
+            base.numerics.min_edge_length = l;
+            base.numerics.contact_cutoff = l;
+        }
+        base.validate().map_err(|e| super::InferenceError::Config(format!("model: {e}")))?;
+        Ok(Self { observation, base, space, objective, forward })
+    }
+
+    /// Scores simulated metrics against the observed ones (see the module doc).
+    pub fn score(&self, sim: &Metrics) -> Real {
+        let o = &self.objective;
+        let obs = self.observation.metrics.values();
+        let sim_v = sim.values();
+        let weights = [o.sphericity, o.contact_fraction, o.coordination, o.contact_angle];
+        let scales = [o.sphericity_scale, o.contact_fraction_scale, o.coordination_scale, o.contact_angle_scale];
+        let (mut sum, mut wsum) = (0.0, 0.0);
+        for i in 0..4 {
+            let w = weights[i];
+            let Some(ov) = obs[i] else { continue };
+            if w == 0.0 {
+                continue;
+            }
+            let misfit = match sim_v[i] {
+                Some(sv) => (sv - ov) / scales[i],
+                None => MISSING_METRIC_MISFIT,
+            };
+            sum += w * misfit * misfit;
+            wsum += w;
+        }
+        let mut j = if wsum > 0.0 { sum / wsum } else { 0.0 };
+        if o.shape > 0.0 {
+            let misfit = sim.shape.map_or(MISSING_METRIC_MISFIT, |s| s / o.shape_scale);
+            j += o.shape * misfit * misfit;
+        }
+        j
+    }
+
+    /// Runs one evaluation at log point `x` (clamped into the bounds first). Never fails: problems
+    /// become a penalised [`Evaluation`] with its reason.
+    pub fn evaluate(&self, x: &[Real]) -> Evaluation {
+        let started = Instant::now();
+        let (x, _) = self.space.clamp(x);
+        let params = self.space.apply(&self.base, &x);
+        let penalty = self.objective.failure_penalty;
+        let failed = |reason: String, steps: u64, residual: Real, metrics: Metrics| Evaluation {
+            x: x.clone(),
+            metrics,
+            objective: penalty,
+            status: Status::Failed,
+            reason,
+            steps,
+            residual,
+            wall_seconds: started.elapsed().as_secs_f64(),
+        };
+        if let Err(e) = params.validate() {
+            return failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default());
+        }
+        let mut tissue = self.observation.tissue.clone();
+        let mut steps = 0;
+        let mut summary = None;
+        for pass in 0..=self.forward.volume_passes {
+            if pass > 0 {
+                // V0 ← V0·V_obs/V_sim: the pressure −K ln(V/V0) is kept, the volume moves to V_obs.
+                for (cell, observed) in tissue.cells_mut().iter_mut().zip(self.observation.tissue.cells()) {
+                    let v = cell.mesh().signed_volume();
+                    if cell.kind().is_cell() && !cell.kind().is_immobile() && v > 0.0 {
+                        let target = cell.target_volume() * observed.mesh().signed_volume() / v;
+                        cell.set_target_volume(target);
+                    }
+                }
+            }
+            let mut sim = match Simulation::new(tissue, &params) {
+                Ok(sim) => sim,
+                Err(e) => return failed(format!("simulation setup: {e}"), steps, Real::NAN, Metrics::default()),
+            };
+            match sim.run(&mut Quiet) {
+                Ok(s) => {
+                    steps += s.steps;
+                    summary = Some(s);
+                }
+                Err(e) => {
+                    return failed(format!("simulation (pass {pass}): {e}"), steps, Real::NAN, Metrics::default());
+                }
+            };
+            tissue = sim.into_tissue();
+        }
+        let mut summary = summary.expect("at least one pass");
+        summary.steps = steps;
+        let metrics = match self.measure(&tissue) {
+            Ok(m) => m,
+            Err(e) => return failed(e, summary.steps, summary.residual, Metrics::default()),
+        };
+        let (status, reason) = if summary.converged {
+            (Status::Converged, String::new())
+        } else if summary.residual <= self.forward.accept_residual {
+            (Status::Accepted, String::new())
+        } else {
+            (
+                Status::Unconverged,
+                format!(
+                    "not converged within {} steps: residual {:.3e} > forward.accept_residual {:.3e}",
+                    summary.steps, summary.residual, self.forward.accept_residual
+                ),
+            )
+        };
+        let objective = if status.usable() { self.score(&metrics) } else { penalty };
+        Evaluation {
+            x,
+            metrics,
+            objective,
+            status,
+            reason,
+            steps: summary.steps,
+            residual: summary.residual,
+            wall_seconds: started.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// The metrics of a relaxed tissue: measured directly, or voxelised on the observed grid and
+    /// meshed again like the data (`forward.measure_like_data`); plus the shape term when on.
+    fn measure(&self, tissue: &Tissue) -> Result<Metrics, String> {
+        let obs = &self.observation;
+        let like_data = self.forward.measure_like_data && obs.labels.is_some() && obs.meshing.is_some();
+        let voxels = if like_data || self.objective.shape > 0.0 {
+            let observed = obs.labels.as_ref().ok_or("the shape term needs observed labels")?;
+            Some(voxelize(tissue, &observed.grid()).map_err(|e| format!("voxelising the relaxed tissue: {e}"))?)
+        } else {
+            None
+        };
+        let mut metrics = match (&voxels, &obs.meshing) {
+            (Some(v), Some(options)) if like_data => {
+                let meshed =
+                    mesh_labels(v, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
+                let lost: Vec<u32> = meshed
+                    .report
+                    .iter()
+                    .filter(|r| r.kind.is_none() && obs.cell_labels.contains(&r.label))
+                    .map(|r| r.label)
+                    .collect();
+                if !lost.is_empty() || meshed.tissue.is_empty() {
+                    return Err(format!("meshing the relaxed tissue's voxels dropped cells {lost:?}"));
+                }
+                Metrics::measure(&meshed.tissue)?
+            }
+            _ => Metrics::measure(tissue)?,
+        };
+        if self.objective.shape > 0.0
+            && let Some(v) = &voxels
+        {
+            metrics.shape = Some(self.shape_term(v)?);
+        }
+        Ok(metrics)
+    }
+
+    /// Mean 1 − IoU of the moving cells, the relaxed tissue voxelised on the observed grid.
+    fn shape_term(&self, simulated: &LabelVolume) -> Result<Real, String> {
+        let observed = self.observation.labels.as_ref().ok_or("the shape term needs observed labels")?;
+        let overlaps = label_overlap(observed, simulated).map_err(|e| format!("overlap: {e}"))?;
+        let labels = &self.observation.cell_labels;
+        let chis: Vec<Real> = overlaps.iter().filter(|o| labels.contains(&o.label)).map(|o| o.chi()).collect();
+        if chis.is_empty() {
+            return Err("no observed cell label found in the voxelised simulation".into());
+        }
+        Ok(chis.iter().sum::<Real>() / chis.len() as Real)
+    }
+}

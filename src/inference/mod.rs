@@ -1,0 +1,54 @@
+//! Inference: fit surface tension and adhesion so that simulated equilibrium morphology matches the
+//! observed one (DESIGN.md §1 step 4, §3 dimensionless groups; paper Application 2, Fig. 4c–e).
+//!
+//! The forward model ([`ForwardModel`]) starts from the observed tissue, writes a candidate point of
+//! the [`ParameterSpace`] into the model, relaxes to equilibrium and scores the measured morphology
+//! against the observed one. Gradient-free optimisers from argmin (Nelder–Mead, particle swarm)
+//! search the natural logs of the fitted parameters within bounds ([`optimise`]); an [`Evaluator`]
+//! caches evaluations by their exact point, runs independent ones in parallel and records the trace
+//! in request order (thread-independent). After the optimum, [`profile`] probes the objective along
+//! each parameter, the common scale and the key ratios to say what the data determine.
+//!
+//! What an equilibrium shape can determine: dimensionless combinations. For coupling contacts the
+//! contact angle follows Young–Dupré, cos(θ) = γ_lateral/γ_apical; for spring contacts the shape is set
+//! by the adhesion energy over tension, w/(2γ) = ω·c²/(4γ). The absolute scale γ̃ = γ/(K·l) enters
+//! only through volume compression against the bulk modulus K. Results are reported in SI and
+//! dimensionless (γ̃ = γ/(K·l), ω̃ = ω·l/K, l = ⟨V⟩^(1/3) of the observed moving cells).
+
+mod config;
+mod forward;
+mod optimise;
+mod plot;
+mod profile;
+mod result;
+mod run;
+mod space;
+mod trace;
+
+pub use config::{
+    FitConfig, ForwardConfig, MeshingConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod,
+    ParameterConfig, ProfileConfig,
+};
+pub use forward::{Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metrics, Observation, Status};
+pub use optimise::{BOUND_PENALTY, BudgetSpent, Evaluator, OptimiserOutcome, optimise};
+pub use plot::{plot_landscape, plot_objective};
+pub use profile::{Slice, profile, ratio_parts};
+pub use result::{FitResult, ParameterResult, RatioResult};
+pub use run::{FitOptions, load_observation, run_fit};
+pub use space::{FittedParameter, PARAMETER_NAMES, ParameterSpace};
+pub use trace::{read_trace, write_trace};
+
+/// Why a fit could not run (a failed evaluation is not an error: it is penalised and recorded).
+#[derive(Debug, thiserror::Error)]
+pub enum InferenceError {
+    #[error("fit config: {0}")]
+    Config(String),
+    #[error("observed tissue: {0}")]
+    Observed(String),
+    #[error("resuming from the trace: {0}")]
+    Resume(String),
+    #[error("optimiser: {0}")]
+    Optimiser(String),
+    #[error("writing outputs: {0}")]
+    Output(String),
+}

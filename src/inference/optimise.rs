@@ -1,0 +1,237 @@
+//! The optimisers (argmin's Nelder–Mead and particle swarm over the log parameters), the evaluation
+//! cache and the budget.
+//!
+//! Every point the optimiser asks for is clamped into the bounds; the cache is keyed by the exact
+//! bits of the clamped log point, so a repeated point costs nothing, and a trace read back from disk
+//! pre-fills it (resumption). Batches (the swarm, the initial simplex, the profile) are evaluated in
+//! parallel and recorded in request order, so the trace is the same whatever the thread count.
+//!
+//! Bounds: the swarm is bounded natively (argmin clamps particle positions). Nelder–Mead is
+//! unbounded, so a point outside is evaluated at its clamped image and charged
+//! [`BOUND_PENALTY`]·(log-distance moved)², which pushes the simplex back inside.
+
+use super::InferenceError;
+use super::config::{OptimizerConfig, OptimizerMethod};
+use super::forward::{Evaluation, ForwardModel};
+use crate::geometry::Real;
+use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
+use argmin::solver::neldermead::NelderMead;
+use argmin::solver::particleswarm::ParticleSwarm;
+use rand_xoshiro::Xoshiro256PlusPlus;
+use rand_xoshiro::rand_core::SeedableRng;
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+/// Objective charged per squared log-unit a Nelder–Mead point lies outside the bounds.
+pub const BOUND_PENALTY: Real = 100.0;
+
+/// The budget of distinct evaluations is spent (a normal way for a fit to end).
+#[derive(Debug, thiserror::Error)]
+#[error("evaluation budget of {0} spent")]
+pub struct BudgetSpent(pub usize);
+
+type Key = Vec<u64>;
+
+/// Called after each batch with the whole trace so far.
+pub type RecordHook<'a> = Box<dyn Fn(&[Evaluation]) + Send + Sync + 'a>;
+
+fn key(x: &[Real]) -> Key {
+    x.iter().map(|v| v.to_bits()).collect()
+}
+
+struct Store {
+    /// Distinct evaluations in first-request order (the trace).
+    trace: Vec<Evaluation>,
+    index: HashMap<Key, usize>,
+    /// Evaluations read from an earlier trace, not yet asked for again.
+    preloaded: HashMap<Key, Evaluation>,
+    /// Simulations actually run in this process.
+    simulated: usize,
+}
+
+/// Runs evaluations for the optimisers: cache, budget, parallel batches, ordered trace.
+pub struct Evaluator<'a> {
+    model: &'a ForwardModel,
+    budget: usize,
+    store: Mutex<Store>,
+    /// Called after each batch with the whole trace (writes trace.csv, updates progress).
+    on_record: RecordHook<'a>,
+}
+
+impl<'a> Evaluator<'a> {
+    pub fn new(model: &'a ForwardModel, budget: usize, preloaded: Vec<Evaluation>, on_record: RecordHook<'a>) -> Self {
+        let preloaded = preloaded.into_iter().map(|e| (key(&e.x), e)).collect();
+        Self {
+            model,
+            budget,
+            store: Mutex::new(Store { trace: Vec::new(), index: HashMap::new(), preloaded, simulated: 0 }),
+            on_record,
+        }
+    }
+
+    pub fn model(&self) -> &ForwardModel {
+        self.model
+    }
+
+    /// The trace so far.
+    pub fn trace(&self) -> Vec<Evaluation> {
+        self.store.lock().expect("evaluator lock").trace.clone()
+    }
+
+    /// Simulations run in this process (not read from a trace).
+    pub fn simulated(&self) -> usize {
+        self.store.lock().expect("evaluator lock").simulated
+    }
+
+    /// Evaluates a batch of log points (clamped first); results in order. With `charge_budget`
+    /// false (the profile) the budget is not enforced. Errs with [`BudgetSpent`] when some point
+    /// would exceed the budget (the points before it are evaluated and recorded).
+    pub fn evaluate_batch(&self, xs: &[Vec<Real>], charge_budget: bool) -> Result<Vec<Evaluation>, BudgetSpent> {
+        let clamped: Vec<Vec<Real>> = xs.iter().map(|x| self.model.space.clamp(x).0).collect();
+        let mut pending: Vec<Vec<Real>> = Vec::new();
+        let mut pending_keys: HashMap<Key, usize> = HashMap::new();
+        let mut spent = false;
+        let mut accepted = clamped.len();
+        {
+            let mut store = self.store.lock().expect("evaluator lock");
+            for (i, x) in clamped.iter().enumerate() {
+                let k = key(x);
+                if store.index.contains_key(&k) || pending_keys.contains_key(&k) {
+                    continue;
+                }
+                if charge_budget && store.trace.len() >= self.budget {
+                    spent = true;
+                    accepted = i;
+                    break;
+                }
+                if let Some(e) = store.preloaded.remove(&k) {
+                    let n = store.trace.len();
+                    store.trace.push(e);
+                    store.index.insert(k, n);
+                    continue;
+                }
+                // Reserve a trace slot so the budget counts pending points too.
+                if charge_budget && store.trace.len() + pending.len() >= self.budget {
+                    spent = true;
+                    accepted = i;
+                    break;
+                }
+                pending_keys.insert(k, pending.len());
+                pending.push(x.clone());
+            }
+        }
+        let results: Vec<Evaluation> = pending.par_iter().map(|x| self.model.evaluate(x)).collect();
+        let out = {
+            let mut store = self.store.lock().expect("evaluator lock");
+            store.simulated += results.len();
+            for e in results {
+                let n = store.trace.len();
+                store.index.insert(key(&e.x), n);
+                store.trace.push(e);
+            }
+            (self.on_record)(&store.trace);
+            clamped[..accepted].iter().map(|x| store.trace[store.index[&key(x)]].clone()).collect()
+        };
+        if spent { Err(BudgetSpent(self.budget)) } else { Ok(out) }
+    }
+
+    /// Objective at `x` as Nelder–Mead sees it: the clamped point's objective plus the bound penalty.
+    fn penalised(&self, xs: &[Vec<Real>]) -> Result<Vec<Real>, BudgetSpent> {
+        let evals = self.evaluate_batch(xs, true)?;
+        Ok(xs.iter().zip(evals).map(|(x, e)| e.objective + BOUND_PENALTY * self.model.space.clamp(x).1).collect())
+    }
+}
+
+/// The evaluator as an argmin problem.
+struct Problem<'e, 'a>(&'e Evaluator<'a>);
+
+impl CostFunction for Problem<'_, '_> {
+    type Param = Vec<Real>;
+    type Output = Real;
+
+    fn cost(&self, x: &Vec<Real>) -> Result<Real, ArgminError> {
+        Ok(self.0.penalised(std::slice::from_ref(x))?[0])
+    }
+
+    fn bulk_cost<P>(&self, params: &[P]) -> Result<Vec<Real>, ArgminError>
+    where
+        P: std::borrow::Borrow<Vec<Real>> + Sync,
+    {
+        let xs: Vec<Vec<Real>> = params.iter().map(|p| p.borrow().clone()).collect();
+        Ok(self.0.penalised(&xs)?)
+    }
+}
+
+/// How the optimiser ended.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OptimiserOutcome {
+    /// The solver's own criterion was met (simplex spread or target objective).
+    pub converged: bool,
+    /// Why it stopped, in words.
+    pub reason: String,
+}
+
+/// Runs the configured optimiser until convergence or the budget; the best point is the trace's.
+pub fn optimise(evaluator: &Evaluator<'_>, config: &OptimizerConfig) -> Result<OptimiserOutcome, InferenceError> {
+    let space = &evaluator.model().space;
+    let (lo, hi) = space.log_bounds();
+    let max_iters = (config.max_evaluations as u64).saturating_mul(4) + 16;
+    let result = match config.method {
+        OptimizerMethod::NelderMead => {
+            let x0 = space.initial_point();
+            let mut simplex = vec![x0.clone()];
+            for i in 0..x0.len() {
+                let step = config.initial_simplex * (hi[i] - lo[i]);
+                let mut v = x0.clone();
+                // Step inward when the start is in the upper part of the range.
+                v[i] = if x0[i] + step <= hi[i] { x0[i] + step } else { x0[i] - step };
+                simplex.push(v);
+            }
+            // The initial simplex is independent: evaluate it in parallel, the solver then hits the cache.
+            match evaluator.evaluate_batch(&simplex, true) {
+                Ok(_) => {}
+                Err(spent) => {
+                    return Ok(OptimiserOutcome { converged: false, reason: spent.to_string() });
+                }
+            }
+            let solver = NelderMead::new(simplex)
+                .with_sd_tolerance(config.tolerance)
+                .map_err(|e| InferenceError::Optimiser(e.to_string()))?;
+            Executor::new(Problem(evaluator), solver).configure(|s| s.max_iters(max_iters)).run().map(|r| {
+                let state = r.state();
+                (state.get_termination_reason().map(|t| t.to_string()), state.get_termination_status().clone())
+            })
+        }
+        OptimizerMethod::ParticleSwarm => {
+            let rng = Xoshiro256PlusPlus::seed_from_u64(config.seed);
+            let solver = ParticleSwarm::new((lo, hi), config.swarm_size).with_rng_generator(rng);
+            let iters = (config.max_evaluations / config.swarm_size) as u64 + 1;
+            Executor::new(Problem(evaluator), solver)
+                .configure(|s| s.max_iters(iters).target_cost(config.tolerance))
+                .run()
+                .map(|r| {
+                    let state = r.state();
+                    (state.get_termination_reason().map(|t| t.to_string()), state.get_termination_status().clone())
+                })
+        }
+    };
+    match result {
+        Ok((reason, status)) => {
+            use argmin::core::{TerminationReason, TerminationStatus};
+            let converged = matches!(
+                status,
+                TerminationStatus::Terminated(TerminationReason::SolverConverged)
+                    | TerminationStatus::Terminated(TerminationReason::TargetCostReached)
+            );
+            Ok(OptimiserOutcome { converged, reason: reason.unwrap_or_else(|| "stopped".into()) })
+        }
+        Err(e) => {
+            if let Some(spent) = e.downcast_ref::<BudgetSpent>() {
+                Ok(OptimiserOutcome { converged: false, reason: spent.to_string() })
+            } else {
+                Err(InferenceError::Optimiser(e.to_string()))
+            }
+        }
+    }
+}

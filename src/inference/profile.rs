@@ -1,0 +1,162 @@
+//! Uncertainty and identifiability after the optimum: the objective along a few directions through
+//! the best point, evaluated in one parallel batch (not charged to the budget).
+//!
+//! - one slice per fitted parameter (the others held at the optimum);
+//! - the *scale* direction (every fitted parameter multiplied by the same factor), along which an
+//!   equilibrium shape changes only through volume compression against K: when the objective stays
+//!   acceptable along it, the absolute values are not determined, only ratios;
+//! - one direction per key ratio (γ_lateral/γ_apical, ω/γ) that changes the ratio at a fixed scale.
+//!
+//! Points lie at factors span^(±k/points), k = 1…points, from the optimum. A point is acceptable when
+//! its objective is at most best + `acceptable_increase`. The acceptable range on each side ends where
+//! the objective crosses that threshold (interpolated in log space between the last acceptable and
+//! the first unacceptable point); a side with no crossing inside the probed span is *open* and the
+//! range extends to the search bound. A quantity is reported determined when its range is closed on
+//! both sides (and, for an absolute parameter with several fitted, the scale direction is closed too).
+//! These are slices, not re-optimised profiles: they can call a quantity determined that a full
+//! profile would find correlated with another; the ratio and scale directions cover the correlations
+//! the physics predicts.
+
+use super::config::ProfileConfig;
+use super::optimise::Evaluator;
+use crate::geometry::Real;
+use serde::Serialize;
+
+/// The objective along one direction through the optimum.
+#[derive(Clone, Debug, Serialize)]
+pub struct Slice {
+    /// What is varied: a parameter name, `scale`, or a ratio name.
+    pub name: String,
+    /// Log-space offsets from the optimum (of the varied quantity) and their objectives, ascending.
+    pub offsets: Vec<Real>,
+    pub objectives: Vec<Real>,
+    /// Acceptable range of the offset `[lo, hi]`; `None` on a side that never crossed.
+    pub lower: Option<Real>,
+    pub upper: Option<Real>,
+}
+
+impl Slice {
+    /// Closed on both sides.
+    pub fn determined(&self) -> bool {
+        self.lower.is_some() && self.upper.is_some()
+    }
+}
+
+/// A named direction in log space: offset δ of the quantity moves the point by δ·direction.
+struct Direction {
+    name: String,
+    direction: Vec<Real>,
+}
+
+/// Names and (numerator, denominator) parameter choices of the key ratios.
+pub fn ratio_parts(names: &[String]) -> Vec<(&'static str, &'static str, &'static str)> {
+    let has = |n: &str| names.iter().any(|m| m == n);
+    let mut out = Vec::new();
+    let apical = if has("surface_tension_apical") {
+        Some("surface_tension_apical")
+    } else if has("surface_tension") {
+        Some("surface_tension")
+    } else {
+        None
+    };
+    if has("surface_tension_lateral")
+        && let Some(a) = apical
+    {
+        out.push(("lateral_over_apical", "surface_tension_lateral", a));
+    }
+    let tension = if has("surface_tension") { Some("surface_tension") } else { apical };
+    if has("adhesion")
+        && let Some(t) = tension
+    {
+        out.push(("adhesion_over_tension", "adhesion", t));
+    }
+    out
+}
+
+/// Probes every direction through `best` and returns the slices (parameters, scale, ratios).
+pub fn profile(evaluator: &Evaluator<'_>, best: &[Real], best_objective: Real, config: &ProfileConfig) -> Vec<Slice> {
+    let space = &evaluator.model().space;
+    let n = space.dim();
+    if config.points == 0 {
+        return Vec::new();
+    }
+    let fitted: Vec<String> = space.fitted.iter().map(|p| p.name.clone()).collect();
+    let mut dirs: Vec<Direction> = (0..n)
+        .map(|i| {
+            let mut d = vec![0.0; n];
+            d[i] = 1.0;
+            Direction { name: fitted[i].clone(), direction: d }
+        })
+        .collect();
+    if n > 1 {
+        dirs.push(Direction { name: "scale".into(), direction: vec![1.0; n] });
+    }
+    let mut all: Vec<String> = fitted.clone();
+    all.extend(space.fixed.iter().map(|(k, _)| k.clone()));
+    for (name, num, den) in ratio_parts(&all) {
+        let (i, j) = (fitted.iter().position(|f| f == num), fitted.iter().position(|f| f == den));
+        let mut d = vec![0.0; n];
+        match (i, j) {
+            (Some(i), Some(j)) => {
+                d[i] = 0.5;
+                d[j] = -0.5;
+            }
+            (Some(i), None) => d[i] = 1.0,
+            (None, Some(j)) => d[j] = -1.0,
+            (None, None) => continue,
+        }
+        // With a single fitted parameter the ratio's direction is that parameter's slice.
+        if dirs.iter().any(|e| e.direction == d) {
+            let twin = dirs.iter().find(|e| e.direction == d).map(|e| e.name.clone()).unwrap_or_default();
+            dirs.push(Direction { name: format!("{name}={twin}"), direction: d });
+            continue;
+        }
+        dirs.push(Direction { name: name.into(), direction: d });
+    }
+    let step = config.span.ln() / config.points as Real;
+    let offsets: Vec<Real> = (1..=config.points)
+        .rev()
+        .map(|k| -(k as Real) * step)
+        .chain((1..=config.points).map(|k| k as Real * step))
+        .collect();
+    let mut points = Vec::new();
+    for d in &dirs {
+        for &o in &offsets {
+            points.push(best.iter().zip(&d.direction).map(|(b, v)| b + o * v).collect::<Vec<_>>());
+        }
+    }
+    let evals = match evaluator.evaluate_batch(&points, false) {
+        Ok(e) => e,
+        Err(_) => unreachable!("profile points are not charged to the budget"),
+    };
+    let threshold = best_objective + config.acceptable_increase;
+    let per = offsets.len();
+    dirs.iter()
+        .enumerate()
+        .map(|(k, d)| {
+            let objs: Vec<Real> = evals[k * per..(k + 1) * per].iter().map(|e| e.objective).collect();
+            // Full curve including the optimum at offset 0.
+            let mut xs = offsets.clone();
+            let mut ys = objs.clone();
+            let mid = config.points;
+            xs.insert(mid, 0.0);
+            ys.insert(mid, best_objective);
+            let crossing = |range: Box<dyn Iterator<Item = usize>>| -> Option<Real> {
+                let mut prev = mid;
+                for i in range {
+                    if ys[i] > threshold {
+                        let (y0, y1) = (ys[prev], ys[i]);
+                        let t = if y1 > y0 { ((threshold - y0) / (y1 - y0)).clamp(0.0, 1.0) } else { 0.0 };
+                        return Some(xs[prev] + t * (xs[i] - xs[prev]));
+                    }
+                    prev = i;
+                }
+                None
+            };
+            let upper = crossing(Box::new(mid + 1..xs.len()));
+            let lower = crossing(Box::new((0..mid).rev()));
+            let name = d.name.split('=').next().unwrap_or(&d.name).to_string();
+            Slice { name, offsets: xs, objectives: ys, lower, upper }
+        })
+        .collect()
+}

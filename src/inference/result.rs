@@ -1,0 +1,71 @@
+//! `result.json` (DESIGN.md §2): `{"parameters": {NAME: {"si", "dimensionless", "range": [lo, hi]}},
+//! "objective", "evaluations", "converged", "wall_seconds"}` plus what the data determine.
+
+use super::forward::Metrics;
+use crate::geometry::Real;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// One parameter of the result.
+#[derive(Clone, Debug, Serialize)]
+pub struct ParameterResult {
+    /// Best value (SI: N/m for tensions, Pa/m for adhesion).
+    pub si: Real,
+    /// γ̃ = γ/(K·l) for tensions, ω̃ = ω·l/K for adhesion.
+    pub dimensionless: Real,
+    /// Acceptable range (SI) from the profile; the search bounds where the data do not bound it; the
+    /// value itself for a fixed parameter.
+    pub range: [Real; 2],
+    /// Fitted (true) or fixed from the config (false).
+    pub fitted: bool,
+    /// Whether the data determine it (closed acceptable range); `None` for a fixed parameter or
+    /// without a profile.
+    pub determined: Option<bool>,
+    /// Search bounds (SI) of a fitted parameter.
+    pub bounds: Option<[Real; 2]>,
+}
+
+/// A key ratio of the result.
+#[derive(Clone, Debug, Serialize)]
+pub struct RatioResult {
+    pub value: Real,
+    pub range: [Real; 2],
+    pub determined: Option<bool>,
+    /// What it is, in words.
+    pub meaning: String,
+}
+
+/// The whole `result.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct FitResult {
+    pub parameters: BTreeMap<String, ParameterResult>,
+    /// Best objective (see the objective's definition in the README / `inference::forward`).
+    pub objective: Real,
+    /// Distinct evaluations of the optimisation (the trace's rows before the profile).
+    pub evaluations: usize,
+    /// Whether the optimiser met its own criterion (not only the budget).
+    pub converged: bool,
+    pub wall_seconds: Real,
+    /// Key ratios (γ_lateral/γ_apical, ω/γ) and whether the data determine them.
+    pub ratios: BTreeMap<String, RatioResult>,
+    /// Plain statements of what is and is not identifiable.
+    pub identifiability: Vec<String>,
+    pub optimizer: String,
+    pub stop_reason: String,
+    /// Profile evaluations (after the optimum, in the trace after the optimisation rows).
+    pub profile_evaluations: usize,
+    /// Simulations run by this process (the rest came from an earlier trace).
+    pub simulated_here: usize,
+    pub observed: Metrics,
+    pub best_metrics: Metrics,
+    /// l = ⟨V⟩^(1/3) of the observed moving cells (m).
+    pub length_scale: Real,
+    /// K (Pa) of the first epithelial cell type, for the dimensionless groups.
+    pub bulk_modulus: Real,
+    /// Contact model of the forward simulations.
+    pub contact_model: String,
+    /// Contact cutoff c (m) of the forward simulations (spring adhesion energy w = ω·c²/2).
+    pub contact_cutoff: Real,
+    pub threads: usize,
+    pub profile: Vec<super::profile::Slice>,
+}

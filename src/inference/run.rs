@@ -1,0 +1,327 @@
+//! The fit driver: observed data → optimiser → profile → `trace.csv`, `result.json`, plots.
+
+use super::config::FitConfig;
+use super::forward::{Evaluation, ForwardModel, Observation};
+use super::optimise::{Evaluator, optimise};
+use super::profile::{Slice, profile, ratio_parts};
+use super::result::{FitResult, ParameterResult, RatioResult};
+use super::space::ParameterSpace;
+use super::trace::{read_trace, write_trace};
+use super::{InferenceError, plot};
+use crate::geometry::Real;
+use crate::imaging::{LabelReadOptions, read_label_tiff};
+use crate::io::{LengthScale, ReadOptions, read_tissue, write_bytes_atomically};
+use crate::mechanics::ContactModel;
+use crate::mesh::CellKind;
+use crate::meshing::mesh_labels;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// How to run a fit.
+#[derive(Clone, Debug, Default)]
+pub struct FitOptions {
+    /// Continue from `DIR/trace.csv`: its evaluations are reused (not re-simulated) when the
+    /// optimiser asks for them again, which it does in the same order, so the result is the same.
+    pub resume: bool,
+    /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
+    pub progress: bool,
+    /// Write the PNG plots. Default false here; the CLI turns them on.
+    pub plots: bool,
+}
+
+/// Reads the observed input (meshing a label volume first) and measures it.
+pub fn load_observation(config: &FitConfig) -> Result<Observation, InferenceError> {
+    let obs = &config.observed;
+    if let Some(path) = &obs.tissue {
+        let scale: LengthScale = obs
+            .length_unit
+            .parse()
+            .map_err(|e: String| InferenceError::Config(format!("observed.length_unit: {e}")))?;
+        let read = read_tissue(path, &ReadOptions { length_scale: scale, orient: false })
+            .map_err(|e| InferenceError::Observed(format!("reading {}: {e}", path.display())))?;
+        for w in &read.warnings {
+            tracing::warn!("{}: {w}", path.display());
+        }
+        return Observation::new(read.tissue, None, None);
+    }
+    let path = obs.labels.as_ref().ok_or_else(|| InferenceError::Config("observed: no input".into()))?;
+    let read = read_label_tiff(path, &LabelReadOptions { voxel_size: obs.voxel_size, ..Default::default() })
+        .map_err(|e| InferenceError::Observed(format!("reading {}: {e}", path.display())))?;
+    for w in &read.warnings {
+        tracing::warn!("{}: {w}", path.display());
+    }
+    let mut options = obs.meshing.options()?;
+    let meshed = mesh_labels(&read.volume, &options)
+        .map_err(|e| InferenceError::Observed(format!("meshing {}: {e}", path.display())))?;
+    for r in meshed.report.iter().filter(|r| r.reason.is_some()) {
+        tracing::info!("{}: label {}: {:?}: {}", path.display(), r.label, r.status, r.reason.as_deref().unwrap_or(""));
+    }
+    if meshed.tissue.is_empty() {
+        return Err(InferenceError::Observed(format!("{}: no label could be meshed", path.display())));
+    }
+    // Simulations are measured like the data: the same options with the l_min actually used.
+    options.l_min = meshed.l_min;
+    Observation::new(meshed.tissue, Some(read.volume), Some(options))
+}
+
+/// The best evaluation of a trace slice (lowest objective, earliest on ties).
+fn best_of(trace: &[Evaluation]) -> Option<&Evaluation> {
+    trace.iter().fold(None, |best: Option<&Evaluation>, e| match best {
+        Some(b) if b.objective <= e.objective => Some(b),
+        _ => Some(e),
+    })
+}
+
+/// Runs a whole fit and writes its outputs into `out` (created if needed).
+pub fn run_fit(config: &FitConfig, out: &Path, options: &FitOptions) -> Result<FitResult, InferenceError> {
+    let started = Instant::now();
+    let output_err = |p: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", p.display()));
+    let space = ParameterSpace::from_config(&config.parameters)?;
+    let trace_path = out.join("trace.csv");
+    let preloaded = if trace_path.exists() {
+        if !options.resume {
+            return Err(InferenceError::Output(format!(
+                "{} already holds a fit (trace.csv); pass --resume to continue it or choose another --out",
+                out.display()
+            )));
+        }
+        read_trace(&trace_path, &space)?
+    } else {
+        Vec::new()
+    };
+    let base = config.base_parameters()?;
+    let observation = load_observation(config)?;
+    let model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())?;
+    std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
+    let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;
+    write_bytes_atomically(&out.join("fit.toml"), resolved.as_bytes()).map_err(|e| output_err(out, &e))?;
+    let model_toml = model.base.to_toml_string();
+    write_bytes_atomically(&out.join("model.toml"), model_toml.as_bytes()).map_err(|e| output_err(out, &e))?;
+
+    let budget = config.optimizer.max_evaluations;
+    let bar = if options.progress {
+        ProgressBar::with_draw_target(Some(budget as u64), ProgressDrawTarget::stderr())
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {pos}/{len} evaluations, {msg}")
+            .expect("valid template"),
+    );
+    let write_error: Mutex<Option<InferenceError>> = Mutex::new(None);
+    let space_ref = &model.space;
+    let on_record = |trace: &[Evaluation]| {
+        if let Err(e) = write_trace(&trace_path, space_ref, trace) {
+            tracing::warn!("{e}");
+            *write_error.lock().expect("lock") = Some(e);
+        }
+        bar.set_position(trace.len().min(budget) as u64);
+        if let Some(b) = best_of(trace) {
+            bar.set_message(format!("best objective {:.4e}", b.objective));
+        }
+    };
+    let evaluator = Evaluator::new(&model, budget, preloaded, Box::new(on_record));
+    let outcome = optimise(&evaluator, &config.optimizer)?;
+    let trace = evaluator.trace();
+    let evaluations = trace.len();
+    let best = best_of(&trace).cloned().ok_or_else(|| InferenceError::Optimiser("no evaluation was made".into()))?;
+    bar.set_message(format!("best objective {:.4e}; profiling", best.objective));
+    let slices =
+        if best.status.usable() { profile(&evaluator, &best.x, best.objective, &config.profile) } else { Vec::new() };
+    bar.finish_and_clear();
+    let full_trace = evaluator.trace();
+    write_trace(&trace_path, &model.space, &full_trace)?;
+    if let Some(e) = write_error.lock().expect("lock").take() {
+        return Err(e);
+    }
+    let result = assemble(
+        &model,
+        config,
+        &best,
+        evaluations,
+        full_trace.len() - evaluations,
+        &slices,
+        &outcome,
+        &evaluator,
+        started,
+    );
+    let json = serde_json::to_string_pretty(&result).map_err(|e| InferenceError::Output(e.to_string()))?;
+    write_bytes_atomically(&out.join("result.json"), json.as_bytes()).map_err(|e| output_err(out, &e))?;
+    if options.plots {
+        plot::plot_objective(&out.join("objective.png"), &full_trace[..evaluations])?;
+        plot::plot_landscape(&out.join("landscape.png"), &model.space, &full_trace)?;
+    }
+    Ok(result)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    model: &ForwardModel,
+    config: &FitConfig,
+    best: &Evaluation,
+    evaluations: usize,
+    profile_evaluations: usize,
+    slices: &[Slice],
+    outcome: &super::optimise::OptimiserOutcome,
+    evaluator: &Evaluator<'_>,
+    started: Instant,
+) -> FitResult {
+    let space = &model.space;
+    let values = space.values(&best.x);
+    let l = model.observation.length_scale;
+    let k = model
+        .base
+        .cell_types
+        .iter()
+        .find(|t| t.kind == CellKind::Epithelial)
+        .map_or(model.base.cell_types[0].bulk_modulus, |t| t.bulk_modulus);
+    let dimensionless = |name: &str, v: Real| if name == "adhesion" { v * l / k } else { v / (k * l) };
+    let slice = |name: &str| slices.iter().find(|s| s.name == name);
+    let scale_open = space.dim() > 1 && slice("scale").is_some_and(|s| !s.determined());
+    let mut parameters = BTreeMap::new();
+    let mut statements = Vec::new();
+    let increase = config.profile.acceptable_increase;
+    for (name, &v) in &values {
+        let fitted = space.fitted.iter().find(|p| &p.name == name);
+        let (range, determined, bounds) = match fitted {
+            None => ([v, v], None, None),
+            Some(p) => match slice(name) {
+                None => (p.bounds, None, Some(p.bounds)),
+                Some(s) => {
+                    let determined = s.determined() && !scale_open;
+                    let range = if scale_open {
+                        p.bounds
+                    } else {
+                        [
+                            s.lower.map_or(p.bounds[0], |o| (v * o.exp()).max(p.bounds[0])),
+                            s.upper.map_or(p.bounds[1], |o| (v * o.exp()).min(p.bounds[1])),
+                        ]
+                    };
+                    (range, Some(determined), Some(p.bounds))
+                }
+            },
+        };
+        if let Some(d) = determined {
+            statements.push(if d {
+                format!("{name}: determined by the data: {v:.4e} SI, acceptable range [{:.4e}, {:.4e}]", range[0], range[1])
+            } else if scale_open {
+                format!(
+                    "{name}: NOT determined by the data: scaling every fitted parameter together keeps the objective \
+                     within +{increase} of the best, so only ratios are fixed (best {v:.4e}, search bounds [{:.4e}, {:.4e}])",
+                    range[0], range[1]
+                )
+            } else {
+                format!(
+                    "{name}: NOT determined by the data: the objective stays within +{increase} of the best on at least \
+                     one side of {v:.4e}; range reported [{:.4e}, {:.4e}]",
+                    range[0], range[1]
+                )
+            });
+        }
+        parameters.insert(
+            name.clone(),
+            ParameterResult {
+                si: v,
+                dimensionless: dimensionless(name, v),
+                range,
+                fitted: fitted.is_some(),
+                determined,
+                bounds,
+            },
+        );
+    }
+    let names: Vec<String> = values.keys().cloned().collect();
+    let mut ratios = BTreeMap::new();
+    for (rname, num, den) in ratio_parts(&names) {
+        let value = values[num] / values[den];
+        let extreme = |lo: bool| {
+            let b = |n: &str, lo: bool| {
+                space
+                    .fitted
+                    .iter()
+                    .find(|p| p.name == n)
+                    .map_or(values[n], |p| if lo { p.bounds[0] } else { p.bounds[1] })
+            };
+            b(num, lo) / b(den, !lo)
+        };
+        let s = slice(rname);
+        let (range, determined) = match s {
+            Some(s) => (
+                [
+                    s.lower.map_or(extreme(true), |o| value * o.exp()),
+                    s.upper.map_or(extreme(false), |o| value * o.exp()),
+                ],
+                Some(s.determined()),
+            ),
+            None => ([extreme(true), extreme(false)], None),
+        };
+        let meaning = match rname {
+            "lateral_over_apical" => {
+                "γ_lateral/γ_apical: sets the contact angle for coupling contacts (Young–Dupré cos θ = γ_l/γ_a)"
+                    .to_string()
+            }
+            _ => format!(
+                "ω/γ (1/m): for spring contacts the shape is set by w/(2γ) = ω·c²/(4γ) = {:.4} (c = {:.3e} m)",
+                value * model.base.numerics.contact_cutoff.powi(2) / 4.0,
+                model.base.numerics.contact_cutoff
+            ),
+        };
+        if let Some(d) = determined {
+            statements.push(format!(
+                "{rname} = {value:.4e}: {} (acceptable range [{:.4e}, {:.4e}])",
+                if d { "determined by the data" } else { "NOT determined by the data" },
+                range[0],
+                range[1]
+            ));
+        }
+        if rname == "adhesion_over_tension" && model.base.numerics.contact_model == ContactModel::Spring {
+            // The spring model's shape is set by w/(2γ) = ω·c²/(4γ): the dimensionless form.
+            let f = model.base.numerics.contact_cutoff.powi(2) / 4.0;
+            ratios.insert(
+                "adhesion_energy_over_tension".to_string(),
+                RatioResult {
+                    value: value * f,
+                    range: [range[0] * f, range[1] * f],
+                    determined,
+                    meaning: format!(
+                        "w/(2γ) = ω·c²/(4γ), c = {:.3e} m: the spring doublet's Young–Dupré group (cos θ = 1 − w/(2γ))",
+                        model.base.numerics.contact_cutoff
+                    ),
+                },
+            );
+        }
+        ratios.insert(rname.to_string(), RatioResult { value, range, determined, meaning });
+    }
+    statements.push(
+        "An equilibrium shape fixes only dimensionless combinations; the absolute scale enters through volume \
+         compression against K (γ̃ = γ/(K·l)), weakly, and through the spring model's cutoff c"
+            .to_string(),
+    );
+    if !best.status.usable() {
+        statements.push(format!("no usable evaluation: the best run was {} ({})", best.status.name(), best.reason));
+    }
+    FitResult {
+        parameters,
+        objective: best.objective,
+        evaluations,
+        converged: outcome.converged,
+        wall_seconds: started.elapsed().as_secs_f64(),
+        ratios,
+        identifiability: statements,
+        optimizer: format!("{:?}", config.optimizer.method),
+        stop_reason: outcome.reason.clone(),
+        profile_evaluations,
+        simulated_here: evaluator.simulated(),
+        observed: model.observation.metrics,
+        best_metrics: best.metrics,
+        length_scale: l,
+        bulk_modulus: k,
+        contact_model: format!("{:?}", model.base.numerics.contact_model),
+        contact_cutoff: model.base.numerics.contact_cutoff,
+        threads: rayon::current_num_threads(),
+        profile: slices.to_vec(),
+    }
+}
