@@ -4,10 +4,10 @@
 use ndarray::s;
 use std::path::Path;
 use std::process::Command;
-use tissuefit::geometry::Vec3;
+use tissuefit::geometry::{Vec3, closest_point_on_triangle};
 use tissuefit::imaging::{
-    LabelPattern, LabelReadOptions, LabelSpec, LabelVolume, LabelWriteOptions, generate_labels, read_label_tiff,
-    write_label_tiff,
+    LabelPattern, LabelReadOptions, LabelSpec, LabelVolume, LabelWriteOptions, generate_labels, label_overlap,
+    read_label_tiff, voxelize_with_stats, write_label_tiff,
 };
 use tissuefit::io::{ReadOptions, read_tissue};
 use tissuefit::mesh::{CellId, CellKind};
@@ -217,4 +217,122 @@ fn real_ovule_crop_meshes_every_cell_that_is_not_debris() {
     for r in meshing.report.iter().filter(|r| r.status == LabelStatus::Dropped) {
         assert!(r.reason.is_some(), "label {} dropped without a reason", r.label);
     }
+}
+
+/// Meshes `volume` with the defaults, voxelises the tissue back onto the same grid and returns the
+/// per-label IoU with the input (cells that were meshed only).
+fn round_trip_iou(volume: &LabelVolume) -> Vec<(u32, f64)> {
+    let meshing = mesh_labels(volume, &LabelMeshingOptions::default()).unwrap();
+    for r in &meshing.report {
+        assert_ne!(r.status, LabelStatus::Dropped, "label {}: {:?}", r.label, r.reason);
+    }
+    let (back, stats) = voxelize_with_stats(&meshing.tissue, &volume.grid()).unwrap();
+    assert_eq!(stats.odd_rows, 0, "every meshed surface is closed");
+    label_overlap(volume, &back).unwrap().into_iter().map(|o| (o.label, o.iou())).collect()
+}
+
+#[test]
+fn labels_mesh_and_voxelise_back_with_per_cell_iou_of_at_least_0_9() {
+    // Both conventions agree: a voxel is labelled when its centre is inside the shape (generate,
+    // voxelize), and the mesher places voxel [0,0,0]'s centre at the grid origin. The mesh loses
+    // ~2 % of the volume (module doc of `meshing`), which costs ~0.02 of IoU per cell (measured: 0.979–0.987
+    // for the single shapes, worst 0.965 in the aggregate); 0.9 is the acceptance bound. A
+    // half-voxel offset between the conventions would cost ~0.1–0.2 on cells this size and fail it.
+    let base = LabelSpec {
+        pattern: LabelPattern::Sphere,
+        shape: [40, 40, 40],
+        voxel_size: [0.5e-6; 3],
+        cells: 1,
+        seed: 1,
+        lumen: false,
+    };
+    let cases = [
+        LabelSpec { pattern: LabelPattern::Sphere, ..base.clone() },
+        LabelSpec { pattern: LabelPattern::Ellipsoid, shape: [40, 48, 56], ..base.clone() },
+        LabelSpec { pattern: LabelPattern::Cube, ..base.clone() },
+        LabelSpec { pattern: LabelPattern::Doublet, shape: [32, 32, 56], ..base.clone() },
+        // Anisotropic voxels, as in confocal stacks.
+        LabelSpec {
+            pattern: LabelPattern::Sphere,
+            shape: [24, 48, 48],
+            voxel_size: [1e-6, 0.5e-6, 0.5e-6],
+            ..base.clone()
+        },
+        LabelSpec { pattern: LabelPattern::Aggregate, shape: [64, 64, 64], cells: 30, seed: 5, ..base.clone() },
+    ];
+    for spec in cases {
+        let volume = generate_labels(&spec).unwrap().volume;
+        let ious = round_trip_iou(&volume);
+        let expected = if spec.pattern == LabelPattern::Aggregate {
+            30
+        } else if spec.pattern == LabelPattern::Doublet {
+            2
+        } else {
+            1
+        };
+        assert_eq!(ious.len(), expected, "{}: one entry per label", spec.pattern);
+        let worst = ious.iter().map(|p| p.1).fold(1.0, f64::min);
+        let mean = ious.iter().map(|p| p.1).sum::<f64>() / ious.len() as f64;
+        println!("{} {:?}: {} cells, IoU mean {mean:.4}, worst {worst:.4}", spec.pattern, spec.shape, ious.len());
+        for (label, iou) in ious {
+            assert!(iou >= 0.9, "{} label {label}: IoU {iou:.4}", spec.pattern);
+        }
+    }
+}
+
+/// Depth (m) by which `p` lies inside `mesh`: its distance to the surface when its winding number says
+/// inside, else 0.
+fn penetration_depth(mesh: &tissuefit::mesh::CellMesh, p: &Vec3) -> f64 {
+    if mesh.winding_number(p) < 0.5 {
+        return 0.0;
+    }
+    let x = mesh.positions();
+    mesh.triangles()
+        .iter()
+        .map(|t| {
+            let (a, b, c) = (&x[t[0] as usize], &x[t[1] as usize], &x[t[2] as usize]);
+            (closest_point_on_triangle(p, a, b, c).point - p).norm()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+#[ignore = "real data, a few s in release: cargo test --release --test mesh_labels -- --ignored"]
+fn real_ovule_crop_adjacent_cells_do_not_interpenetrate_by_more_than_one_voxel() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real/plant-seg__sample_ovule_labels.tif");
+    let volume = read_label_tiff(&path, &LabelReadOptions::default()).unwrap().volume;
+    let meshing = mesh_labels(&volume, &LabelMeshingOptions::default()).unwrap();
+    let voxel = volume.voxel_size().into_iter().fold(0.0, f64::max);
+    let cells = meshing.tissue.cells();
+    let boxes: Vec<(Vec3, Vec3)> =
+        cells.iter().map(|c| tissuefit::geometry::bounding_box(c.mesh().positions()).unwrap()).collect();
+    let (mut pairs, mut inside, mut worst) = (0usize, 0usize, 0.0f64);
+    for (a, ca) in cells.iter().enumerate() {
+        for (b, cb) in cells.iter().enumerate() {
+            let (la, ha) = boxes[a];
+            let (lb, hb) = boxes[b];
+            if a == b || (0..3).any(|i| la[i] > hb[i] || lb[i] > ha[i]) {
+                continue;
+            }
+            pairs += 1;
+            for p in ca.mesh().positions() {
+                if (0..3).any(|i| p[i] < lb[i] || p[i] > hb[i]) {
+                    continue;
+                }
+                let d = penetration_depth(cb.mesh(), p);
+                if d > 0.0 {
+                    inside += 1;
+                }
+                worst = worst.max(d);
+                assert!(d <= voxel, "a node of cell {} lies {:.3} µm inside cell {}", ca.id(), d * 1e6, cb.id());
+            }
+        }
+    }
+    println!(
+        "{} cells, {pairs} overlapping bounding boxes: {inside} nodes inside a neighbour, deepest {:.3} µm (voxel {:.3} µm)",
+        cells.len(),
+        worst * 1e6,
+        voxel * 1e6
+    );
+    assert!(pairs > cells.len(), "the crop is densely packed: neighbours were compared");
 }
