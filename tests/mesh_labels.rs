@@ -6,12 +6,12 @@ use std::path::Path;
 use std::process::Command;
 use tissuefit::geometry::{Vec3, closest_point_on_triangle};
 use tissuefit::imaging::{
-    LabelPattern, LabelReadOptions, LabelSpec, LabelVolume, LabelWriteOptions, generate_labels, label_overlap,
-    read_label_tiff, voxelize_with_stats, write_label_tiff,
+    LabelPattern, LabelReadOptions, LabelSpec, LabelVolume, LabelWriteOptions, generate_labels, generate_nuclei,
+    label_overlap, read_label_tiff, voxelize_with_stats, write_label_tiff,
 };
 use tissuefit::io::{ReadOptions, read_tissue};
 use tissuefit::mesh::{CellId, CellKind};
-use tissuefit::meshing::{BorderPolicy, LabelMeshingOptions, LabelStatus, mesh_labels};
+use tissuefit::meshing::{BorderPolicy, LabelMeshingOptions, LabelStatus, mesh_cells_and_nuclei, mesh_labels};
 
 /// An aggregate of 8 cells (labels 1–8, ~1200 voxels each, clear of the border) plus a 3×3×3 block of
 /// debris (label 50) in a corner, off the border.
@@ -211,16 +211,35 @@ fn real_ovule_crop_meshes_every_cell_that_is_not_debris() {
         assert_eq!(c.mesh().validate(), Ok(()), "cell {}", c.id());
         assert_eq!(c.kind(), CellKind::Static, "every cell of this crop touches the border");
     }
-    // Measured: 6 labels are debris (2–75 voxels) and 4 thin cells are > 25 % off their voxel volume
-    // at the shared l_min; every other label is meshed.
-    assert!(kept >= 40, "only {kept} cells meshed");
-    for r in meshing.report.iter().filter(|r| r.status == LabelStatus::Dropped) {
-        assert!(r.reason.is_some(), "label {} dropped without a reason", r.label);
+    // 6 labels are debris (2–75 voxels, under --min-voxels 100); every other label must be meshed
+    // (4 thin cells need a finer l_min than the shared one, and say so in their report).
+    let debris: Vec<u32> = meshing.report.iter().filter(|r| r.voxels < 100).map(|r| r.label).collect();
+    assert_eq!(debris.len(), 6, "{debris:?}");
+    assert_eq!(kept, 44, "every cell of at least 100 voxels is meshed");
+    let shared = meshing.l_min.unwrap();
+    for r in &meshing.report {
+        if r.voxels < 100 {
+            assert_eq!(r.status, LabelStatus::Dropped);
+            assert!(r.reason.as_deref().unwrap().contains("fewer than the minimum"), "label {}", r.label);
+            continue;
+        }
+        let l = r.l_min.expect("a meshed cell reports its l_min");
+        match &r.refined_because {
+            None => assert_eq!(l, shared, "label {}", r.label),
+            Some(why) => {
+                assert!(l < shared, "label {}", r.label);
+                println!(
+                    "label {} ({} voxels): l_min {:.4} µm, {} nodes, because {why}",
+                    r.label,
+                    r.voxels,
+                    l * 1e6,
+                    r.nodes
+                );
+            }
+        }
     }
 }
 
-/// Meshes `volume` with the defaults, voxelises the tissue back onto the same grid and returns the
-/// per-label IoU with the input (cells that were meshed only).
 fn round_trip_iou(volume: &LabelVolume) -> Vec<(u32, f64)> {
     let meshing = mesh_labels(volume, &LabelMeshingOptions::default()).unwrap();
     for r in &meshing.report {
@@ -335,4 +354,124 @@ fn real_ovule_crop_adjacent_cells_do_not_interpenetrate_by_more_than_one_voxel()
         voxel * 1e6
     );
     assert!(pairs > cells.len(), "the crop is densely packed: neighbours were compared");
+}
+
+#[test]
+fn nuclei_become_nucleus_cells_inside_their_hosts_and_stray_nuclei_are_reported() {
+    let cells = aggregate_with_debris();
+    let labels: Vec<u32> = (1..=8).collect();
+    let mut nuclei = generate_nuclei(&cells, &labels, 0.5).unwrap();
+    // A stray nucleus in the background, outside every cell (a corner block), and a small one.
+    nuclei.labels_mut().slice_mut(s![58..63, 58..63, 0..5]).fill(40);
+    // Nuclei are clear of their cells' walls by 2.5 voxels, so some are small: keep those of ≥ 30 voxels
+    // (the debris block, 27 voxels, is still dropped).
+    let options = LabelMeshingOptions { min_voxels: 30, ..Default::default() };
+    let meshing = mesh_cells_and_nuclei(&cells, Some(&nuclei), &options, &|_| {}).unwrap();
+    assert_eq!(meshing.nucleus_id_offset, 50, "nucleus ids start above the largest cell label");
+    assert_eq!(meshing.nuclei.iter().map(|r| r.label).collect::<Vec<_>>(), (1..=8).chain([40]).collect::<Vec<_>>());
+    assert_eq!(meshing.tissue.len(), 8 + 8);
+    for r in &meshing.nuclei[..8] {
+        assert_eq!(r.status, LabelStatus::Kept, "nucleus {}: {:?}", r.label, r.reason);
+        assert_eq!(r.host, Some(r.label), "each generated nucleus lies in its own cell");
+        assert_eq!(r.cell_id, Some(r.label + 50));
+        let nucleus = meshing.tissue.cell(CellId(r.label + 50)).unwrap();
+        let host = meshing.tissue.cell(CellId(r.label)).unwrap();
+        assert_eq!(nucleus.kind(), CellKind::Nucleus);
+        assert_eq!(nucleus.mesh().validate(), Ok(()));
+        // Every node of the nucleus inside its host's surface, as the contact model expects.
+        let outside = nucleus.mesh().positions().iter().filter(|p| host.mesh().winding_number(p) <= 0.5).count();
+        assert_eq!(r.nodes_outside_host, Some(outside), "nucleus {}", r.label);
+        assert_eq!(outside, 0, "nucleus {}: nodes outside its host", r.label);
+        let ratio = nucleus.mesh().signed_volume() / host.mesh().signed_volume();
+        // Radius 0.5 × the cell's equivalent radius (1/8 of its volume), less where the cell is thinner.
+        assert!(ratio > 0.0 && ratio < 0.14, "nucleus {}: volume ratio {ratio}", r.label);
+    }
+    let stray = &meshing.nuclei[8];
+    assert_eq!(stray.status, LabelStatus::Dropped);
+    assert!(stray.reason.as_deref().unwrap().contains("not inside any cell"), "{:?}", stray.reason);
+    assert!(meshing.tissue.cell(CellId(90)).is_none());
+
+    // Cells alone are unchanged by the nuclei.
+    let alone = mesh_labels(&cells, &options).unwrap();
+    assert_eq!(alone.tissue.cells(), &meshing.tissue.cells()[..8]);
+
+    // A nuclei volume on another grid is refused, naming what differs.
+    let other = LabelVolume::new(nuclei.labels().clone(), [0.4e-6; 3], Vec3::zeros()).unwrap();
+    let err = mesh_cells_and_nuclei(&cells, Some(&other), &LabelMeshingOptions::default(), &|_| {}).unwrap_err();
+    assert!(err.to_string().contains("another grid") && err.to_string().contains("voxel size"), "{err}");
+}
+
+#[test]
+fn cli_meshes_generated_cells_with_nuclei_and_refuses_nuclei_on_another_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let (tif, nuc) = (dir.path().join("cells.tif"), dir.path().join("nuclei.tif"));
+    let o = run_cli(&[
+        "generate",
+        "labels",
+        "--kind",
+        "aggregate",
+        "--cells",
+        "6",
+        "--shape",
+        "64",
+        "--voxel-size",
+        "0.5um",
+        "--seed",
+        "2",
+        "--out",
+        tif.to_str().unwrap(),
+        "--nuclei",
+        nuc.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("6 nuclei"));
+    let out = dir.path().join("t.vtp");
+    let o =
+        run_cli(&["mesh", tif.to_str().unwrap(), "--nuclei", nuc.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("nuclei: 6 assigned, 0 dropped"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let report = report_json(&dir.path().join("t.report.json"));
+    let nuclei = report["nuclei"].as_array().unwrap();
+    assert_eq!(nuclei.len(), 6);
+    for n in nuclei {
+        assert_eq!(n["status"], "kept");
+        assert_eq!(n["kind"], "nucleus");
+        assert_eq!(n["host"], n["label"]);
+        assert!(n["l_min"].as_f64().unwrap() > 0.0);
+    }
+    let tissue = read_tissue(&out, &ReadOptions::default()).unwrap().tissue;
+    assert_eq!(tissue.cells().iter().filter(|c| c.kind() == CellKind::Nucleus).count(), 6);
+
+    // Nuclei on a coarser grid: exit 2, the error names the grid difference, nothing written.
+    let coarse = dir.path().join("coarse.tif");
+    let o = run_cli(&[
+        "generate",
+        "labels",
+        "--kind",
+        "sphere",
+        "--shape",
+        "40",
+        "--voxel-size",
+        "0.5um",
+        "--out",
+        coarse.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let out2 = dir.path().join("t2.vtp");
+    let o = run_cli(&[
+        "mesh",
+        tif.to_str().unwrap(),
+        "--nuclei",
+        coarse.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("another grid") && stderr.contains("shape") && stderr.contains("coarse.tif"), "{stderr}");
+    assert!(!out2.exists() && !dir.path().join("t2.report.json").exists());
 }

@@ -28,7 +28,9 @@
 //! 6. **Clean-up**: [`crate::mesh::remesh::remesh_cell`] with l_max = 3·l_min splits the long edges of
 //!    hole fillings and flips slivers; the result must pass [`CellMesh::validate`].
 //!
-//! [`mesh_labels`] (`labels.rs`) runs this for every label of a volume, in parallel, and builds the tissue.
+//! [`mesh_labels`] (`labels.rs`) runs this for every label of a volume, in parallel, and builds the tissue
+//! (with [`mesh_cells_and_nuclei`], also nuclei from a second volume); [`retriangulate`]
+//! (`retriangulate.rs`) voxelises a tissue read from a file and meshes it the same way.
 //!
 //! A cell that cannot be made valid is an `Err` naming the stage and the defect, never a silently
 //! wrong mesh; so is a valid surface whose volume is more than [`MAX_VOLUME_ERROR`] off the voxel
@@ -51,13 +53,15 @@ mod labels;
 mod point_grid;
 mod poisson;
 mod repair;
+mod retriangulate;
 mod surface_nets;
 
 pub use labels::{
-    BorderPolicy, DEFAULT_MIN_VOXELS, LabelMeshing, LabelMeshingError, LabelMeshingOptions, LabelReport, LabelStatus,
-    MASK_MARGIN, label_seed, mesh_labels, mesh_labels_with_progress,
+    BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, LabelMeshing, LabelMeshingError, LabelMeshingOptions,
+    LabelReport, LabelStatus, MASK_MARGIN, label_seed, mesh_cells_and_nuclei, mesh_labels, mesh_labels_with_progress,
 };
 pub use poisson::SurfaceSamples;
+pub use retriangulate::{RetriangulateError, Retriangulation, VOXELS_PER_L_MIN, retriangulate};
 
 use crate::geometry::{Real, Vec3};
 use crate::mesh::remesh::{RemeshError, RemeshReport, RemeshSettings, remesh_cell};
