@@ -475,3 +475,33 @@ fn cli_meshes_generated_cells_with_nuclei_and_refuses_nuclei_on_another_grid() {
     assert!(stderr.contains("another grid") && stderr.contains("shape") && stderr.contains("coarse.tif"), "{stderr}");
     assert!(!out2.exists() && !dir.path().join("t2.report.json").exists());
 }
+
+#[test]
+#[ignore = "real data, ~10 s in release: cargo test --release --test mesh_labels -- --ignored"]
+fn real_c_elegans_4_cell_volume_meshes_completely_and_neighbours_barely_interpenetrate() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real/DERIVED_cshaper_4cells_labels_from_mesh.tif");
+    // Voxel size undocumented (see the data README): 1 µm, so lengths read in voxel units.
+    let options = LabelReadOptions { voxel_size: Some([1e-6; 3]), ..Default::default() };
+    let volume = read_label_tiff(&path, &options).unwrap().volume;
+    let meshing = mesh_labels(&volume, &LabelMeshingOptions::default()).unwrap();
+    assert_eq!(meshing.tissue.len(), 4, "{:?}", meshing.report);
+    for (c, r) in meshing.tissue.cells().iter().zip(&meshing.report) {
+        assert_eq!(c.mesh().validate(), Ok(()), "cell {}", c.id());
+        assert!((r.volume.unwrap() / r.voxel_volume - 1.0).abs() < 0.03, "cell {}: {r:?}", c.id());
+    }
+    let cells = meshing.tissue.cells();
+    let mut worst = 0.0f64;
+    for a in cells {
+        for b in cells.iter().filter(|b| b.id() != a.id()) {
+            for p in a.mesh().positions() {
+                worst = worst.max(penetration_depth(b.mesh(), p));
+            }
+        }
+    }
+    println!("C. elegans 4 cells: deepest node inside a neighbour {:.3} voxels", worst / 1e-6);
+    // NOT the one-voxel bound, which these cells miss: measured 1.05 voxels at the default
+    // l_min (7.6 voxels), 1.44 at 4.8 and 1.25 at 3.4 voxels (so not a matter of resolution; the ovule
+    // crop meets it, see above). A regression guard until the cause is found.
+    assert!(worst <= 1.5e-6, "interpenetration {worst:e} m > 1.5 voxels");
+}
