@@ -1,16 +1,21 @@
 //! `tissuefit mesh LABELS.tif --out TISSUE.vtk|.vtp [--voxel-size Z,Y,X] [--l-min L] [--min-voxels N]
-//! [--border drop|static|keep] [--lumen-labels 5,7] [--seed S] [--report PATH]`: mesh every label of a
-//! segmented volume into a closed cell surface (see [`crate::meshing::mesh_labels`]) and write the tissue
-//! plus a per-label `report.json` (kept/static/dropped and why), both atomically.
+//! [--border drop|static|keep] [--lumen-labels 5,7] [--nuclei NUCLEI.tif] [--max-refinements N] [--seed S]
+//! [--report PATH]`: mesh every label of a segmented volume into a closed cell surface (see
+//! [`crate::meshing::mesh_cells_and_nuclei`]) and write the tissue plus a per-label `report.json`
+//! (kept/static/dropped and why), both atomically.
+//!
+//! `tissuefit mesh TISSUE.vtk|.vtp --out NEW.vtp [--length-unit U] [--l-min L]`: re-triangulate every cell
+//! of a tissue file (e.g. a multi-material mesh from an image tool) through a voxelisation at l_min/2
+//! ([`crate::meshing::retriangulate`]); the same pipeline, report and options.
 
 use super::Outcome;
 use super::label_args::{describe_grid, parse_voxel_size};
 use crate::geometry::Real;
-use crate::imaging::{LabelReadOptions, read_label_tiff};
-use crate::io::{parse_lengths, write_atomically, write_tissue};
+use crate::imaging::{LabelReadOptions, LabelVolume, read_label_tiff};
+use crate::io::{LengthScale, ReadOptions, parse_lengths, read_tissue, write_atomically, write_tissue};
 use crate::meshing::{
-    BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, LabelReport, LabelStatus,
-    mesh_labels_with_progress,
+    BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshing, LabelMeshingOptions,
+    LabelReport, LabelStatus, mesh_cells_and_nuclei, retriangulate,
 };
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -19,13 +24,15 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct MeshArgs {
-    /// Label TIFF (0 = background; 8/16/32-bit, multi-page, ImageJ/OME voxel size).
+    /// Label TIFF (.tif/.tiff: 0 = background; 8/16/32-bit, multi-page, ImageJ/OME voxel size), or a
+    /// tissue mesh (.vtk/.vtp, e.g. a multi-material mesh from an image tool) to re-triangulate.
     pub labels: PathBuf,
     /// Output tissue: .vtp (ParaView) or .vtk (SimuCell3D legacy).
     #[arg(long)]
     pub out: PathBuf,
     /// Voxel size z,y,x (or one for all) overriding the file's metadata: a unit suffix (0.235um,
-    /// 235nm), bare numbers are metres, one trailing unit applies to all (0.235,0.15,0.15um).
+    /// 235nm), bare numbers are metres, one trailing unit applies to all (0.235,0.15,0.15um). For a
+    /// mesh input: the voxel size of the intermediate grid (default l_min/2).
     #[arg(long, value_name = "Z,Y,X", value_parser = parse_voxel_size)]
     pub voxel_size: Option<[Real; 3]>,
     /// Minimum edge length of every cell (e.g. 0.4um; bare numbers are metres). Default: chosen so that a
@@ -44,6 +51,17 @@ pub struct MeshArgs {
     /// Labels meshed as lumen cells, comma-separated (e.g. 5,7).
     #[arg(long, value_delimiter = ',', value_name = "LABELS")]
     pub lumen_labels: Vec<u32>,
+    /// Nuclei label TIFF on the same grid: each nucleus becomes a nucleus cell inside the cell holding
+    /// most of its voxels; nuclei outside every meshed cell are reported as dropped.
+    #[arg(long, value_name = "NUCLEI.tif")]
+    pub nuclei: Option<PathBuf>,
+    /// Retries of a cell that cannot be made valid at the shared l_min, each at half the previous l_min.
+    #[arg(long, default_value_t = DEFAULT_MAX_REFINEMENTS)]
+    pub max_refinements: u32,
+    /// Mesh input only: length unit of its coordinates (m default, um, or the x,y,z voxel size for
+    /// meshes in voxel coordinates, e.g. 0.15,0.15,0.235um).
+    #[arg(long, value_name = "UNIT")]
+    pub length_unit: Option<LengthScale>,
     /// Seed of the surface sampling (each label gets its own stream from seed and label).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -79,12 +97,125 @@ struct MeshReport<'a> {
     static_cells: usize,
     dropped: usize,
     cells: &'a [LabelReport],
+    /// Mesh input: what the voxelisation found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    retriangulated: Option<RetriangulatedFrom>,
+    /// With --nuclei: the nuclei file and one entry per nucleus label.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    nuclei_input: Option<&'a Path>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    nuclei: Option<&'a [LabelReport]>,
+    /// With --nuclei: nucleus cell id = nucleus label + this (the largest cell label).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    nucleus_id_offset: Option<u32>,
+}
+
+#[derive(serde::Serialize)]
+struct RetriangulatedFrom {
+    /// Input cells.
+    input_cells: usize,
+    /// Rows of the voxelisation that crossed an open input surface an odd number of times.
+    odd_rows: u64,
+    /// Voxels inside two input cells (kept by the first).
+    overlapping_voxels: u64,
 }
 
 /// `DIR/STEM.report.json` for `DIR/STEM.EXT`.
 fn default_report_path(out: &Path) -> PathBuf {
     let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "tissue".into());
     out.with_file_name(format!("{stem}.report.json"))
+}
+
+/// What the input was turned into before writing.
+struct Meshed {
+    meshing: LabelMeshing,
+    /// The label grid (the TIFF's, or the voxelisation's for a mesh input).
+    volume_grid: crate::imaging::VoxelGrid,
+    grid_description: String,
+    retriangulated: Option<RetriangulatedFrom>,
+}
+
+fn is_tiff(path: &Path) -> bool {
+    matches!(path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(), Some("tif" | "tiff"))
+}
+
+fn read_labels(path: &Path, voxel_size: Option<[Real; 3]>, what: &str) -> anyhow::Result<LabelVolume> {
+    let read_options = LabelReadOptions { voxel_size, ..Default::default() };
+    let read = read_label_tiff(path, &read_options).with_context(|| format!("reading {what} {}", path.display()))?;
+    for w in &read.warnings {
+        tracing::warn!("{}: {w}", path.display());
+    }
+    Ok(read.volume)
+}
+
+fn progress_bar(len: u64) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(Some(len), indicatif::ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {pos}/{len} labels, ETA {eta}")
+            .expect("valid template"),
+    );
+    bar
+}
+
+fn mesh_input(args: &MeshArgs, options: &LabelMeshingOptions) -> anyhow::Result<Meshed> {
+    if !is_tiff(&args.labels) {
+        match args.labels.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+            Some("vtk" | "vtp") => {}
+            _ => bail!(
+                "{}: give a label TIFF (.tif/.tiff) or a tissue mesh to re-triangulate (.vtk/.vtp)",
+                args.labels.display()
+            ),
+        }
+        if args.nuclei.is_some() {
+            bail!("--nuclei applies to a label TIFF input, not to a mesh ({})", args.labels.display());
+        }
+        let read_options = ReadOptions { length_scale: args.length_unit.unwrap_or_default(), orient: true };
+        let read = read_tissue(&args.labels, &read_options)
+            .with_context(|| format!("reading tissue {}", args.labels.display()))?;
+        for w in &read.warnings {
+            tracing::warn!("{}: {w}", args.labels.display());
+        }
+        let r = retriangulate(&read.tissue, options, args.voxel_size)
+            .with_context(|| format!("re-triangulating {}", args.labels.display()))?;
+        if r.odd_rows > 0 {
+            tracing::warn!(
+                "{}: {} voxel rows crossed an open cell surface an odd number of times; inside/outside may be wrong there",
+                args.labels.display(),
+                r.odd_rows
+            );
+        }
+        let [nz, ny, nx] = r.grid.shape;
+        let [sz, sy, sx] = r.grid.voxel_size.map(|s| s * 1e6);
+        return Ok(Meshed {
+            grid_description: format!("voxelised on {nz}x{ny}x{nx} (z,y,x), voxel {sz:.6} x {sy:.6} x {sx:.6} µm"),
+            volume_grid: r.grid.clone(),
+            retriangulated: Some(RetriangulatedFrom {
+                input_cells: read.tissue.len(),
+                odd_rows: r.odd_rows,
+                overlapping_voxels: r.overlapping_voxels,
+            }),
+            meshing: r.meshing,
+        });
+    }
+    if args.length_unit.is_some() {
+        bail!("--length-unit applies to a mesh input (.vtk/.vtp); for a label TIFF use --voxel-size");
+    }
+    let volume = read_labels(&args.labels, args.voxel_size, "label volume")?;
+    let nuclei = match &args.nuclei {
+        Some(path) => Some(read_labels(path, args.voxel_size, "nuclei volume")?),
+        None => None,
+    };
+    let labels = volume.label_stats().len() + nuclei.as_ref().map_or(0, |n| n.label_stats().len());
+    let bar = progress_bar(labels as u64);
+    let meshing =
+        mesh_cells_and_nuclei(&volume, nuclei.as_ref(), options, &|_| bar.inc(1)).with_context(|| {
+            match &args.nuclei {
+                Some(n) => format!("meshing {} with nuclei {}", args.labels.display(), n.display()),
+                None => format!("meshing {}", args.labels.display()),
+            }
+        })?;
+    bar.finish_and_clear();
+    Ok(Meshed { grid_description: describe_grid(&volume), volume_grid: volume.grid(), retriangulated: None, meshing })
 }
 
 pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
@@ -94,13 +225,6 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
         _ => bail!("--out {}: use a .vtp (ParaView) or .vtk (SimuCell3D legacy) file name", args.out.display()),
     }
     let report_path = args.report.clone().unwrap_or_else(|| default_report_path(&args.out));
-    let read_options = LabelReadOptions { voxel_size: args.voxel_size, ..Default::default() };
-    let read = read_label_tiff(&args.labels, &read_options)
-        .with_context(|| format!("reading label volume {}", args.labels.display()))?;
-    for w in &read.warnings {
-        tracing::warn!("{}: {w}", args.labels.display());
-    }
-    let volume = read.volume;
     let options = LabelMeshingOptions {
         l_min: args.l_min,
         target_nodes: args.target_nodes,
@@ -108,16 +232,9 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
         border: args.border,
         lumen_labels: args.lumen_labels.clone(),
         seed: args.seed,
+        max_refinements: args.max_refinements,
     };
-    let labels = volume.label_stats().len() as u64;
-    let bar = ProgressBar::with_draw_target(Some(labels), indicatif::ProgressDrawTarget::stderr());
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {pos}/{len} labels, ETA {eta}")
-            .expect("valid template"),
-    );
-    let meshing = mesh_labels_with_progress(&volume, &options, &|_| bar.inc(1))
-        .with_context(|| format!("meshing {}", args.labels.display()))?;
-    bar.finish_and_clear();
+    let Meshed { meshing, volume_grid, grid_description, retriangulated } = mesh_input(args, &options)?;
     for label in &options.lumen_labels {
         if !meshing.report.iter().any(|r| r.label == *label) {
             tracing::warn!("--lumen-labels: label {label} is not in {}", args.labels.display());
@@ -130,14 +247,15 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
     }
     let wall_seconds = started.elapsed().as_secs_f64();
     let threads = rayon::current_num_threads();
+    let with_nuclei = args.nuclei.is_some();
     let report = MeshReport {
         input: &args.labels,
         output: &args.out,
         wall_seconds,
         threads,
         l_min: meshing.l_min,
-        voxel_size: volume.voxel_size(),
-        shape: volume.shape(),
+        voxel_size: volume_grid.voxel_size,
+        shape: volume_grid.shape,
         seed: args.seed,
         min_voxels: args.min_voxels,
         border: args.border,
@@ -145,6 +263,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
         static_cells,
         dropped,
         cells: &meshing.report,
+        retriangulated,
+        nuclei_input: args.nuclei.as_deref(),
+        nuclei: with_nuclei.then_some(meshing.nuclei.as_slice()),
+        nucleus_id_offset: with_nuclei.then_some(meshing.nucleus_id_offset),
     };
     write_atomically(&report_path, |w| {
         serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)?;
@@ -155,11 +277,21 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
     for r in meshing.report.iter().filter(|r| r.status == LabelStatus::Dropped) {
         println!("  label {} dropped: {}", r.label, r.reason.as_deref().unwrap_or("?"));
     }
+    for r in meshing.report.iter().filter(|r| r.refined_because.is_some()) {
+        println!(
+            "  label {} meshed at the finer l_min {:.4} µm ({})",
+            r.label,
+            r.l_min.unwrap_or(Real::NAN) * 1e6,
+            r.refined_because.as_deref().unwrap_or("?")
+        );
+    }
+    for r in meshing.nuclei.iter().filter(|r| r.status == LabelStatus::Dropped) {
+        println!("  nucleus {} dropped: {}", r.label, r.reason.as_deref().unwrap_or("?"));
+    }
     if meshing.tissue.is_empty() {
         bail!(
-            "no cell meshed from {} ({}): all {dropped} labels were dropped ({}); see {}",
+            "no cell meshed from {} ({grid_description}): all {dropped} labels were dropped ({}); see {}",
             args.labels.display(),
-            describe_grid(&volume),
             summarise_reasons(&meshing.report),
             report_path.display()
         );
@@ -174,9 +306,20 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
         meshing.tissue.node_count(),
         report_path.display()
     );
+    let refined = meshing.report.iter().filter(|r| r.refined_because.is_some()).count();
+    let nuclei_line = if with_nuclei {
+        let assigned = meshing.nuclei.iter().filter(|r| r.status != LabelStatus::Dropped).count();
+        format!("; nuclei: {assigned} assigned, {} dropped", meshing.nuclei.len() - assigned)
+    } else {
+        String::new()
+    };
+    if nodes.is_empty() {
+        println!("{} labels: all dropped{nuclei_line}", meshing.report.len());
+        return Ok(Outcome::Success);
+    }
     println!(
-        "{} labels: {kept} kept, {static_cells} static, {dropped} dropped; nodes per cell min {} / median {} / max {}; \
-         l_min {:.4} µm; {wall_seconds:.2} s ({threads} threads)",
+        "{} labels: {kept} kept, {static_cells} static, {dropped} dropped ({refined} at a finer l_min); nodes per cell \
+         min {} / median {} / max {}; l_min {:.4} µm{nuclei_line}; {wall_seconds:.2} s ({threads} threads)",
         meshing.report.len(),
         nodes[0],
         nodes[nodes.len() / 2],

@@ -44,7 +44,8 @@ pub enum Command {
     /// angles, layers, nuclei → DIR/cells.csv, DIR/contacts.csv, DIR/summary.json.
     Measure(measure::MeasureArgs),
     /// Mesh a label volume: every label → a closed cell surface → TISSUE.vtp/.vtk, plus a per-label
-    /// report (kept/static/dropped and why). Exits with 2 when no cell could be meshed.
+    /// report (kept/static/dropped and why); optionally nuclei from a second volume. Given a .vtk/.vtp
+    /// tissue instead, re-triangulate its cells. Exits with 2 when no cell could be meshed.
     Mesh(mesh::MeshArgs),
     /// Simulate a tissue: relax it to mechanical equilibrium, or run it for a time span with growth.
     /// Exits with 1 when an equilibrium run ends unconverged.

@@ -184,6 +184,128 @@ pub fn generate_labels(spec: &LabelSpec) -> Result<GeneratedLabels, ImagingError
     Ok(GeneratedLabels { volume, cells, lumen })
 }
 
+/// A nuclei volume for `cells`: for every label in `labels`, a ball around the label's voxel centroid
+/// with radius `radius_fraction` × the radius of the sphere of the label's volume, but at most the
+/// distance from the centroid to the nearest voxel of the label's boundary less 2.5 voxels (so the
+/// nucleus stays clear of the cell's surface, as a nucleus inside its cell must, also once both are
+/// meshed at a coarse l_min whose flat triangles cut the cell's corners); nucleus label =
+/// cell label. Errors when `radius_fraction` is not in (0, 1), a listed label is absent, or a cell
+/// is too thin around its centroid to hold a nucleus of one voxel.
+pub fn generate_nuclei(
+    cells: &LabelVolume,
+    labels: &[u32],
+    radius_fraction: Real,
+) -> Result<LabelVolume, ImagingError> {
+    if !(radius_fraction > 0.0 && radius_fraction < 1.0) {
+        return Err(ImagingError::Generate(format!(
+            "the nucleus radius fraction {radius_fraction} must lie in (0, 1)"
+        )));
+    }
+    let grid = cells.grid();
+    // Per label: sum of voxel centres and count, z slices in parallel, merged in order.
+    let per_slice: Vec<std::collections::BTreeMap<u32, (Vec3, u64)>> = cells
+        .labels()
+        .axis_iter(Axis(0))
+        .into_par_iter()
+        .enumerate()
+        .map(|(k, slice)| {
+            let mut sums = std::collections::BTreeMap::new();
+            for ((j, i), &l) in slice.indexed_iter() {
+                if l != 0 {
+                    let e = sums.entry(l).or_insert((Vec3::zeros(), 0u64));
+                    e.0 += grid.voxel_centre([k as isize, j as isize, i as isize]);
+                    e.1 += 1;
+                }
+            }
+            sums
+        })
+        .collect();
+    let mut total: std::collections::BTreeMap<u32, (Vec3, u64)> = std::collections::BTreeMap::new();
+    for slice in per_slice {
+        for (l, (s, n)) in slice {
+            let e = total.entry(l).or_insert((Vec3::zeros(), 0));
+            e.0 += s;
+            e.1 += n;
+        }
+    }
+    let voxel_volume = grid.voxel_volume();
+    let mut centroids: std::collections::HashMap<u32, (Vec3, Real)> = std::collections::HashMap::new();
+    for &l in labels {
+        let (sum, n) =
+            total.get(&l).copied().ok_or_else(|| ImagingError::Generate(format!("label {l} is not in the volume")))?;
+        let r = radius_fraction * (3.0 * n as Real * voxel_volume / (4.0 * std::f64::consts::PI)).cbrt();
+        centroids.insert(l, (sum / n as Real, r));
+    }
+    // Distance from each centroid to the nearest boundary voxel of its label (a voxel with a
+    // 6-neighbour of another label, or on the volume's border), z slices in parallel.
+    let source = cells.labels();
+    let [nz, ny, nx] = cells.shape();
+    let per_slice: Vec<std::collections::BTreeMap<u32, Real>> = (0..nz)
+        .into_par_iter()
+        .map(|k| {
+            let mut nearest: std::collections::BTreeMap<u32, Real> = std::collections::BTreeMap::new();
+            for j in 0..ny {
+                for i in 0..nx {
+                    let l = source[[k, j, i]];
+                    let Some((c, _)) = centroids.get(&l) else { continue };
+                    let other = |dk: isize, dj: isize, di: isize| {
+                        let (a, b, e) = (k as isize + dk, j as isize + dj, i as isize + di);
+                        a < 0
+                            || b < 0
+                            || e < 0
+                            || a >= nz as isize
+                            || b >= ny as isize
+                            || e >= nx as isize
+                            || source[[a as usize, b as usize, e as usize]] != l
+                    };
+                    let boundary = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+                        .into_iter()
+                        .any(|(a, b, e)| other(a, b, e));
+                    if boundary {
+                        let dist = (grid.voxel_centre([k as isize, j as isize, i as isize]) - c).norm();
+                        let entry = nearest.entry(l).or_insert(Real::INFINITY);
+                        *entry = entry.min(dist);
+                    }
+                }
+            }
+            nearest
+        })
+        .collect();
+    let mut nearest: std::collections::HashMap<u32, Real> = std::collections::HashMap::new();
+    for slice in per_slice {
+        for (l, d) in slice {
+            let entry = nearest.entry(l).or_insert(Real::INFINITY);
+            *entry = entry.min(d);
+        }
+    }
+    let largest_voxel = grid.voxel_size.iter().copied().fold(0.0, Real::max);
+    let mut balls: std::collections::HashMap<u32, (Vec3, Real)> = std::collections::HashMap::new();
+    for &l in labels {
+        let (c, r) = centroids[&l];
+        let room = nearest.get(&l).copied().unwrap_or(Real::INFINITY) - 2.5 * largest_voxel;
+        let r = r.min(room);
+        if r < 0.5 * largest_voxel {
+            return Err(ImagingError::Generate(format!(
+                "cell {l} is too thin around its centroid to hold a nucleus ({:.3} µm of room)",
+                room * 1e6
+            )));
+        }
+        balls.insert(l, (c, r * r));
+    }
+    let mut nuclei = LabelVolume::zeros(&grid)?;
+    nuclei.labels_mut().axis_iter_mut(Axis(0)).into_par_iter().enumerate().for_each(|(k, mut slice)| {
+        Zip::indexed(&mut slice).for_each(|(j, i), v| {
+            let l = source[[k, j, i]];
+            if let Some((c, r2)) = balls.get(&l)
+                && (grid.voxel_centre([k as isize, j as isize, i as isize]) - c).norm_squared() <= *r2
+            {
+                *v = l;
+            }
+        });
+    });
+    Ok(nuclei)
+}
+
 /// Sets every voxel to `f(centre)`, z slices in parallel.
 fn fill(volume: &mut LabelVolume, f: impl Fn(Vec3) -> u32 + Sync) {
     let grid = volume.grid();

@@ -21,7 +21,7 @@ mod volume;
 mod voxelize;
 
 pub use error::ImagingError;
-pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels};
+pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels, generate_nuclei};
 pub use metadata::VoxelSizeSource;
 pub use overlap::{LabelOverlap, label_overlap};
 pub use tiff_read::{FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff};

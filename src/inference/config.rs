@@ -89,6 +89,14 @@ pub struct MeshingConfig {
     /// Sampling seed. Default 0.
     #[serde(default)]
     pub seed: u64,
+    /// Retries, each at half the previous l_min, of a cell that cannot be made valid at the shared
+    /// l_min. Default 2.
+    #[serde(default = "default_max_refinements")]
+    pub max_refinements: u32,
+}
+
+fn default_max_refinements() -> u32 {
+    crate::meshing::DEFAULT_MAX_REFINEMENTS
 }
 
 fn default_target_nodes() -> usize {
@@ -110,6 +118,7 @@ impl Default for MeshingConfig {
             border: default_border(),
             lumen_labels: Vec::new(),
             seed: 0,
+            max_refinements: default_max_refinements(),
         }
     }
 }
@@ -126,6 +135,7 @@ impl MeshingConfig {
             border,
             lumen_labels: self.lumen_labels.clone(),
             seed: self.seed,
+            max_refinements: self.max_refinements,
         })
     }
 }

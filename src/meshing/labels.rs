@@ -8,11 +8,22 @@
 //!    l_min for every cell (given, or [`default_l_min`] of the median volume of the labels to mesh, so
 //!    that a typical cell gets [`LabelMeshingOptions::target_nodes`] nodes and all cells share one
 //!    resolution, as the simulation's remeshing needs) and a seed derived from (seed, label). A
-//!    [`MeshingError`] drops that label with the error as the reason; it never aborts the others.
+//!    [`MeshingError`] that a finer sampling may cure (the surface did not close, or encloses more
+//!    than [`super::MAX_VOLUME_ERROR`] less than the voxels: typically a cell thinner than a few
+//!    l_min) is retried at l_min/2, up to [`LabelMeshingOptions::max_refinements`] times; the cell's
+//!    report then gives its own l_min and the errors at the coarser ones (on the PlantSeg ovule crop, 4
+//!    of 44 cells, 106–606 voxels, need l_min/2 or l_min/4). The simulation's remeshing later brings
+//!    such a cell's edges to the shared [l_min, 3·l_min]. A failure at the finest l_min drops that
+//!    label with every attempt's error as the reason; it never aborts the others.
 //! 3. **Kind**: labels in [`LabelMeshingOptions::lumen_labels`] become [`CellKind::Lumen`]; with
 //!    [`BorderPolicy::Static`], border labels become [`CellKind::Static`] (boundary cells of an imaged
 //!    patch, which the simulation holds fixed); the others are epithelial. Cell id = label; target
 //!    volume = mesh volume.
+//!
+//! 4. **Nuclei** ([`mesh_cells_and_nuclei`], optional): a second label volume on the same grid; each
+//!    nucleus is meshed like a cell and becomes a [`CellKind::Nucleus`] cell with id label + the
+//!    largest cell label, inside its host (the cell label holding most of its voxels). The
+//!    simulation finds a nucleus's host as the cell containing its centroid, so that is checked.
 //!
 //! Labels are meshed with rayon, one task per label; results are collected in label order, and every
 //! cell's mesh depends only on its mask, l_min and its own seed, so the tissue is identical whatever
@@ -22,7 +33,9 @@ use super::{DEFAULT_TARGET_NODES, MeshedCell, MeshingError, MeshingSettings, def
 use crate::geometry::Real;
 use crate::imaging::{LabelInfo, LabelVolume};
 use crate::mesh::{Cell, CellId, CellKind, Tissue, TissueError};
+use ndarray::Axis;
 use rayon::prelude::*;
+use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
@@ -90,7 +103,13 @@ pub struct LabelMeshingOptions {
     pub lumen_labels: Vec<u32>,
     /// Seed of the sampling; each label gets its own stream from (seed, label). Default 0.
     pub seed: u64,
+    /// How many times a cell that cannot be made valid at the shared l_min is retried, each time with
+    /// half the previous l_min. Default [`DEFAULT_MAX_REFINEMENTS`] (2, down to l_min/4).
+    pub max_refinements: u32,
 }
+
+/// Default of [`LabelMeshingOptions::max_refinements`].
+pub const DEFAULT_MAX_REFINEMENTS: u32 = 2;
 
 impl Default for LabelMeshingOptions {
     fn default() -> Self {
@@ -101,6 +120,7 @@ impl Default for LabelMeshingOptions {
             border: BorderPolicy::Keep,
             lumen_labels: Vec::new(),
             seed: 0,
+            max_refinements: DEFAULT_MAX_REFINEMENTS,
         }
     }
 }
@@ -114,6 +134,12 @@ pub enum LabelMeshingError {
     InvalidTargetNodes,
     #[error("the volume has no labels (every voxel is background, 0)")]
     NoLabels,
+    #[error(
+        "the nuclei volume is on another grid than the cells: {reason}; both must have the same shape, voxel size and origin"
+    )]
+    NucleiGrid { reason: String },
+    #[error("nucleus label {label} + the largest cell label {offset} exceeds the largest cell id {max}")]
+    NucleusIdOverflow { label: u32, offset: u32, max: u32 },
     #[error(transparent)]
     Tissue(#[from] TissueError),
 }
@@ -164,6 +190,24 @@ pub struct LabelReport {
     pub touches_border: bool,
     /// Voxels of the label outside its largest 6-connected component (left out of the mesh).
     pub dropped_voxels: usize,
+    /// The l_min (m) this cell was meshed with: the shared l_min, or a finer one when the cell could
+    /// not be made valid at the shared one (see `refined_because`); `None` when not meshed.
+    pub l_min: Option<Real>,
+    /// Why the cell was retried at a finer l_min (the error at each coarser l_min); `None` when the
+    /// shared l_min worked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refined_because: Option<String>,
+    /// Id of the cell in the tissue (the label for cells; the label + [`LabelMeshing::nucleus_id_offset`]
+    /// for nuclei); `None` when dropped.
+    pub cell_id: Option<u32>,
+    /// For a nucleus: the label of the cell holding most of its voxels (its host); `None` for cells
+    /// and for nuclei outside every cell.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub host: Option<u32>,
+    /// For a kept nucleus: its nodes outside its host's surface (0 for a nucleus well inside; a few
+    /// where the segmented nucleus touches the cell's membrane, which the contact model then pushes in).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nodes_outside_host: Option<usize>,
 }
 
 /// A meshed volume: the tissue (cells in ascending label order) and one report per label.
@@ -172,9 +216,14 @@ pub struct LabelMeshing {
     pub tissue: Tissue,
     /// One entry per label of the volume, ascending.
     pub report: Vec<LabelReport>,
-    /// The l_min (m) used for every cell; `None` when no label passed the filters (and so no l_min was
-    /// needed).
+    /// The l_min (m) shared by the cells; `None` when no label passed the filters (and so no l_min was
+    /// needed). A cell retried at a finer l_min reports its own in [`LabelReport::l_min`].
     pub l_min: Option<Real>,
+    /// One entry per label of the nuclei volume, ascending (empty without one). Kept nuclei are
+    /// [`CellKind::Nucleus`] cells of the tissue, after the cells, with id label + `nucleus_id_offset`.
+    pub nuclei: Vec<LabelReport>,
+    /// The largest label of the cell volume: nucleus ids start above it, so they never collide.
+    pub nucleus_id_offset: u32,
 }
 
 impl LabelMeshing {
@@ -198,12 +247,28 @@ pub fn label_seed(seed: u64, label: u32) -> u64 {
 
 /// Meshes every label of `volume`; see the module documentation.
 pub fn mesh_labels(volume: &LabelVolume, options: &LabelMeshingOptions) -> Result<LabelMeshing, LabelMeshingError> {
-    mesh_labels_with_progress(volume, options, &|_| {})
+    mesh_cells_and_nuclei(volume, None, options, &|_| {})
 }
 
 /// [`mesh_labels`], calling `on_label(label)` (from a worker thread) as each label is finished.
 pub fn mesh_labels_with_progress(
     volume: &LabelVolume,
+    options: &LabelMeshingOptions,
+    on_label: &(dyn Fn(u32) + Sync),
+) -> Result<LabelMeshing, LabelMeshingError> {
+    mesh_cells_and_nuclei(volume, None, options, on_label)
+}
+
+/// [`mesh_labels`] plus, with `nuclei` (a second label volume on the same grid), one
+/// [`CellKind::Nucleus`] cell per nucleus label assigned to its host: the cell label holding most of
+/// the nucleus's voxels. A nucleus is dropped, with the reason, when it has fewer than
+/// `min_voxels` voxels, when most of it lies in background, when its host was not meshed or is not a
+/// cell (a lumen), when it cannot be meshed, or when its mesh's centroid is not inside the host's
+/// surface (the simulation finds a nucleus's host by that centroid). Nuclei use the cells' l_min (and
+/// the same refinement); their seeds differ from the cells'. `on_label` is called for cells and nuclei.
+pub fn mesh_cells_and_nuclei(
+    volume: &LabelVolume,
+    nuclei: Option<&LabelVolume>,
     options: &LabelMeshingOptions,
     on_label: &(dyn Fn(u32) + Sync),
 ) -> Result<LabelMeshing, LabelMeshingError> {
@@ -214,6 +279,9 @@ pub fn mesh_labels_with_progress(
     }
     if options.l_min.is_none() && options.target_nodes == 0 {
         return Err(LabelMeshingError::InvalidTargetNodes);
+    }
+    if let Some(n) = nuclei {
+        check_same_grid(volume, n)?;
     }
     let shape = volume.shape();
     let voxel_volume = volume.voxel_volume();
@@ -256,7 +324,162 @@ pub fn mesh_labels_with_progress(
         report.push(r);
         cells.extend(cell);
     }
-    Ok(LabelMeshing { tissue: Tissue::from_cells(cells)?, report, l_min })
+    let offset = stats.last().map_or(0, |s| s.label);
+    let mut nucleus_reports = Vec::new();
+    if let Some(nuclei) = nuclei {
+        let (reports, nucleus_cells) = mesh_nuclei(volume, nuclei, &cells, options, l_min, offset, on_label)?;
+        nucleus_reports = reports;
+        cells.extend(nucleus_cells);
+    }
+    Ok(LabelMeshing {
+        tissue: Tissue::from_cells(cells)?,
+        report,
+        l_min,
+        nuclei: nucleus_reports,
+        nucleus_id_offset: offset,
+    })
+}
+
+fn check_same_grid(cells: &LabelVolume, nuclei: &LabelVolume) -> Result<(), LabelMeshingError> {
+    let (a, b) = (cells.grid(), nuclei.grid());
+    let um = |v: [Real; 3]| v.map(|x| x * 1e6);
+    let reason = if a.shape != b.shape {
+        format!("shape {:?} (z,y,x) vs {:?} for the cells", b.shape, a.shape)
+    } else if a.voxel_size.iter().zip(&b.voxel_size).any(|(x, y)| (x - y).abs() > 1e-6 * x.abs()) {
+        format!("voxel size {:?} µm (z,y,x) vs {:?} µm for the cells", um(b.voxel_size), um(a.voxel_size))
+    } else if (a.origin - b.origin).norm() > 1e-6 * a.voxel_size.iter().copied().fold(0.0, Real::max) {
+        format!("origin {:?} m vs {:?} m for the cells", b.origin.as_slice(), a.origin.as_slice())
+    } else {
+        return Ok(());
+    };
+    Err(LabelMeshingError::NucleiGrid { reason })
+}
+
+/// For every nucleus label: the cell labels under its voxels and how many, most frequent first
+/// (ties: lower label first). One pass, z slices in parallel, merged in order.
+fn host_votes(cells: &LabelVolume, nuclei: &LabelVolume) -> BTreeMap<u32, Vec<(u32, u64)>> {
+    let per_slice: Vec<BTreeMap<(u32, u32), u64>> = nuclei
+        .labels()
+        .axis_iter(Axis(0))
+        .into_par_iter()
+        .zip(cells.labels().axis_iter(Axis(0)).into_par_iter())
+        .map(|(n, c)| {
+            let mut counts = BTreeMap::new();
+            for (&nl, &cl) in n.iter().zip(c.iter()) {
+                if nl != 0 {
+                    *counts.entry((nl, cl)).or_insert(0u64) += 1;
+                }
+            }
+            counts
+        })
+        .collect();
+    let mut total: BTreeMap<(u32, u32), u64> = BTreeMap::new();
+    for slice in per_slice {
+        for (k, v) in slice {
+            *total.entry(k).or_insert(0) += v;
+        }
+    }
+    let mut votes: BTreeMap<u32, Vec<(u32, u64)>> = BTreeMap::new();
+    for ((n, c), v) in total {
+        votes.entry(n).or_default().push((c, v));
+    }
+    for list in votes.values_mut() {
+        list.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    }
+    votes
+}
+
+fn mesh_nuclei(
+    volume: &LabelVolume,
+    nuclei: &LabelVolume,
+    cells: &[Cell],
+    options: &LabelMeshingOptions,
+    l_min: Option<Real>,
+    offset: u32,
+    on_label: &(dyn Fn(u32) + Sync),
+) -> Result<(Vec<LabelReport>, Vec<Cell>), LabelMeshingError> {
+    let mut stats = nuclei.label_stats();
+    stats.sort_by_key(|s| s.label);
+    for s in &stats {
+        if s.label.checked_add(offset).is_none_or(|id| id == u32::MAX) {
+            return Err(LabelMeshingError::NucleusIdOverflow { label: s.label, offset, max: u32::MAX - 1 });
+        }
+    }
+    let votes = host_votes(volume, nuclei);
+    let nucleus_options = LabelMeshingOptions { seed: !options.seed, ..options.clone() };
+    let results: Vec<(LabelReport, Option<Cell>)> = stats
+        .par_iter()
+        .map(|info| {
+            let ranked = votes.get(&info.label).map(Vec::as_slice).unwrap_or(&[]);
+            let (host_label, host_voxels) = ranked.first().copied().unwrap_or((0, 0));
+            let share = host_voxels as Real / info.voxels.max(1) as Real;
+            let host = cells.iter().find(|c| c.id() == CellId(host_label));
+            let skip = if info.voxels < options.min_voxels {
+                Some(format!("{} voxels, fewer than the minimum {}", info.voxels, options.min_voxels))
+            } else if host_label == 0 {
+                Some(format!("not inside any cell: {:.0} % of its voxels are background", 100.0 * share))
+            } else if host.is_none() {
+                Some(format!("inside label {host_label} ({:.0} % of its voxels), which was not meshed", 100.0 * share))
+            } else if host.is_some_and(|h| !h.kind().is_cell()) {
+                Some(format!("inside label {host_label}, a {} and not a cell", host.map_or("?", |h| h.kind().name())))
+            } else {
+                None
+            };
+            let (mut report, cell) = mesh_one(nuclei, info, &nucleus_options, skip, l_min);
+            on_label(info.label);
+            report.kind = report.kind.map(|_| CellKind::Nucleus);
+            if host_label != 0 {
+                report.host = Some(host_label);
+            }
+            let Some(cell) = cell else { return (report, None) };
+            let host = host.expect("a meshed nucleus has a host");
+            let centroid = cell.mesh().volume_centroid();
+            if !centroid.is_some_and(|c| host.mesh().winding_number(&c) > 0.5) {
+                drop_meshed(
+                    &mut report,
+                    format!("its centroid is not inside the surface of its host, label {host_label}"),
+                );
+                return (report, None);
+            }
+            let id = CellId(info.label + offset);
+            report.nodes_outside_host =
+                Some(cell.mesh().positions().iter().filter(|p| host.mesh().winding_number(p) <= 0.5).count());
+            report.cell_id = Some(id.0);
+            report.status = LabelStatus::Kept;
+            report.reason = None;
+            (report, Some(Cell::new(id, CellKind::Nucleus, 0, cell.mesh().clone())))
+        })
+        .collect();
+    let mut reports = Vec::with_capacity(results.len());
+    let mut kept = Vec::new();
+    for (r, cell) in results {
+        reports.push(r);
+        kept.extend(cell);
+    }
+    Ok((reports, kept))
+}
+
+/// Marks a meshed label as dropped after all, keeping its measured numbers.
+fn drop_meshed(report: &mut LabelReport, reason: String) {
+    report.status = LabelStatus::Dropped;
+    report.reason = Some(reason);
+    report.kind = None;
+    report.cell_id = None;
+}
+
+/// Whether meshing at a finer l_min can cure this error: the sampled surface did not close into a
+/// valid cell or does not represent the voxels (too few samples across a thin part).
+fn finer_may_help(e: &MeshingError) -> bool {
+    matches!(
+        e,
+        MeshingError::TooFewSamples { .. }
+            | MeshingError::NoTriangles { .. }
+            | MeshingError::Repair { .. }
+            | MeshingError::VolumeMismatch { .. }
+            | MeshingError::InvalidMesh { .. }
+            | MeshingError::Remesh(_)
+            | MeshingError::Mesh(_)
+    )
 }
 
 fn mesh_one(
@@ -279,6 +502,11 @@ fn mesh_one(
         voxels: info.voxels,
         touches_border,
         dropped_voxels: 0,
+        l_min: None,
+        refined_because: None,
+        cell_id: None,
+        host: None,
+        nodes_outside_host: None,
     };
     if let Some(reason) = skip {
         report.reason = Some(reason);
@@ -292,10 +520,20 @@ fn mesh_one(
     let mask = volume.mask_of(info, MASK_MARGIN);
     let mut settings = MeshingSettings::new(l_min, volume.voxel_size());
     settings.seed = label_seed(options.seed, info.label);
-    let meshed: Result<MeshedCell, MeshingError> = mesh_mask(mask.mask.view(), mask.voxel_size, mask.origin, &settings);
+    let mut failures: Vec<String> = Vec::new();
+    let meshed: Result<MeshedCell, MeshingError> = loop {
+        match mesh_mask(mask.mask.view(), mask.voxel_size, mask.origin, &settings) {
+            Err(e) if finer_may_help(&e) && failures.len() < options.max_refinements as usize => {
+                failures.push(format!("at l_min {:.4} µm: {e}", settings.l_min * 1e6));
+                settings.l_min /= 2.0;
+            }
+            other => break other,
+        }
+    };
     match meshed {
         Err(e) => {
-            report.reason = Some(format!("meshing failed: {e}"));
+            failures.push(format!("at l_min {:.4} µm: {e}", settings.l_min * 1e6));
+            report.reason = Some(format!("meshing failed {}", failures.join("; then ")));
             (report, None)
         }
         Ok(m) => {
@@ -316,6 +554,11 @@ fn mesh_one(
             report.volume = Some(m.mesh.signed_volume());
             report.voxel_volume = m.voxel_volume;
             report.dropped_voxels = m.dropped_voxels;
+            report.l_min = Some(settings.l_min);
+            report.cell_id = Some(info.label);
+            if !failures.is_empty() {
+                report.refined_because = Some(failures.join("; "));
+            }
             let cell = Cell::new(CellId(info.label), kind, 0, m.mesh);
             (report, Some(cell))
         }
