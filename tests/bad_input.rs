@@ -141,6 +141,11 @@ const CASES: &[Case] = &[
         says: &["params.toml", "min_edge_length"],
     },
     Case {
+        name: "step budget beyond a TOML integer (panicked when writing config.toml)",
+        setup: |d| simulate(demo().to_str().unwrap().into(), d, &["--max-steps", "18446744073709551615"]),
+        says: &["simulation.max_steps", "largest TOML integer"],
+    },
+    Case {
         name: "output folder under a regular file",
         setup: |d| {
             let file = write(d, "plain", "x");

@@ -58,6 +58,17 @@ impl Parameters {
         if sim.sample_every_steps == 0 {
             report.errors.push("simulation.sample_every_steps = 0: must be at least 1".to_owned());
         }
+        // A config must be writable back as TOML, whose integers are 64-bit signed.
+        for (key, value) in [
+            ("numerics.seed", self.numerics.seed),
+            ("simulation.max_steps", sim.max_steps),
+            ("simulation.sample_every_steps", sim.sample_every_steps),
+            ("simulation.remesh_every_steps", sim.remesh_every_steps),
+        ] {
+            if value > i64::MAX as u64 {
+                report.errors.push(format!("{key} = {value} is larger than the largest TOML integer {}", i64::MAX));
+            }
+        }
 
         if self.cell_types.is_empty() {
             report.errors.push("cell_types is empty; give at least one [[cell_types]] entry".to_owned());
