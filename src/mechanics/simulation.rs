@@ -899,3 +899,84 @@ impl Mover {
         Ok(Moved::Yes)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::CellKind;
+    use crate::mesh::shapes::icosphere;
+
+    fn params(l_min: Real) -> Parameters {
+        let mut p = Parameters::default();
+        p.numerics.min_edge_length = l_min;
+        p.numerics.contact_cutoff = 0.8 * l_min;
+        p.simulation.mode = SimulationMode::Time;
+        p.cell_types[0].growth_rate = 0.0;
+        p.cell_types[0].min_volume = 0.0;
+        p
+    }
+
+    /// A cell above its division volume divides at the next step: two daughters with fresh ids, the
+    /// mother as parent, V0 = the mother's V0 / 2 each, the cut faces lateral, the others inherited,
+    /// per-cell data resized; the event records volumes that sum to the mother's.
+    #[test]
+    fn a_cell_above_its_division_volume_divides_into_two_recorded_daughters() {
+        let mesh = icosphere(3e-6, 2, Vec3::zeros());
+        let volume = mesh.signed_volume();
+        let mut p = params(6e-7);
+        p.cell_types[0].division_volume = 0.5 * volume;
+        let mother = Cell::new(CellId(5), CellKind::Epithelial, 0, mesh).with_target_volume(1.1 * volume);
+        let mut sim = Simulation::new(Tissue::from_cells(vec![mother]).unwrap(), &p).unwrap();
+        sim.start().unwrap();
+        sim.time_step().unwrap();
+        let cells = sim.tissue().cells();
+        assert_eq!(cells.len(), 2);
+        assert_eq!(cells.iter().map(|c| c.id()).collect::<Vec<_>>(), [CellId(6), CellId(7)]);
+        for c in cells {
+            assert_eq!(c.parent(), Some(CellId(5)));
+            assert_eq!(c.target_volume(), 0.55 * volume);
+            assert_eq!(c.mesh().validate(), Ok(()));
+            let lateral = c.face_types().iter().filter(|t| **t == FaceType::Lateral).count();
+            assert!(lateral > 0 && lateral < c.face_types().len(), "{lateral} lateral faces");
+        }
+        assert_eq!((sim.growth_rates().len(), sim.division_volumes().len(), sim.momenta.len()), (2, 2, 2));
+        assert!(sim.momenta.iter().zip(cells).all(|(m, c)| m.len() == c.mesh().node_count()));
+        let e = &sim.events()[0];
+        assert_eq!(
+            (e.kind, e.cell, e.daughters),
+            (TopologyEventKind::Division, CellId(5), Some([CellId(6), CellId(7)]))
+        );
+        let [va, vb] = e.daughter_volumes.unwrap();
+        assert!((va + vb - e.volume).abs() <= 1e-12 * e.volume);
+        assert_eq!(sim.topology_stats().divisions, 1);
+        // The daughters keep running.
+        for _ in 0..5 {
+            sim.time_step().unwrap();
+        }
+    }
+
+    /// A cell below V_min is removed at the next step and the removal is recorded; the others keep
+    /// running with consistent per-cell data.
+    #[test]
+    fn a_cell_below_its_minimum_volume_is_removed() {
+        let big = icosphere(3e-6, 2, Vec3::zeros());
+        let small = icosphere(1.5e-6, 1, Vec3::new(2e-5, 0.0, 0.0));
+        let mut p = params(6e-7);
+        p.cell_types[0].min_volume = 2.0 * small.signed_volume();
+        p.cell_types[0].division_volume = Real::INFINITY;
+        let tissue = Tissue::from_cells(vec![
+            Cell::new(CellId(1), CellKind::Epithelial, 0, big),
+            Cell::new(CellId(2), CellKind::Epithelial, 0, small),
+        ])
+        .unwrap();
+        let mut sim = Simulation::new(tissue, &p).unwrap();
+        sim.start().unwrap();
+        sim.time_step().unwrap();
+        assert_eq!(sim.tissue().cells().iter().map(|c| c.id()).collect::<Vec<_>>(), [CellId(1)]);
+        let e = &sim.events()[0];
+        assert_eq!((e.kind, e.cell, e.daughters), (TopologyEventKind::Removal, CellId(2), None));
+        assert_eq!(sim.topology_stats().removals, 1);
+        assert_eq!((sim.growth_rates().len(), sim.forces().cells.len()), (1, 1));
+        sim.time_step().unwrap();
+    }
+}

@@ -9,11 +9,10 @@
 //! error ends the run with the JSON naming the step, the cell and the cause (exit code 1), as do
 //! the step and wall-time limits.
 
-use crate::geometry::{Real, Vec3};
+use crate::geometry::Real;
 use crate::mechanics::{ContactModel, Parameters, Simulation, SimulationError};
-use crate::mesh::remesh::{RemeshSettings, remesh_cell};
-use crate::mesh::shapes::icosphere;
-use crate::mesh::{Cell, CellId, CellKind, CellMesh, Tissue};
+use crate::mesh::shapes::sphere_for_min_edge;
+use crate::mesh::{Cell, CellId, CellKind, Tissue};
 use anyhow::Context;
 use serde_json::{Value, json};
 use std::time::Instant;
@@ -53,20 +52,6 @@ pub fn growth_parameters(contact_model: Option<ContactModel>, l_min: Option<Real
     Ok(params)
 }
 
-/// A sphere of `radius` meshed for edge lengths in [l_min, 3·l_min]: the finest icosphere whose
-/// shortest edge is at least l_min, then one remeshing pass.
-pub fn sphere_at_resolution(radius: Real, l_min: Real) -> anyhow::Result<CellMesh> {
-    let mut subdivisions = 0;
-    while subdivisions < 8
-        && icosphere(radius, subdivisions + 1, Vec3::zeros()).edge_length_stats().is_some_and(|s| s.min >= l_min)
-    {
-        subdivisions += 1;
-    }
-    let mut mesh = icosphere(radius, subdivisions, Vec3::zeros());
-    remesh_cell(&mut mesh, None, None, &RemeshSettings::new(l_min)).context("meshing the initial sphere")?;
-    Ok(mesh)
-}
-
 /// CPU time (user + system, s) of this process so far, from `/proc/self/stat` (Linux; clock ticks of
 /// 1/100 s); `None` elsewhere. On a shared machine it shows how much of the wall time was ours.
 fn cpu_seconds() -> Option<Real> {
@@ -95,7 +80,7 @@ fn fit_exponent(points: &[(Real, Real)]) -> Option<Real> {
 pub fn run_growth(bench: &GrowthBench) -> anyhow::Result<(Value, bool)> {
     let params = growth_parameters(bench.contact_model, bench.l_min)?;
     let l_min = params.numerics.min_edge_length;
-    let mesh = sphere_at_resolution(INITIAL_RADIUS, l_min)?;
+    let mesh = sphere_for_min_edge(INITIAL_RADIUS, l_min).context("meshing the initial sphere")?;
     let initial_nodes = mesh.node_count();
     let tissue = Tissue::from_cells(vec![Cell::new(CellId(1), CellKind::Epithelial, 0, mesh)])?;
     let mut sim = Simulation::new(tissue, &params)?;
@@ -232,7 +217,7 @@ mod tests {
     fn embedded_config_is_valid_and_the_sphere_is_within_bounds() {
         let params = growth_parameters(None, None).unwrap();
         assert_eq!(params.numerics.contact_model, ContactModel::Coupling);
-        let mesh = sphere_at_resolution(INITIAL_RADIUS, params.numerics.min_edge_length).unwrap();
+        let mesh = sphere_for_min_edge(INITIAL_RADIUS, params.numerics.min_edge_length).unwrap();
         assert_eq!(mesh.validate(), Ok(()));
         let stats = mesh.edge_length_stats().unwrap();
         let l = params.numerics.min_edge_length;
