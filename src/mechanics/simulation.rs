@@ -219,6 +219,10 @@ pub struct Simulation<'p> {
     growth_rates: Vec<Real>,
     /// V_max of every cell (m³; inf: never divides).
     division_volumes: Vec<Real>,
+    /// Remeshing passes each cell skips before its next one: a pass that could make no operation
+    /// (every out-of-range edge or poor face refused) backs the cell off for [`REMESH_BACKOFF`] passes
+    /// instead of rebuilding its working copy every step for nothing.
+    remesh_idle: Vec<u32>,
     last_good: Vec<Vec<Vec3>>,
     events: Vec<TopologyEvent>,
     topology: TopologyStats,
@@ -255,6 +259,7 @@ impl<'p> Simulation<'p> {
             coupling: CouplingWorkspace::default(),
             momenta,
             growth_rates,
+            remesh_idle: vec![0; division_volumes.len()],
             division_volumes,
             last_good: Vec::new(),
             events: Vec::new(),
@@ -623,8 +628,13 @@ impl<'p> Simulation<'p> {
             .cells_mut()
             .par_iter_mut()
             .zip(self.momenta.par_iter_mut())
-            .map(|(cell, momenta)| {
+            .zip(self.remesh_idle.par_iter_mut())
+            .map(|((cell, momenta), idle)| {
                 if cell.kind().is_immobile() {
+                    return None;
+                }
+                if *idle > 0 {
+                    *idle -= 1;
                     return None;
                 }
                 let before = cell.mesh().topology_generation();
@@ -639,6 +649,9 @@ impl<'p> Simulation<'p> {
                 Ok(report) => {
                     if report.rounds > 0 {
                         self.topology.add_remesh(&report);
+                        if report.operations() == 0 {
+                            self.remesh_idle[c] = REMESH_BACKOFF;
+                        }
                     }
                     changed |= self.tissue.cells()[c].mesh().topology_generation() != before;
                 }
@@ -731,6 +744,7 @@ impl<'p> Simulation<'p> {
             self.momenta.remove(c);
             self.growth_rates.remove(c);
             self.division_volumes.remove(c);
+            self.remesh_idle.remove(c);
             self.forces.cells.remove(c);
             changed = true;
         }
@@ -769,6 +783,8 @@ impl<'p> Simulation<'p> {
         self.growth_rates.push(draw_growth_rate(p, seed, ids[1]));
         self.division_volumes[c] = draw_division_volume(p, seed, ids[0]);
         self.division_volumes.push(draw_division_volume(p, seed, ids[1]));
+        self.remesh_idle[c] = 0;
+        self.remesh_idle.push(0);
         self.cell_params.push(p);
         self.forces.cells.push(CellForces::default());
         self.events.push(TopologyEvent {
@@ -809,6 +825,9 @@ impl<'p> Simulation<'p> {
         }
     }
 }
+
+/// Remeshing passes a cell skips after a pass in which every operation it needed was refused.
+const REMESH_BACKOFF: u32 = 4;
 
 /// Division attempts per cell and step: the rule's plane, then tilted and shifted variants.
 const DIVISION_ATTEMPTS: u32 = 6;
