@@ -407,8 +407,8 @@ impl<'p> Simulation<'p> {
 
     fn unhealthy(&self, c: usize, what: String) -> SimulationError {
         let mut last_good = self.tissue.clone();
-        // Cells whose mesh changed since the save (remeshed, born, shifted by a removal) keep their
-        // current positions.
+        // The saved positions follow divisions and removals; cells whose mesh changed since the save
+        // (remeshed) keep their current positions.
         for (cell, saved) in last_good.cells_mut().iter_mut().zip(&self.last_good) {
             if cell.mesh().node_count() == saved.len() {
                 cell.positions_mut().copy_from_slice(saved);
@@ -730,6 +730,11 @@ impl<'p> Simulation<'p> {
         }
         for &c in removing.iter().rev() {
             let cell = self.tissue.remove(c);
+            if self.last_good.len() == self.tissue.len() + 1 {
+                self.last_good.remove(c);
+            } else {
+                self.last_good.clear();
+            }
             self.events.push(TopologyEvent {
                 step: self.step,
                 time: self.time,
@@ -761,6 +766,13 @@ impl<'p> Simulation<'p> {
         let volume = mother.mesh().signed_volume();
         let daughter_volumes = [a.mesh.signed_volume(), b.mesh.signed_volume()];
         let momenta = [a.inherit(&self.momenta[c], Vec3::zeros()), b.inherit(&self.momenta[c], Vec3::zeros())];
+        // Keep the saved positions aligned with the cells (the daughters' are their current ones).
+        if self.last_good.len() == self.tissue.len() {
+            self.last_good[c] = a.mesh.positions().to_vec();
+            self.last_good.push(b.mesh.positions().to_vec());
+        } else {
+            self.last_good.clear();
+        }
         let ids = [self.tissue.allocate_id(), self.tissue.allocate_id()];
         let to_cell = |id: CellId, d: Daughter| {
             Cell::new(id, kind, cell_type, d.mesh)
@@ -960,6 +972,9 @@ mod tests {
         }
         assert_eq!((sim.growth_rates().len(), sim.division_volumes().len(), sim.momenta.len()), (2, 2, 2));
         assert!(sim.momenta.iter().zip(cells).all(|(m, c)| m.len() == c.mesh().node_count()));
+        // The saved last good state follows the division (daughters' positions at the cut).
+        assert!(sim.last_good.iter().zip(cells).all(|(x, c)| x.as_slice() == c.mesh().positions()));
+        assert_eq!(sim.last_good.len(), 2);
         let e = &sim.events()[0];
         assert_eq!(
             (e.kind, e.cell, e.daughters),
@@ -995,7 +1010,8 @@ mod tests {
         let e = &sim.events()[0];
         assert_eq!((e.kind, e.cell, e.daughters), (TopologyEventKind::Removal, CellId(2), None));
         assert_eq!(sim.topology_stats().removals, 1);
-        assert_eq!((sim.growth_rates().len(), sim.forces().cells.len()), (1, 1));
+        assert_eq!((sim.growth_rates().len(), sim.forces().cells.len(), sim.last_good.len()), (1, 1, 1));
+        assert_eq!(sim.last_good[0].len(), sim.tissue().cells()[0].mesh().node_count());
         sim.time_step().unwrap();
     }
 }
