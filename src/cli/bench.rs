@@ -8,7 +8,10 @@
 //!   overdamped integration;
 //! * `contacts-tissue FILE`: a full dynamic step with spring contacts, broken down into internal
 //!   forces, broad phase, narrow phase, force application and integration; then the same tissue
-//!   replicated on a grid (1, 8, 27, 64 copies) to show how the contact stage scales.
+//!   replicated on a grid (1, 8, 27, 64 copies) to show how the contact stage scales;
+//! * `growth --cells N`: the paper's growth stress test from one cell to N cells (`bench/growth.rs`).
+
+mod growth;
 
 use super::Outcome;
 use crate::geometry::{Real, Vec3};
@@ -26,17 +29,35 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// forces-cell, forces-tissue FILE, relax-cube or contacts-tissue FILE.
-    #[arg(value_parser = ["forces-cell", "forces-tissue", "relax-cube", "contacts-tissue"])]
+    /// forces-cell, forces-tissue FILE, relax-cube, contacts-tissue FILE or growth.
+    #[arg(value_parser = ["forces-cell", "forces-tissue", "relax-cube", "contacts-tissue", "growth"])]
     pub scenario: String,
     /// Tissue file for forces-tissue and contacts-tissue.
     pub file: Option<PathBuf>,
     /// Repetitions (force evaluations or steps) per measurement.
     #[arg(long, default_value_t = 200)]
     pub repeat: usize,
-    /// Contact model of contacts-tissue: spring or coupling.
-    #[arg(long, default_value = "spring", value_parser = ["spring", "coupling"])]
-    pub contact_model: String,
+    /// Contact model: spring or coupling (default: spring for contacts-tissue, the config's
+    /// coupling for growth).
+    #[arg(long, value_parser = ["spring", "coupling"])]
+    pub contact_model: Option<String>,
+    /// growth: stop when the tissue has this many cells.
+    #[arg(long, default_value_t = 128)]
+    pub cells: usize,
+    /// growth: minimum edge length l_min in metres (default: pipelines/growth.toml's 6e-7); the
+    /// contact cutoff follows at 5/6·l_min.
+    #[arg(long)]
+    pub l_min: Option<f64>,
+    /// growth: give up after this many steps.
+    #[arg(long, default_value_t = 200_000)]
+    pub max_steps: u64,
+    /// growth: give up after this many seconds of wall time.
+    #[arg(long)]
+    pub max_seconds: Option<f64>,
+}
+
+fn contact_model(name: Option<&str>) -> Option<ContactModel> {
+    name.map(|n| if n == "coupling" { ContactModel::Coupling } else { ContactModel::Spring })
 }
 
 /// A ~1,000-node sphere: a 13×13-subdivided cube projected onto a 5 µm sphere (1,016 nodes).
@@ -306,8 +327,20 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<Outcome> {
         }
         "contacts-tissue" => {
             let file = args.file.as_ref().context("contacts-tissue needs a tissue FILE")?;
-            let model = if args.contact_model == "coupling" { ContactModel::Coupling } else { ContactModel::Spring };
+            let model = contact_model(args.contact_model.as_deref()).unwrap_or(ContactModel::Spring);
             contacts_json(file, args.repeat.min(20), model)?
+        }
+        "growth" => {
+            let bench = growth::GrowthBench {
+                cells: args.cells,
+                contact_model: contact_model(args.contact_model.as_deref()),
+                l_min: args.l_min,
+                max_steps: args.max_steps,
+                max_seconds: args.max_seconds,
+            };
+            let (value, reached) = growth::run_growth(&bench)?;
+            println!("{}", serde_json::to_string(&value)?);
+            return Ok(if reached { Outcome::Success } else { Outcome::CheckFailed });
         }
         _ => relax_cube()?,
     };

@@ -59,10 +59,41 @@ struct Summary<'a> {
     energy: &'a crate::mechanics::EnergyTerms,
     energy_total: f64,
     input: String,
+    /// Cells and nodes at the end (they change with divisions, removals and remeshing).
+    final_cells: usize,
+    final_nodes: usize,
+    divisions: u64,
+    removals: u64,
+    /// Division and remeshing counts (skipped operations, discarded passes, failed cuts).
+    topology: crate::mechanics::TopologyStats,
 }
 
-const OUTPUTS: [&str; 7] =
-    ["frames.pvd", "stats.csv", "stats.csv.partial", "final.vtk", "summary.json", "config.toml", "last_good.vtk"];
+const OUTPUTS: [&str; 8] = [
+    "frames.pvd",
+    "stats.csv",
+    "stats.csv.partial",
+    "final.vtk",
+    "summary.json",
+    "config.toml",
+    "last_good.vtk",
+    "events.csv",
+];
+
+/// `events.csv`: one row per division or removal.
+fn write_events(path: &Path, events: &[crate::mechanics::TopologyEvent]) -> anyhow::Result<()> {
+    use std::fmt::Write as _;
+    let mut text = String::from("step,time,event,cell,daughter_a,daughter_b,volume\n");
+    for e in events {
+        let (a, b) = e.daughters.map_or((String::new(), String::new()), |[a, b]| (a.to_string(), b.to_string()));
+        let kind = match e.kind {
+            crate::mechanics::TopologyEventKind::Division => "division",
+            crate::mechanics::TopologyEventKind::Removal => "removal",
+        };
+        let _ = writeln!(text, "{},{:e},{kind},{},{a},{b},{:e}", e.step, e.time, e.cell, e.volume);
+    }
+    write_bytes_atomically(path, text.as_bytes())?;
+    Ok(())
+}
 
 /// Applies the command-line overrides (CLI > config file > defaults) and validates.
 fn resolve_parameters(args: &SimulateArgs) -> anyhow::Result<Parameters> {
@@ -187,6 +218,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
     };
     let frames = observer.recorder.frames();
     observer.recorder.finish()?;
+    write_events(&args.out.join("events.csv"), sim.events())?;
     let pressure: Vec<f64> = sim.forces().cells.iter().map(|w| w.pressure).collect();
     write_simucell3d(
         &args.out.join("final.vtk"),
@@ -202,7 +234,8 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         threads: rayon::current_num_threads(),
         cells,
         nodes,
-        seconds_per_node_step: wall / (summary.force_evaluations.max(1) as f64 * nodes as f64),
+        // Nodes summed over evaluations: the node count changes with divisions and remeshing.
+        seconds_per_node_step: wall / summary.node_evaluations.max(1) as f64,
         mode: s.mode,
         method: s.method,
         simulated_time: summary.time,
@@ -210,6 +243,11 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         energy: &summary.energy,
         energy_total: summary.energy.total(),
         input: args.tissue.display().to_string(),
+        final_cells: sim.tissue().len(),
+        final_nodes: sim.tissue().node_count(),
+        divisions: summary.topology.divisions,
+        removals: summary.topology.removals,
+        topology: summary.topology,
     };
     write_bytes_atomically(&args.out.join("summary.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
     let verdict = match (s.mode, summary.converged) {

@@ -3,7 +3,8 @@
 //! * `frames/frame_NNNNNN.vtp` + `frames.pvd`: the ParaView series, one frame per sample, with the
 //!   per-cell pressure and growth rate as cell data;
 //! * `stats.csv`: one row per cell per sample (step, time, cell, kind, volume, target volume, area,
-//!   pressure, each energy term); written as `stats.csv.partial` during the run and renamed when the
+//!   pressure, each energy term, and the `parent` the cell was born from by division, empty for
+//!   founders); the number of cells may change from sample to sample (divisions, removals); written as `stats.csv.partial` during the run and renamed when the
 //!   run ends, so a crashed run never leaves a file that looks complete;
 //! * `final.vtk` (SimuCell3D legacy, re-readable as input) and `summary.json`, written by the caller
 //!   at the end.
@@ -34,7 +35,7 @@ impl SimulationRecorder {
         let file = File::create(&partial).map_err(|source| IoError::Write { path: partial.clone(), source })?;
         let mut stats = BufWriter::new(file);
         let header = format!(
-            "step,time,cell,kind,cell_type,nodes,volume,target_volume,area,pressure,{},energy_total",
+            "step,time,cell,kind,cell_type,nodes,volume,target_volume,area,pressure,{},energy_total,parent",
             EnergyTerms::NAMES.map(|n| format!("energy_{n}")).join(",")
         );
         writeln!(stats, "{header}").map_err(|source| IoError::Write { path: partial, source })?;
@@ -43,6 +44,8 @@ impl SimulationRecorder {
 
     fn write_sample(&mut self, s: &Sample<'_>) -> Result<(), IoError> {
         let pressure: Vec<Real> = s.forces.cells.iter().map(|w| w.pressure).collect();
+        // Lineage as a number for ParaView: the parent's id, −1 for founders.
+        let parent: Vec<Real> = s.tissue.cells().iter().map(|c| c.parent().map_or(-1.0, |p| Real::from(p.0))).collect();
         let name = format!("frame_{:06}.vtp", self.frames.len());
         let label = if self.time_is_step { s.step as Real } else { s.time };
         let path = self.dir.join("frames").join(&name);
@@ -52,6 +55,7 @@ impl SimulationRecorder {
             &[
                 CellField { name: "pressure", values: &pressure },
                 CellField { name: "growth_rate", values: s.growth_rates },
+                CellField { name: "parent", values: &parent },
             ],
             Some(label),
         )?;
@@ -80,7 +84,8 @@ impl SimulationRecorder {
             for v in e.values() {
                 write!(self.stats, ",{v:e}").map_err(io)?;
             }
-            writeln!(self.stats, ",{:e}", e.total()).map_err(io)?;
+            let parent = cell.parent().map(|p| p.to_string()).unwrap_or_default();
+            writeln!(self.stats, ",{:e},{parent}", e.total()).map_err(io)?;
         }
         Ok(())
     }

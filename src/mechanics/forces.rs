@@ -106,7 +106,11 @@ impl CellForces {
     /// Computes the internal forces and energies of `cell` with parameters `p`.
     pub fn compute(&mut self, cell: &Cell, p: &CellTypeParams, terms: TermSet) {
         let mesh = cell.mesh();
-        if self.hinge_generation != mesh.topology_generation() {
+        let kb = FaceType::ALL.map(|t| p.faces.get(t).bending_modulus);
+        // Hinges are built only when bending acts (k_b = 0 everywhere, as in the growth benchmark,
+        // contributes exactly nothing); the cache is rebuilt lazily once it does.
+        let bending_on = terms.bending && kb.iter().any(|&k| k != 0.0);
+        if bending_on && self.hinge_generation != mesh.topology_generation() {
             self.hinges = build_hinges(mesh);
             self.hinge_generation = mesh.topology_generation();
         }
@@ -117,7 +121,6 @@ impl CellForces {
         let a0 = target_area(p.target_isoperimetric_ratio, cell.target_volume());
         let (u_area, du_da) = area_elasticity_energy(g.area, a0, p.area_elasticity);
         let gamma = FaceType::ALL.map(|t| p.faces.get(t).surface_tension);
-        let kb = FaceType::ALL.map(|t| p.faces.get(t).bending_modulus);
 
         self.pressure = pressure;
         self.energy = EnergyTerms {
@@ -148,7 +151,7 @@ impl CellForces {
                 self.forces[k] += push - grad[2];
             }
         }
-        if terms.bending && kb.iter().any(|&k| k != 0.0) {
+        if bending_on {
             self.energy.bending = add_bending_forces(
                 positions,
                 mesh.triangles(),

@@ -30,14 +30,17 @@ pub use contact::{
 };
 pub use fire::*;
 pub use forces::{CellForces, EnergyTerms, TermSet, TissueForces, UnknownCellType, cell_parameters};
-pub use growth::draw_growth_rates;
+pub use growth::{division_seed, draw_division_volume, draw_division_volumes, draw_growth_rate, draw_growth_rates};
 pub use motion::integrate_step;
 pub use params::{
-    CellTypeParams, ContactModel, Dynamics, FaceParams, FaceTypeParams, Numerics, ParamError, Parameters, Polarity,
-    SPHERE_ISOPERIMETRIC_RATIO, TimeStepLimit,
+    CellTypeParams, ContactModel, DivisionPlaneRule, Dynamics, FaceParams, FaceTypeParams, Numerics, ParamError,
+    Parameters, Polarity, SPHERE_ISOPERIMETRIC_RATIO, TimeStepLimit,
 };
 pub use polarity::polarize_from_contacts;
 pub use pressure::pressure_energy;
 pub use settings::{RelaxMethod, SimulationMode, SimulationSettings};
-pub use simulation::{LastGood, Observer, Sample, Simulation, SimulationError, SimulationSummary};
+pub use simulation::{
+    LastGood, Observer, Sample, Simulation, SimulationError, SimulationSummary, TopologyEvent, TopologyEventKind,
+    TopologyStats,
+};
 pub use tension::tension_energy;

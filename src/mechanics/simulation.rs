@@ -10,18 +10,40 @@
 //! Health: after every force evaluation, a non-finite force, a non-finite position or a cell whose
 //! volume is not positive ends the run with a [`SimulationError::Unhealthy`] naming the cell, the
 //! step and the force term, and carrying the last good state so the caller can save it.
+//!
+//! Topology (time runs; paper Methods "Cell division", "Local mesh adaptation"): after every step,
+//! a cell whose volume exceeds its division volume V_max (drawn per cell id, see `growth.rs`) divides
+//! through its volume centroid with its type's plane rule ([`DivisionPlaneRule`]); the daughters get
+//! fresh ids, record their mother as parent, inherit the face types (the cap is lateral), get
+//! V0 = the mother's V0 / 2 and their own draws of growth rate and V_max. Inherited nodes keep their
+//! momenta, nodes where the plane cut a mother edge take the momentum interpolated along that edge,
+//! and cap nodes start at rest (zero momentum), as in the reference program. The first daughter
+//! takes the mother's place in the tissue order, the second is appended, so every per-cell array
+//! stays aligned and unaffected cells keep their index (and their cached topology). A cut that
+//! fails (a plane grazing the surface) is retried with a slightly tilted and shifted plane; if every
+//! attempt fails the cell divides at a later step (counted as a failure, never an abort). A cell
+//! whose volume falls below V_min of its type (> 0) is removed. Every event is recorded.
+//!
+//! Remeshing never stops a run for a remeshing reason: illegal operations are skipped and counted,
+//! and a pass whose result would not be a valid surface is discarded (the cell keeps its mesh this
+//! step, counted as rejected). Only a cell that is topologically broken is an error naming it.
 
 use super::fire::{Fire, FireSettings};
 use super::forces::{TermSet, TissueForces, UnknownCellType, cell_parameters};
-use super::growth::draw_growth_rates;
+use super::growth::{division_seed, draw_division_volume, draw_division_volumes, draw_growth_rate, draw_growth_rates};
 use super::motion::integrate_step;
 use super::polarity::polarize_from_contacts;
 use super::{
-    CellForces, CellTypeParams, ContactModel, ContactWorkspace, CouplingWorkspace, EnergyTerms, Parameters, Polarity,
-    RelaxMethod, SimulationMode,
+    CellForces, CellTypeParams, ContactModel, ContactWorkspace, CouplingWorkspace, DivisionPlaneRule, EnergyTerms,
+    Parameters, Polarity, RelaxMethod, SimulationMode,
 };
 use crate::geometry::{Real, Vec3};
-use crate::mesh::{CellId, FaceType, Tissue};
+use crate::mesh::remesh::{RemeshError, RemeshReport, RemeshSettings};
+use crate::mesh::{Cell, CellId, Daughter, DivisionError, DivisionPlane, FaceType, MeshDefect, Tissue, divide_mesh};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, UnitSphere};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// What the driver shows an observer at each sample.
@@ -45,11 +67,76 @@ pub trait Observer {
     fn progress(&mut self, _step: u64, _residual: Real) {}
 }
 
+/// What happened to a cell's identity.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TopologyEventKind {
+    /// The cell divided into `daughters`.
+    Division,
+    /// The cell was removed (volume below V_min).
+    Removal,
+}
+
+/// One division or removal.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TopologyEvent {
+    pub step: u64,
+    /// Simulated time (s).
+    pub time: Real,
+    pub kind: TopologyEventKind,
+    /// The mother (division) or the removed cell.
+    pub cell: CellId,
+    /// The two daughters of a division.
+    pub daughters: Option<[CellId; 2]>,
+    /// Volume (m³) of the cell's surface at the event.
+    pub volume: Real,
+    /// Volumes (m³) of the two daughters' surfaces right after the cut (division only); they sum to
+    /// `volume` up to round-off.
+    pub daughter_volumes: Option<[Real; 2]>,
+}
+
+/// Counts of topology changes and remeshing over a run (all summed over steps and cells).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct TopologyStats {
+    pub divisions: u64,
+    pub removals: u64,
+    /// Division steps where no attempted plane gave a valid cut; the cell divides at a later step.
+    pub division_failures: u64,
+    /// Remeshing passes run (one per moving cell and remeshing step that needed work).
+    pub remesh_passes: u64,
+    pub splits: u64,
+    pub collapses: u64,
+    pub flips: u64,
+    /// Operations refused as illegal and skipped.
+    pub skipped_splits: u64,
+    pub skipped_collapses: u64,
+    pub skipped_flips: u64,
+    /// Passes whose result would not have been a valid surface, discarded (the cell kept its mesh).
+    pub rejected_passes: u64,
+}
+
+impl TopologyStats {
+    fn add_remesh(&mut self, r: &RemeshReport) {
+        self.remesh_passes += 1;
+        self.splits += r.splits as u64;
+        self.collapses += r.collapses as u64;
+        self.flips += r.flips as u64;
+        self.skipped_splits += r.skipped_splits as u64;
+        self.skipped_collapses += r.skipped_collapses as u64;
+        self.skipped_flips += r.skipped_flips as u64;
+    }
+}
+
 /// How a run ended.
 #[derive(Clone, Debug, Serialize)]
 pub struct SimulationSummary {
     pub steps: u64,
     pub force_evaluations: u64,
+    /// Sum over force evaluations of the number of nodes (for costs per node-step when the node
+    /// count changes).
+    pub node_evaluations: u64,
+    /// Divisions, removals and remeshing counts.
+    pub topology: TopologyStats,
     pub converged: bool,
     /// Final largest nodal force over γ̄·l_min.
     pub residual: Real,
@@ -89,7 +176,9 @@ pub enum SimulationError {
     #[error("step {step}, cell {cell}: {what}. {hint}")]
     Unhealthy { step: u64, cell: CellId, what: String, hint: &'static str, last_good: LastGood },
     #[error("step {step}: remeshing failed: {source}")]
-    Remesh { step: u64, source: Box<crate::mesh::remesh::RemeshError> },
+    Remesh { step: u64, source: Box<RemeshError> },
+    #[error("step {step}: cell {cell}: {what}")]
+    Topology { step: u64, cell: CellId, what: String },
     #[error("step {step}: output failed: {source}")]
     Observer { step: u64, source: Box<dyn std::error::Error + Send + Sync> },
 }
@@ -128,7 +217,16 @@ pub struct Simulation<'p> {
     coupling: CouplingWorkspace,
     momenta: Vec<Vec<Vec3>>,
     growth_rates: Vec<Real>,
+    /// V_max of every cell (m³; inf: never divides).
+    division_volumes: Vec<Real>,
+    /// Remeshing passes each cell skips before its next one: a pass that could make no operation
+    /// (every out-of-range edge or poor face refused) backs the cell off for [`REMESH_BACKOFF`] passes
+    /// instead of rebuilding its working copy every step for nothing.
+    remesh_idle: Vec<u32>,
     last_good: Vec<Vec<Vec3>>,
+    events: Vec<TopologyEvent>,
+    topology: TopologyStats,
+    node_evaluations: u64,
     force_scale: Real,
     energy_scale: Real,
     time: Real,
@@ -149,6 +247,7 @@ impl<'p> Simulation<'p> {
         }
         let gamma = tension_scale(&tissue, &cell_params);
         let growth_rates = draw_growth_rates(&tissue, &cell_params, params.numerics.seed);
+        let division_volumes = draw_division_volumes(&tissue, &cell_params, params.numerics.seed);
         let momenta = tissue.cells().iter().map(|c| vec![Vec3::zeros(); c.mesh().node_count()]).collect();
         let energy_scale = gamma * tissue.cells().iter().map(|c| c.mesh().area()).sum::<Real>();
         let mut contacts = ContactWorkspace::default();
@@ -160,7 +259,12 @@ impl<'p> Simulation<'p> {
             coupling: CouplingWorkspace::default(),
             momenta,
             growth_rates,
+            remesh_idle: vec![0; division_volumes.len()],
+            division_volumes,
             last_good: Vec::new(),
+            events: Vec::new(),
+            topology: TopologyStats::default(),
+            node_evaluations: 0,
             force_scale: gamma * params.numerics.min_edge_length,
             energy_scale,
             time: 0.0,
@@ -204,6 +308,31 @@ impl<'p> Simulation<'p> {
         max.sqrt() / self.force_scale
     }
 
+    /// Divisions and removals so far, in the order they happened.
+    pub fn events(&self) -> &[TopologyEvent] {
+        &self.events
+    }
+
+    /// Counts of divisions, removals and remeshing so far.
+    pub fn topology_stats(&self) -> TopologyStats {
+        self.topology
+    }
+
+    /// Growth rate of every cell (m³/s), in tissue order.
+    pub fn growth_rates(&self) -> &[Real] {
+        &self.growth_rates
+    }
+
+    /// Division volume V_max of every cell (m³), in tissue order.
+    pub fn division_volumes(&self) -> &[Real] {
+        &self.division_volumes
+    }
+
+    /// Current simulated time (s) and step.
+    pub fn time_and_step(&self) -> (Real, u64) {
+        (self.time, self.step)
+    }
+
     /// The contact stage of the last evaluation (which nodes touch which cell, at what distance).
     pub fn contacts(&self) -> &ContactWorkspace {
         &self.contacts
@@ -240,6 +369,7 @@ impl<'p> Simulation<'p> {
             self.compute_forces();
         }
         self.force_evaluations += 1;
+        self.node_evaluations += self.tissue.node_count() as u64;
         for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.forces.cells).enumerate() {
             let problem = if let Some(n) = cell.mesh().positions().iter().position(|p| !p.iter().all(|v| v.is_finite()))
             {
@@ -277,8 +407,10 @@ impl<'p> Simulation<'p> {
 
     fn unhealthy(&self, c: usize, what: String) -> SimulationError {
         let mut last_good = self.tissue.clone();
-        if self.last_good.len() == last_good.len() {
-            for (cell, saved) in last_good.cells_mut().iter_mut().zip(&self.last_good) {
+        // The saved positions follow divisions and removals; cells whose mesh changed since the save
+        // (remeshed) keep their current positions.
+        for (cell, saved) in last_good.cells_mut().iter_mut().zip(&self.last_good) {
+            if cell.mesh().node_count() == saved.len() {
                 cell.positions_mut().copy_from_slice(saved);
             }
         }
@@ -339,6 +471,8 @@ impl<'p> Simulation<'p> {
         SimulationSummary {
             steps: self.step,
             force_evaluations: self.force_evaluations,
+            node_evaluations: self.node_evaluations,
+            topology: self.topology,
             converged,
             residual,
             time: self.time,
@@ -404,14 +538,11 @@ impl<'p> Simulation<'p> {
         let dt = self.params.numerics.time_step;
         let steps = (s.duration / dt).round() as u64;
         let sample_every = ((s.sampling_period / dt).round() as u64).max(1);
-        self.evaluate()?;
+        self.start()?;
         let mut residual = self.residual();
         self.sample(observer, residual)?;
         while self.step < steps {
-            self.advance(true)?;
-            if s.remesh_every_steps > 0 && self.step.is_multiple_of(s.remesh_every_steps) {
-                self.remesh()?;
-            }
+            self.time_step()?;
             residual = self.residual();
             observer.progress(self.step, residual);
             if self.step.is_multiple_of(sample_every) || self.step == steps {
@@ -421,9 +552,36 @@ impl<'p> Simulation<'p> {
         Ok(self.summary(false, residual))
     }
 
+    /// Evaluates the forces of the initial state; call once before stepping with [`Self::time_step`].
+    pub fn start(&mut self) -> Result<(), SimulationError> {
+        self.save_good();
+        self.evaluate()
+    }
+
+    /// One step of a time run, for drivers that decide themselves when to stop: integrate with
+    /// growth; then divisions, removals and (when due) remeshing of the moved surfaces; then one
+    /// force evaluation of the result (so a topology change costs no extra evaluation).
+    pub fn time_step(&mut self) -> Result<(), SimulationError> {
+        self.save_good();
+        self.move_nodes(true);
+        self.divide_and_remove()?;
+        let every = self.params.simulation.remesh_every_steps;
+        if every > 0 && self.step.is_multiple_of(every) {
+            self.remesh_cells()?;
+        }
+        self.evaluate()
+    }
+
     /// One time step of the equations of motion (forces at the current positions are known).
     fn advance(&mut self, grow: bool) -> Result<(), SimulationError> {
         self.save_good();
+        self.move_nodes(grow);
+        self.evaluate()
+    }
+
+    /// Integrates positions (and momenta) over one step with the current forces, grows the target
+    /// volumes when `grow`, and advances the clock; forces are not re-evaluated.
+    fn move_nodes(&mut self, grow: bool) {
         // Tied pairs share one momentum (forces are already averaged).
         self.coupling.average_momenta(&self.tissue, &mut self.momenta);
         integrate_step(
@@ -447,28 +605,211 @@ impl<'p> Simulation<'p> {
         }
         self.time += dt;
         self.step += 1;
-        self.evaluate()
     }
 
     /// Local remeshing of every moving cell (split, collapse, flip; momenta follow their nodes).
     /// Returns whether any mesh changed; then forces are re-evaluated.
     fn remesh(&mut self) -> Result<bool, SimulationError> {
-        let settings = crate::mesh::remesh::RemeshSettings::new(self.params.numerics.min_edge_length);
-        let mut changed = false;
-        for (cell, momenta) in self.tissue.cells_mut().iter_mut().zip(self.momenta.iter_mut()) {
-            if cell.kind().is_immobile() {
-                continue;
-            }
-            let before = cell.mesh().topology_generation();
-            cell.remesh(Some(momenta), &settings)
-                .map_err(|e| SimulationError::Remesh { step: self.step, source: Box::new(e) })?;
-            changed |= cell.mesh().topology_generation() != before;
-        }
+        let changed = self.remesh_cells()?;
         if changed {
             self.save_good();
             self.evaluate()?;
         }
         Ok(changed)
+    }
+
+    /// One remeshing pass over every moving cell, in parallel (each cell on its own, so the result
+    /// does not depend on the thread count). Refused operations are skipped and counted; a pass that
+    /// would break a surface is discarded and counted. Returns whether any mesh changed.
+    fn remesh_cells(&mut self) -> Result<bool, SimulationError> {
+        let settings = RemeshSettings::new(self.params.numerics.min_edge_length);
+        let results: Vec<Option<(u64, Result<RemeshReport, RemeshError>)>> = self
+            .tissue
+            .cells_mut()
+            .par_iter_mut()
+            .zip(self.momenta.par_iter_mut())
+            .zip(self.remesh_idle.par_iter_mut())
+            .map(|((cell, momenta), idle)| {
+                if cell.kind().is_immobile() {
+                    return None;
+                }
+                if *idle > 0 {
+                    *idle -= 1;
+                    return None;
+                }
+                let before = cell.mesh().topology_generation();
+                let result = cell.remesh(Some(momenta), &settings);
+                Some((before, result))
+            })
+            .collect();
+        let mut changed = false;
+        for (c, result) in results.into_iter().enumerate() {
+            let Some((before, result)) = result else { continue };
+            match result {
+                Ok(report) => {
+                    if report.rounds > 0 {
+                        self.topology.add_remesh(&report);
+                        if report.operations() == 0 {
+                            self.remesh_idle[c] = REMESH_BACKOFF;
+                        }
+                    }
+                    changed |= self.tissue.cells()[c].mesh().topology_generation() != before;
+                }
+                Err(e) => {
+                    let cell = self.tissue.cells()[c].id();
+                    let inner = match e {
+                        RemeshError::Cell { source, .. } => *source,
+                        other => other,
+                    };
+                    match inner {
+                        // The pass would have broken a valid surface, or the surface has a face that
+                        // motion flattened (geometric, not topological): keep the mesh this step.
+                        RemeshError::Broke { .. }
+                        | RemeshError::InvalidInput {
+                            defect: MeshDefect::DegenerateFace { .. } | MeshDefect::NonPositiveVolume { .. },
+                        } => {
+                            self.topology.rejected_passes += 1;
+                            tracing::debug!("step {}: cell {cell}: remeshing pass discarded: {inner}", self.step);
+                        }
+                        other => {
+                            return Err(SimulationError::Remesh {
+                                step: self.step,
+                                source: Box::new(RemeshError::Cell { cell, source: Box::new(other) }),
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        Ok(changed)
+    }
+
+    /// Divides the cells above their division volume and removes those below their minimum volume
+    /// (see the module doc). Returns whether the tissue changed.
+    fn divide_and_remove(&mut self) -> Result<bool, SimulationError> {
+        let l_min = self.params.numerics.min_edge_length;
+        let seed = self.params.numerics.seed;
+        let cells = self.tissue.cells();
+        // Volumes of the current (moved) surfaces.
+        let volumes: Vec<Real> = cells.par_iter().map(|c| c.mesh().signed_volume()).collect();
+        let volume = |c: usize| volumes[c];
+        let dividing: Vec<usize> = (0..cells.len())
+            .filter(|&c| !cells[c].kind().is_immobile() && volume(c) > self.division_volumes[c])
+            .collect();
+        let removing: Vec<usize> = (0..cells.len())
+            .filter(|&c| {
+                let v_min = self.cell_params[c].min_volume;
+                v_min > 0.0 && volume(c) < v_min && volume(c) <= self.division_volumes[c]
+            })
+            .collect();
+        if dividing.is_empty() && removing.is_empty() {
+            return Ok(false);
+        }
+        let rules: Vec<DivisionPlaneRule> = dividing.iter().map(|&c| self.cell_params[c].division_plane).collect();
+        let cuts: Vec<Result<(Daughter, Daughter), DivisionError>> = dividing
+            .par_iter()
+            .zip(rules.par_iter())
+            .map(|(&c, &rule)| divide_cell(&cells[c], rule, l_min, seed))
+            .collect();
+        let mut changed = false;
+        for (&c, cut) in dividing.iter().zip(cuts) {
+            let (a, b) = match cut {
+                Ok(pair) => pair,
+                Err(e) => {
+                    self.topology.division_failures += 1;
+                    tracing::debug!(
+                        "step {}: cell {}: division postponed: {e}",
+                        self.step,
+                        self.tissue.cells()[c].id()
+                    );
+                    continue;
+                }
+            };
+            self.apply_division(c, a, b)?;
+            changed = true;
+        }
+        for &c in removing.iter().rev() {
+            let cell = self.tissue.remove(c);
+            if self.last_good.len() == self.tissue.len() + 1 {
+                self.last_good.remove(c);
+            } else {
+                self.last_good.clear();
+            }
+            self.events.push(TopologyEvent {
+                step: self.step,
+                time: self.time,
+                kind: TopologyEventKind::Removal,
+                cell: cell.id(),
+                daughters: None,
+                volume: volumes[c],
+                daughter_volumes: None,
+            });
+            self.topology.removals += 1;
+            self.cell_params.remove(c);
+            self.momenta.remove(c);
+            self.growth_rates.remove(c);
+            self.division_volumes.remove(c);
+            self.remesh_idle.remove(c);
+            self.forces.cells.remove(c);
+            changed = true;
+        }
+        Ok(changed)
+    }
+
+    /// Replaces cell `c` by daughter `a` and appends daughter `b`, keeping every per-cell array aligned.
+    fn apply_division(&mut self, c: usize, a: Daughter, b: Daughter) -> Result<(), SimulationError> {
+        let seed = self.params.numerics.seed;
+        let p = self.cell_params[c];
+        let mother = &self.tissue.cells()[c];
+        let (mother_id, kind, cell_type) = (mother.id(), mother.kind(), mother.cell_type());
+        let v0 = 0.5 * mother.target_volume();
+        let volume = mother.mesh().signed_volume();
+        let daughter_volumes = [a.mesh.signed_volume(), b.mesh.signed_volume()];
+        let momenta = [a.inherit(&self.momenta[c], Vec3::zeros()), b.inherit(&self.momenta[c], Vec3::zeros())];
+        // Keep the saved positions aligned with the cells (the daughters' are their current ones).
+        if self.last_good.len() == self.tissue.len() {
+            self.last_good[c] = a.mesh.positions().to_vec();
+            self.last_good.push(b.mesh.positions().to_vec());
+        } else {
+            self.last_good.clear();
+        }
+        let ids = [self.tissue.allocate_id(), self.tissue.allocate_id()];
+        let to_cell = |id: CellId, d: Daughter| {
+            Cell::new(id, kind, cell_type, d.mesh)
+                .with_face_types(d.face_types)
+                .map(|cell| cell.with_target_volume(v0).with_parent(mother_id))
+                .map_err(|e| SimulationError::Topology { step: self.step, cell: mother_id, what: e.to_string() })
+        };
+        let (cell_a, cell_b) = (to_cell(ids[0], a)?, to_cell(ids[1], b)?);
+        let topology = |e: crate::mesh::TissueError| SimulationError::Topology {
+            step: self.step,
+            cell: mother_id,
+            what: e.to_string(),
+        };
+        self.tissue.replace(c, cell_a).map_err(topology)?;
+        self.tissue.push(cell_b).map_err(topology)?;
+        let [ma, mb] = momenta;
+        self.momenta[c] = ma;
+        self.momenta.push(mb);
+        self.growth_rates[c] = draw_growth_rate(p, seed, ids[0]);
+        self.growth_rates.push(draw_growth_rate(p, seed, ids[1]));
+        self.division_volumes[c] = draw_division_volume(p, seed, ids[0]);
+        self.division_volumes.push(draw_division_volume(p, seed, ids[1]));
+        self.remesh_idle[c] = 0;
+        self.remesh_idle.push(0);
+        self.cell_params.push(p);
+        self.forces.cells.push(CellForces::default());
+        self.events.push(TopologyEvent {
+            step: self.step,
+            time: self.time,
+            kind: TopologyEventKind::Division,
+            cell: mother_id,
+            daughters: Some(ids),
+            volume,
+            daughter_volumes: Some(daughter_volumes),
+        });
+        self.topology.divisions += 1;
+        Ok(())
     }
 
     /// Node offsets of each cell in the packed arrays, and which packed nodes may move.
@@ -495,6 +836,49 @@ impl<'p> Simulation<'p> {
             cell.positions_mut().copy_from_slice(&x[offsets[c]..offsets[c + 1]]);
         }
     }
+}
+
+/// Remeshing passes a cell skips after a pass in which every operation it needed was refused.
+const REMESH_BACKOFF: u32 = 4;
+
+/// Division attempts per cell and step: the rule's plane, then tilted and shifted variants.
+const DIVISION_ATTEMPTS: u32 = 6;
+/// Largest tilt (rad) of the plane normal and shift (in units of l_min) of the plane point on retries.
+const RETRY_TILT: Real = 0.15;
+const RETRY_SHIFT: Real = 0.2;
+
+/// Cuts `cell` through its volume centroid with its plane rule (see the module doc); on failure,
+/// retries with seeded perturbations of the plane. Deterministic for (seed, cell id).
+fn divide_cell(
+    cell: &Cell,
+    rule: DivisionPlaneRule,
+    l_min: Real,
+    seed: u64,
+) -> Result<(Daughter, Daughter), DivisionError> {
+    let mesh = cell.mesh();
+    let centroid = mesh.volume_centroid().ok_or(DivisionError::NoVolume)?;
+    let mut last = DivisionError::NoVolume;
+    for attempt in 0..DIVISION_ATTEMPTS {
+        let draw = division_seed(seed, cell.id(), attempt);
+        let mode = match rule {
+            DivisionPlaneRule::LongestAxis => DivisionPlane::LongestAxis,
+            DivisionPlaneRule::Random => DivisionPlane::Random(draw),
+        };
+        let mut normal = crate::mesh::division_plane_normal(mesh, mode)?;
+        let mut point = centroid;
+        if attempt > 0 {
+            let mut rng = ChaCha8Rng::seed_from_u64(draw ^ 0x5EED_CAFE);
+            let [x, y, z]: [Real; 3] = UnitSphere.sample(&mut rng);
+            let [u, _, _]: [Real; 3] = UnitSphere.sample(&mut rng);
+            normal = (normal + RETRY_TILT * Vec3::new(x, y, z)).normalize();
+            point += RETRY_SHIFT * l_min * u * normal;
+        }
+        match divide_mesh(mesh, cell.face_types(), point, normal, l_min, draw) {
+            Ok(pair) => return Ok(pair),
+            Err(e) => last = e,
+        }
+    }
+    Err(last)
 }
 
 /// Whether a relaxation step moved the nodes.
@@ -544,5 +928,90 @@ impl Mover {
             Mover::Integrate => sim.advance(false)?,
         }
         Ok(Moved::Yes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::CellKind;
+    use crate::mesh::shapes::icosphere;
+
+    fn params(l_min: Real) -> Parameters {
+        let mut p = Parameters::default();
+        p.numerics.min_edge_length = l_min;
+        p.numerics.contact_cutoff = 0.8 * l_min;
+        p.simulation.mode = SimulationMode::Time;
+        p.cell_types[0].growth_rate = 0.0;
+        p.cell_types[0].min_volume = 0.0;
+        p
+    }
+
+    /// A cell above its division volume divides at the next step: two daughters with fresh ids, the
+    /// mother as parent, V0 = the mother's V0 / 2 each, the cut faces lateral, the others inherited,
+    /// per-cell data resized; the event records volumes that sum to the mother's.
+    #[test]
+    fn a_cell_above_its_division_volume_divides_into_two_recorded_daughters() {
+        let mesh = icosphere(3e-6, 2, Vec3::zeros());
+        let volume = mesh.signed_volume();
+        let mut p = params(6e-7);
+        p.cell_types[0].division_volume = 0.5 * volume;
+        let mother = Cell::new(CellId(5), CellKind::Epithelial, 0, mesh).with_target_volume(1.1 * volume);
+        let mut sim = Simulation::new(Tissue::from_cells(vec![mother]).unwrap(), &p).unwrap();
+        sim.start().unwrap();
+        sim.time_step().unwrap();
+        let cells = sim.tissue().cells();
+        assert_eq!(cells.len(), 2);
+        assert_eq!(cells.iter().map(|c| c.id()).collect::<Vec<_>>(), [CellId(6), CellId(7)]);
+        for c in cells {
+            assert_eq!(c.parent(), Some(CellId(5)));
+            assert_eq!(c.target_volume(), 0.55 * volume);
+            assert_eq!(c.mesh().validate(), Ok(()));
+            let lateral = c.face_types().iter().filter(|t| **t == FaceType::Lateral).count();
+            assert!(lateral > 0 && lateral < c.face_types().len(), "{lateral} lateral faces");
+        }
+        assert_eq!((sim.growth_rates().len(), sim.division_volumes().len(), sim.momenta.len()), (2, 2, 2));
+        assert!(sim.momenta.iter().zip(cells).all(|(m, c)| m.len() == c.mesh().node_count()));
+        // The saved last good state follows the division (daughters' positions at the cut).
+        assert!(sim.last_good.iter().zip(cells).all(|(x, c)| x.as_slice() == c.mesh().positions()));
+        assert_eq!(sim.last_good.len(), 2);
+        let e = &sim.events()[0];
+        assert_eq!(
+            (e.kind, e.cell, e.daughters),
+            (TopologyEventKind::Division, CellId(5), Some([CellId(6), CellId(7)]))
+        );
+        let [va, vb] = e.daughter_volumes.unwrap();
+        assert!((va + vb - e.volume).abs() <= 1e-12 * e.volume);
+        assert_eq!(sim.topology_stats().divisions, 1);
+        // The daughters keep running.
+        for _ in 0..5 {
+            sim.time_step().unwrap();
+        }
+    }
+
+    /// A cell below V_min is removed at the next step and the removal is recorded; the others keep
+    /// running with consistent per-cell data.
+    #[test]
+    fn a_cell_below_its_minimum_volume_is_removed() {
+        let big = icosphere(3e-6, 2, Vec3::zeros());
+        let small = icosphere(1.5e-6, 1, Vec3::new(2e-5, 0.0, 0.0));
+        let mut p = params(6e-7);
+        p.cell_types[0].min_volume = 2.0 * small.signed_volume();
+        p.cell_types[0].division_volume = Real::INFINITY;
+        let tissue = Tissue::from_cells(vec![
+            Cell::new(CellId(1), CellKind::Epithelial, 0, big),
+            Cell::new(CellId(2), CellKind::Epithelial, 0, small),
+        ])
+        .unwrap();
+        let mut sim = Simulation::new(tissue, &p).unwrap();
+        sim.start().unwrap();
+        sim.time_step().unwrap();
+        assert_eq!(sim.tissue().cells().iter().map(|c| c.id()).collect::<Vec<_>>(), [CellId(1)]);
+        let e = &sim.events()[0];
+        assert_eq!((e.kind, e.cell, e.daughters), (TopologyEventKind::Removal, CellId(2), None));
+        assert_eq!(sim.topology_stats().removals, 1);
+        assert_eq!((sim.growth_rates().len(), sim.forces().cells.len(), sim.last_good.len()), (1, 1, 1));
+        assert_eq!(sim.last_good[0].len(), sim.tissue().cells()[0].mesh().node_count());
+        sim.time_step().unwrap();
     }
 }

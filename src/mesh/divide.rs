@@ -109,19 +109,55 @@ pub enum DivisionError {
     Mesh(#[from] MeshError),
 }
 
-/// One daughter cell: a valid closed surface and the type of each of its faces.
+/// Where a daughter's node comes from, so per-node data (momenta) can follow the division.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum NodeOrigin {
+    /// A node of the mother, with its index there (same position).
+    Mother(u32),
+    /// A node where the plane crosses the mother's edge `a`–`b`, at `a + t·(b − a)`.
+    Cut { a: u32, b: u32, t: Real },
+    /// An interior node of the cap.
+    Cap,
+}
+
+/// One daughter cell: a valid closed surface, the type of each of its faces, and the origin of each
+/// of its nodes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Daughter {
     pub mesh: CellMesh,
     pub face_types: Vec<FaceType>,
+    /// One per node of `mesh`.
+    pub origins: Vec<NodeOrigin>,
 }
 
 impl Daughter {
     /// One remeshing pass with the paper's bounds for `l_min` (m), face types kept in step: collapses
     /// the short edges the cut may leave next to mother nodes. Changes the volume slightly (collapses move
-    /// nodes). On error the daughter is unchanged.
+    /// nodes). On error the daughter is unchanged. Node origins no longer apply afterwards and are
+    /// cleared.
     pub fn remesh(&mut self, l_min: Real) -> Result<RemeshReport, DivisionError> {
-        Ok(remesh_cell(&mut self.mesh, None, Some(&mut self.face_types), &RemeshSettings::new(l_min))?)
+        let report = remesh_cell(&mut self.mesh, None, Some(&mut self.face_types), &RemeshSettings::new(l_min))?;
+        if report.operations() > 0 {
+            self.origins.clear();
+        }
+        Ok(report)
+    }
+
+    /// Per-node values of the daughter from those of the mother (`mother`, one per mother node):
+    /// inherited nodes keep theirs, cut nodes interpolate linearly along their mother edge, cap nodes
+    /// get `cap`.
+    pub fn inherit<T>(&self, mother: &[T], cap: T) -> Vec<T>
+    where
+        T: Copy + std::ops::Mul<Real, Output = T> + std::ops::Add<Output = T>,
+    {
+        self.origins
+            .iter()
+            .map(|o| match *o {
+                NodeOrigin::Mother(n) => mother[n as usize],
+                NodeOrigin::Cut { a, b, t } => mother[a as usize] * (1.0 - t) + mother[b as usize] * t,
+                NodeOrigin::Cap => cap,
+            })
+            .collect()
     }
 }
 
@@ -165,11 +201,15 @@ pub fn divide_mesh(
 ) -> Result<(Daughter, Daughter), DivisionError> {
     let normal = check_arguments(mesh, face_types, &plane_point, &plane_normal, l_min)?;
     let cut = cut_surface(mesh, face_types, &plane_point, &normal, SNAP_FRACTION * l_min)?;
+    let mother_nodes = mesh.node_count();
     let cut_loop = boundary_loop(&cut.positive)?;
     let loop_positions: Vec<Vec3> = cut_loop.iter().map(|&i| cut.positions[i as usize]).collect();
     let cap = triangulate_cap(&loop_positions, &plane_point, &normal, CAP_SPACING * l_min, seed)?;
     let mut positions = cut.positions;
     let first_interior = positions.len() as u32;
+    let mut origins: Vec<NodeOrigin> = (0..mother_nodes as u32).map(NodeOrigin::Mother).collect();
+    origins.extend(cut.crossed.iter().map(|&(a, b, t)| NodeOrigin::Cut { a, b, t }));
+    origins.resize(positions.len() + cap.interior.len(), NodeOrigin::Cap);
     positions.extend_from_slice(&cap.interior);
     let global = |i: u32| {
         if (i as usize) < cut_loop.len() { cut_loop[i as usize] } else { first_interior + i - cut_loop.len() as u32 }
@@ -178,8 +218,8 @@ pub fn divide_mesh(
         cap.triangles.iter().map(|&[a, b, c]| if reverse { [a, c, b] } else { [a, b, c] }.map(global)).collect()
     };
     // The cap's triangles point along +n: out of the negative daughter, into the positive one.
-    let positive = assemble(&positions, cut.positive, cap_faces(&cap, true), DaughterSide::Positive)?;
-    let negative = assemble(&positions, cut.negative, cap_faces(&cap, false), DaughterSide::Negative)?;
+    let positive = assemble(&positions, &origins, cut.positive, cap_faces(&cap, true), DaughterSide::Positive)?;
+    let negative = assemble(&positions, &origins, cut.negative, cap_faces(&cap, false), DaughterSide::Negative)?;
     Ok((positive, negative))
 }
 
@@ -218,6 +258,8 @@ struct Side {
 /// The cut surface: the mother's nodes followed by the intersection nodes, and the two open halves.
 struct Cut {
     positions: Vec<Vec3>,
+    /// For each intersection node (in order): the mother edge `(a, b)` and the fraction `t` from a.
+    crossed: Vec<(u32, u32, Real)>,
     positive: Side,
     negative: Side,
 }
@@ -245,6 +287,7 @@ fn cut_surface(
         })
         .collect();
     let mut crossings: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut crossed: Vec<(u32, u32, Real)> = Vec::new();
     // The node where the plane crosses edge a-b (a and b on opposite sides), created once per edge.
     let mut crossing = |a: u32, b: u32, positions: &mut Vec<Vec3>| -> u32 {
         let (lo, hi) = (a.min(b), a.max(b));
@@ -253,6 +296,7 @@ fn cut_surface(
             let t = dl / (dl - dh);
             let (pl, ph) = (positions[lo as usize], positions[hi as usize]);
             positions.push(pl + t * (ph - pl));
+            crossed.push((lo, hi, t));
             (positions.len() - 1) as u32
         })
     };
@@ -297,7 +341,7 @@ fn cut_surface(
     if positive.faces.is_empty() || negative.faces.is_empty() {
         return Err(DivisionError::PlaneMissesCell { above: positive.faces.len(), below: negative.faces.len() });
     }
-    Ok(Cut { positions, positive, negative })
+    Ok(Cut { positions, crossed, positive, negative })
 }
 
 /// The boundary of the positive half as one loop of nodes, each consecutive pair an edge of a positive
@@ -349,6 +393,7 @@ fn boundary_loop(side: &Side) -> Result<Vec<u32>, DivisionError> {
 /// and validates the result.
 fn assemble(
     positions: &[Vec3],
+    origins: &[NodeOrigin],
     side: Side,
     cap: Vec<[u32; 3]>,
     which: DaughterSide,
@@ -360,14 +405,16 @@ fn assemble(
     let mut local = vec![u32::MAX; positions.len()];
     faces.iter().flatten().for_each(|&i| local[i as usize] = 0);
     let mut kept = Vec::new();
+    let mut kept_origins = Vec::new();
     for (i, l) in local.iter_mut().enumerate() {
         if *l == 0 {
             *l = kept.len() as u32;
             kept.push(positions[i]);
+            kept_origins.push(origins[i]);
         }
     }
     let faces = faces.into_iter().map(|t| t.map(|i| local[i as usize])).collect();
     let mesh = CellMesh::from_triangles(kept, faces)?;
     mesh.validate().map_err(|defect| DivisionError::InvalidDaughter { side: which, defect })?;
-    Ok(Daughter { mesh, face_types })
+    Ok(Daughter { mesh, face_types, origins: kept_origins })
 }

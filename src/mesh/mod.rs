@@ -19,8 +19,8 @@ mod validate;
 pub use adjacency::Adjacency;
 pub use cell_mesh::CellMesh;
 pub use divide::{
-    CAP_SPACING, Daughter, DaughterSide, DivisionError, DivisionPlane, SNAP_FRACTION, divide_mesh, division_plane,
-    division_plane_normal,
+    CAP_SPACING, Daughter, DaughterSide, DivisionError, DivisionPlane, NodeOrigin, SNAP_FRACTION, divide_mesh,
+    division_plane, division_plane_normal,
 };
 pub use ids::{CellId, FaceId, NodeId};
 pub use measures::{EdgeLengthStats, PrincipalAxes, sphericity};

@@ -145,3 +145,19 @@ pub fn cube_sphere(radius: Real, n: u32, centre: Vec3) -> CellMesh {
     mesh.positions_mut().iter_mut().for_each(|p| *p = centre + radius * p.normalize());
     mesh
 }
+
+/// A sphere of `radius` centred at the origin, meshed for edge lengths in [l_min, 3·l_min] (the
+/// remeshing bounds): the finest icosphere whose shortest edge is at least `l_min`, then one
+/// remeshing pass (which leaves it alone when it is already within bounds). Used as the single
+/// founder cell of growth runs.
+pub fn sphere_for_min_edge(radius: Real, l_min: Real) -> Result<CellMesh, super::remesh::RemeshError> {
+    let mut subdivisions = 0;
+    while subdivisions < 8
+        && icosphere(radius, subdivisions + 1, Vec3::zeros()).edge_length_stats().is_some_and(|s| s.min >= l_min)
+    {
+        subdivisions += 1;
+    }
+    let mut mesh = icosphere(radius, subdivisions, Vec3::zeros());
+    super::remesh::remesh_cell(&mut mesh, None, None, &super::remesh::RemeshSettings::new(l_min))?;
+    Ok(mesh)
+}

@@ -123,6 +123,8 @@ pub struct Cell {
     mesh: CellMesh,
     face_types: Vec<FaceType>,
     target_volume: Real,
+    /// The cell this one was born from by division (lineage); `None` for founders.
+    parent: Option<CellId>,
 }
 
 impl Cell {
@@ -131,7 +133,18 @@ impl Cell {
     pub fn new(id: CellId, kind: CellKind, cell_type: u32, mesh: CellMesh) -> Self {
         let face_types = vec![FaceType::default(); mesh.face_count()];
         let target_volume = mesh.signed_volume();
-        Self { id, kind, cell_type, mesh, face_types, target_volume }
+        Self { id, kind, cell_type, mesh, face_types, target_volume, parent: None }
+    }
+
+    /// Records the mother cell this one was born from by division.
+    pub fn with_parent(mut self, parent: CellId) -> Self {
+        self.parent = Some(parent);
+        self
+    }
+
+    /// The mother cell this one was born from by division; `None` for founders.
+    pub fn parent(&self) -> Option<CellId> {
+        self.parent
     }
 
     /// Replaces the face types; one per triangle.
@@ -239,6 +252,28 @@ impl Tissue {
         self.next_id = self.next_id.max(cell.id.0.saturating_add(1));
         self.cells.push(cell);
         Ok(())
+    }
+
+    /// Removes and returns the cell at `index` (tissue order; later cells move up by one). Its id is
+    /// never handed out again.
+    ///
+    /// # Panics
+    /// If `index` is out of range.
+    pub fn remove(&mut self, index: usize) -> Cell {
+        self.cells.remove(index)
+    }
+
+    /// Puts `cell` in place of the cell at `index` and returns the old one; errors if the new id is
+    /// held by another cell.
+    ///
+    /// # Panics
+    /// If `index` is out of range.
+    pub fn replace(&mut self, index: usize, cell: Cell) -> Result<Cell, TissueError> {
+        if self.cells.iter().enumerate().any(|(i, c)| i != index && c.id == cell.id) {
+            return Err(TissueError::DuplicateCellId(cell.id));
+        }
+        self.next_id = self.next_id.max(cell.id.0.saturating_add(1));
+        Ok(std::mem::replace(&mut self.cells[index], cell))
     }
 
     /// A fresh id, larger than every id this tissue has ever held.

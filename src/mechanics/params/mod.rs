@@ -108,6 +108,23 @@ impl Polarity {
     pub const ALL: [Polarity; 2] = [Polarity::None, Polarity::Contacts];
 }
 
+/// How the division plane of a cell is oriented (paper Methods, "Cell division"). The plane always
+/// passes through the cell's volume centroid.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DivisionPlaneRule {
+    /// Hertwig's rule: perpendicular to the cell's longest principal axis.
+    #[default]
+    LongestAxis,
+    /// A uniformly random orientation, drawn from a stream seeded by (numerics.seed, cell id).
+    Random,
+}
+
+impl DivisionPlaneRule {
+    /// All variants.
+    pub const ALL: [DivisionPlaneRule; 2] = [DivisionPlaneRule::LongestAxis, DivisionPlaneRule::Random];
+}
+
 /// Numerical parameters (paper Table 2, "Numerical parameters").
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -190,6 +207,8 @@ pub struct CellTypeParams {
     pub division_volume: Real,
     /// Standard deviation [m³] of the division volume drawn per cell. Default 0 m³.
     pub division_volume_std: Real,
+    /// Orientation of the division plane: `"longest_axis"` (Hertwig's rule, default) or `"random"`.
+    pub division_plane: DivisionPlaneRule,
     /// Mean volumetric growth rate g = dV0/dt [m³/s]; negative shrinks. Default 1e-11 m³/s (other
     /// kinds than epithelial: 0).
     pub growth_rate: Real,
@@ -226,6 +245,7 @@ impl CellTypeParams {
             min_volume: 3.7e-16,
             division_volume: 1.4e-15,
             division_volume_std: 0.0,
+            division_plane: DivisionPlaneRule::LongestAxis,
             growth_rate: 1e-11,
             growth_rate_std: 0.0,
             target_isoperimetric_ratio: 250.0,

@@ -89,6 +89,9 @@ fn resolve_cell_type(index: usize, entry: Value, problems: &mut Vec<String>) -> 
         .get("kind")
         .and_then(|value| parse_choice(value, &CellKind::ALL, &format!("{path}.kind"), problems))
         .unwrap_or(CellKind::Epithelial);
+    if let Some(value) = entry.get("division_plane") {
+        parse_choice(value, &DivisionPlaneRule::ALL, &format!("{path}.division_plane"), problems);
+    }
     let mut merged = to_value(&CellTypeParams::default_for(kind));
     overlay(&mut merged, entry, &path, problems);
     merged

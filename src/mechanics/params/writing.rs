@@ -129,6 +129,14 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         text: "Standard deviation of the division volume drawn per cell.",
     },
     FieldDoc {
+        path: "cell_types.division_plane",
+        unit: "",
+        text: "Orientation of the division plane, which passes through the volume centroid: \"longest_axis\" (Hertwig's \
+               rule, perpendicular to the longest principal axis) or \"random\" (uniform, seeded by numerics.seed and \
+               the cell id). Daughters get fresh cell ids, V0 = the mother's V0 / 2, new draws of growth rate and \
+               division volume; the cut is closed by a lateral cap.",
+    },
+    FieldDoc {
         path: "cell_types.growth_rate",
         unit: "m³/s",
         text: "Mean volumetric growth rate g = dV0/dt; negative shrinks.",

@@ -141,21 +141,24 @@ impl EditMesh {
         self.node_faces[n as usize].push(f);
     }
 
-    /// Live undirected edges `[a, b]` (`a < b`), sorted and deduplicated.
-    pub fn edges(&self) -> Vec<[u32; 2]> {
-        let mut edges: Vec<[u32; 2]> = self
-            .live_faces()
-            .flat_map(|f| {
-                let t = self.triangles[f as usize];
-                (0..3).map(move |s| {
-                    let (a, b) = (t[s], t[(s + 1) % 3]);
-                    [a.min(b), a.max(b)]
-                })
-            })
-            .collect();
-        edges.sort_unstable();
-        edges.dedup();
-        edges
+    /// Live undirected edges `[a, b]` (`a < b`) with their lengths, keeping those for which
+    /// `keep(length)` holds; sorted by nodes and deduplicated. Only the kept edges are sorted, so
+    /// asking for the few out-of-range edges of a mesh is cheap.
+    pub fn edges_with_length(&self, keep: impl Fn(Real) -> bool) -> Vec<(Real, [u32; 2])> {
+        let mut out: Vec<(Real, [u32; 2])> = Vec::new();
+        for f in self.live_faces() {
+            let t = self.triangles[f as usize];
+            for s in 0..3 {
+                let (a, b) = (t[s], t[(s + 1) % 3]);
+                let l = self.length(a, b);
+                if keep(l) {
+                    out.push((l, [a.min(b), a.max(b)]));
+                }
+            }
+        }
+        out.sort_unstable_by_key(|x| x.1);
+        out.dedup_by(|x, y| x.1 == y.1);
+        out
     }
 
     /// Indices of the live faces, in increasing order.

@@ -214,8 +214,7 @@ pub fn remesh_cell(
             break;
         }
     }
-    for [a, b] in edit.edges() {
-        let l = edit.length(a, b);
+    for (l, _) in edit.edges_with_length(|l| l > settings.l_max || l < settings.l_min) {
         report.long_edges += usize::from(l > settings.l_max);
         report.short_edges += usize::from(l < settings.l_min);
     }
@@ -241,12 +240,7 @@ fn needs_work(mesh: &CellMesh, settings: &RemeshSettings) -> bool {
 
 /// Splits the edges longer than l_max, longest first; returns how many.
 fn split_round(edit: &mut EditMesh, settings: &RemeshSettings, report: &mut RemeshReport) -> usize {
-    let mut long: Vec<(Real, [u32; 2])> = edit
-        .edges()
-        .into_iter()
-        .map(|[a, b]| (edit.length(a, b), [a, b]))
-        .filter(|&(l, _)| l > settings.l_max)
-        .collect();
+    let mut long = edit.edges_with_length(|l| l > settings.l_max);
     long.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     let mut done = 0;
     for (_, [a, b]) in long {
@@ -262,12 +256,7 @@ fn split_round(edit: &mut EditMesh, settings: &RemeshSettings, report: &mut Reme
 
 /// Collapses the edges shorter than l_min, shortest first; returns how many.
 fn collapse_round(edit: &mut EditMesh, settings: &RemeshSettings, report: &mut RemeshReport) -> usize {
-    let mut short: Vec<(Real, [u32; 2])> = edit
-        .edges()
-        .into_iter()
-        .map(|[a, b]| (edit.length(a, b), [a, b]))
-        .filter(|&(l, _)| l < settings.l_min)
-        .collect();
+    let mut short = edit.edges_with_length(|l| l < settings.l_min);
     short.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
     let mut done = 0;
     for (_, [a, b]) in short {
