@@ -1,5 +1,5 @@
 //! The `tissuefit` binary: parse the command line, run, map the outcome to an exit code
-//! (0 success, 1 completed but a check failed, 2 error).
+//! (0 success, 1 completed but a check failed, 2 error, 130 interrupted after saving a checkpoint).
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -10,6 +10,7 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(Outcome::Success) => ExitCode::SUCCESS,
         Ok(Outcome::CheckFailed) => ExitCode::from(1),
+        Ok(Outcome::Interrupted) => ExitCode::from(130),
         // Output piped into `head` and closed early: not an error.
         Err(e)
             if e.chain().any(|c| {

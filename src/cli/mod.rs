@@ -74,6 +74,8 @@ pub enum Outcome {
     Success,
     /// The command completed but found a problem (e.g. invalid cells): exit code 1.
     CheckFailed,
+    /// Stopped by Ctrl-C/SIGTERM after saving its state (exit 130, the shell's code for SIGINT).
+    Interrupted,
 }
 
 /// Options shared by commands that read tissue files.

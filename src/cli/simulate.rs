@@ -1,44 +1,74 @@
 //! `tissuefit simulate TISSUE --config C.toml --out DIR`: relax to equilibrium or run a time span.
+//! `tissuefit simulate --resume DIR`: continue a run from `DIR/checkpoint.bin`.
+//!
+//! Checkpoints: the run saves its complete state every `--checkpoint-every-steps` steps and/or every
+//! `--checkpoint-every-seconds` seconds of wall time (default 600 s), and when interrupted (Ctrl-C,
+//! SIGTERM) at the end of the step in progress, then exits with status 130. A resumed run ends with
+//! exactly the outputs of an uninterrupted one (same seed and threads; summary.json's wall time
+//! aside, which sums the sessions). A completed run deletes its checkpoint.
 
 use super::{InputArgs, Outcome};
-use crate::io::{SimulationRecorder, read_tissue, write_bytes_atomically, write_simucell3d};
+use crate::io::{
+    CHECKPOINT_FILE, RunInfo, SimulationRecorder, checksum, read_checkpoint, read_tissue, write_bytes_atomically,
+    write_checkpoint, write_simucell3d,
+};
 use crate::mechanics::{
-    Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationError, SimulationMode, SimulationSummary,
+    CheckpointRequest, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationError, SimulationMode,
+    SimulationState, SimulationSummary,
 };
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct SimulateArgs {
     /// Input tissue (.vtk or .vtp).
-    pub tissue: PathBuf,
+    #[arg(required_unless_present = "resume", conflicts_with = "resume")]
+    pub tissue: Option<PathBuf>,
     /// Parameter file (TOML; see `tissuefit config defaults`). Default: built-in defaults.
-    #[arg(long, value_name = "TOML")]
+    #[arg(long, value_name = "TOML", conflicts_with = "resume")]
     pub config: Option<PathBuf>,
-    /// Output folder: frames.pvd + frames/, stats.csv, final.vtk, summary.json, config.toml.
-    #[arg(long, value_name = "DIR")]
-    pub out: PathBuf,
+    /// Output folder: frames.pvd + frames/, stats.csv, final.vtk, summary.json, config.toml
+    /// (and checkpoint.bin while the run is in progress).
+    #[arg(long, value_name = "DIR", required_unless_present = "resume", conflicts_with = "resume")]
+    pub out: Option<PathBuf>,
     /// Overrides simulation.mode: equilibrium (relax) or time (run simulation.duration).
-    #[arg(long, value_parser = ["equilibrium", "time"])]
+    #[arg(long, value_parser = ["equilibrium", "time"], conflicts_with = "resume")]
     pub mode: Option<String>,
     /// Overrides simulation.method (equilibrium mode): fire or integrate.
-    #[arg(long, value_parser = ["fire", "integrate"])]
+    #[arg(long, value_parser = ["fire", "integrate"], conflicts_with = "resume")]
     pub method: Option<String>,
     /// Overrides simulation.max_steps.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "resume")]
     pub max_steps: Option<u64>,
     /// Overrides simulation.duration (s).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "resume")]
     pub duration: Option<f64>,
     /// Replace the outputs of an earlier run in DIR.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "resume")]
     pub force: bool,
+    /// Continue the run whose checkpoint is DIR/checkpoint.bin, with its parameters and outputs.
+    #[arg(long, value_name = "DIR")]
+    pub resume: Option<PathBuf>,
+    /// Save a checkpoint every N steps (0: not by step count). Default 0.
+    #[arg(long, value_name = "N")]
+    pub checkpoint_every_steps: Option<u64>,
+    /// Save a checkpoint every S seconds of wall time (0: not by time). Default 600.
+    #[arg(long, value_name = "S")]
+    pub checkpoint_every_seconds: Option<f64>,
+    /// Save a checkpoint and stop (exit 130, as when interrupted) at the end of step K; continue
+    /// with --resume. Splits a long run into jobs that fit a cluster's time limit.
+    #[arg(long, value_name = "K")]
+    pub stop_at_step: Option<u64>,
     #[command(flatten)]
     pub input: InputArgs,
 }
+
+/// Default wall time (s) between checkpoints: at most ten minutes of work lost to a crash.
+const DEFAULT_CHECKPOINT_SECONDS: f64 = 600.0;
 
 /// `summary.json` (DESIGN.md §2 keys, SI units).
 #[derive(Serialize)]
@@ -68,7 +98,8 @@ struct Summary<'a> {
     topology: crate::mechanics::TopologyStats,
 }
 
-const OUTPUTS: [&str; 8] = [
+const OUTPUTS: [&str; 9] = [
+    CHECKPOINT_FILE,
     "frames.pvd",
     "stats.csv",
     "stats.csv.partial",
@@ -145,15 +176,85 @@ fn prepare_output(dir: &Path, force: bool) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
 }
 
-/// Recorder plus a progress bar on stderr (hidden when stderr is not a terminal).
+/// Set by the Ctrl-C / SIGTERM handler; the run saves a checkpoint at the end of its step and stops.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Installs the SIGINT/SIGTERM handler once per process and clears the flag. A second interrupt
+/// while the checkpoint is pending quits at once (exit 130) without saving.
+fn watch_interrupts() {
+    static INSTALLED: std::sync::Once = std::sync::Once::new();
+    INSTALLED.call_once(|| {
+        let installed = ctrlc::set_handler(|| {
+            if INTERRUPTED.swap(true, Ordering::SeqCst) {
+                eprintln!("interrupted again: quitting without saving");
+                std::process::exit(130);
+            }
+            eprintln!(
+                "interrupt received: saving a checkpoint at the end of this step (interrupt again to quit at once)"
+            );
+        });
+        if let Err(e) = installed {
+            tracing::warn!("cannot catch Ctrl-C ({e}); an interrupted run keeps only its periodic checkpoints");
+        }
+    });
+    INTERRUPTED.store(false, Ordering::SeqCst);
+}
+
+/// When and where checkpoints are saved, and what they record besides the simulation state.
+struct Checkpoints {
+    path: PathBuf,
+    info: RunInfo,
+    every_steps: u64,
+    every_seconds: f64,
+    stop_at_step: Option<u64>,
+    last: Instant,
+    /// Start of this session and wall time of the earlier ones (s).
+    session: Instant,
+    wall_before: f64,
+    /// Step of the last checkpoint saved in this session.
+    saved_step: Option<u64>,
+}
+
+/// Recorder plus a progress bar on stderr (hidden when stderr is not a terminal), plus checkpoints.
 struct Progress {
     recorder: SimulationRecorder,
     bar: ProgressBar,
+    checkpoints: Checkpoints,
 }
 
 impl Observer for Progress {
     fn sample(&mut self, sample: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         self.recorder.sample(sample)
+    }
+
+    fn checkpoint_due(&mut self, step: u64) -> CheckpointRequest {
+        let c = &self.checkpoints;
+        if INTERRUPTED.load(Ordering::SeqCst) || c.stop_at_step == Some(step) {
+            CheckpointRequest::SaveAndStop
+        } else if (c.every_steps > 0 && step.is_multiple_of(c.every_steps))
+            || (c.every_seconds > 0.0 && c.last.elapsed().as_secs_f64() >= c.every_seconds)
+        {
+            CheckpointRequest::Save
+        } else {
+            CheckpointRequest::No
+        }
+    }
+
+    fn checkpoint(&mut self, state: &SimulationState) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let started = Instant::now();
+        let c = &mut self.checkpoints;
+        c.info.output = self.recorder.state()?;
+        c.info.wall_seconds = c.wall_before + c.session.elapsed().as_secs_f64();
+        let bytes = write_checkpoint(&c.path, &c.info, state)?;
+        c.last = Instant::now();
+        c.saved_step = Some(state.step);
+        tracing::info!(
+            "checkpoint at step {}: {} ({bytes} bytes) written in {:.3} s",
+            state.step,
+            c.path.display(),
+            started.elapsed().as_secs_f64()
+        );
+        Ok(())
     }
 
     fn progress(&mut self, step: u64, residual: f64) {
@@ -165,19 +266,88 @@ impl Observer for Progress {
 }
 
 pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
-    let params = resolve_parameters(args)?;
-    let read = read_tissue(&args.tissue, &args.input.read_options())
-        .with_context(|| format!("reading {}", args.tissue.display()))?;
-    for w in &read.warnings {
-        tracing::warn!("{}: {w}", args.tissue.display());
+    watch_interrupts();
+    if let Some(dir) = &args.resume {
+        return resume(args, dir);
     }
+    let (Some(tissue), Some(out)) = (&args.tissue, &args.out) else {
+        bail!("simulate needs a TISSUE and --out DIR, or --resume DIR");
+    };
+    let params = resolve_parameters(args)?;
+    let read =
+        read_tissue(tissue, &args.input.read_options()).with_context(|| format!("reading {}", tissue.display()))?;
+    for w in &read.warnings {
+        tracing::warn!("{}: {w}", tissue.display());
+    }
+    let input_hash = checksum(&std::fs::read(tissue).with_context(|| format!("reading {}", tissue.display()))?);
     let (cells, nodes) = (read.tissue.len(), read.tissue.node_count());
     // Checked before anything is written: every cell has a parameter set, something moves.
-    let mut sim =
-        Simulation::new(read.tissue, &params).with_context(|| format!("simulating {}", args.tissue.display()))?;
-    prepare_output(&args.out, args.force)?;
-    write_bytes_atomically(&args.out.join("config.toml"), params.to_toml_string().as_bytes())?;
+    let mut sim = Simulation::new(read.tissue, &params).with_context(|| format!("simulating {}", tissue.display()))?;
+    prepare_output(out, args.force)?;
+    let parameters = params.to_toml_string();
+    write_bytes_atomically(&out.join("config.toml"), parameters.as_bytes())?;
+    let recorder = SimulationRecorder::create(out, time_is_step(&params))?;
+    let info = RunInfo {
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        input: tissue.display().to_string(),
+        input_hash,
+        parameters,
+        initial_cells: cells as u64,
+        initial_nodes: nodes as u64,
+        threads: rayon::current_num_threads() as u64,
+        wall_seconds: 0.0,
+        output: crate::io::OutputState { frames: Vec::new(), stats_bytes: 0 },
+    };
+    drive(args, out, &params, &mut sim, recorder, info)
+}
 
+/// FIRE relaxations have no physical time: their frames are labelled by step.
+fn time_is_step(params: &Parameters) -> bool {
+    let s = &params.simulation;
+    s.mode == SimulationMode::Equilibrium && s.method == RelaxMethod::Fire
+}
+
+/// `--resume DIR`: continue from `DIR/checkpoint.bin` with the saved parameters and outputs.
+fn resume(args: &SimulateArgs, dir: &Path) -> anyhow::Result<Outcome> {
+    let path = dir.join(CHECKPOINT_FILE);
+    if !path.exists() {
+        let done = if dir.join("summary.json").exists() { " (the run in it has completed)" } else { "" };
+        bail!("cannot resume: {} does not exist{done}", path.display());
+    }
+    let (info, state) = read_checkpoint(&path)?;
+    if info.version != env!("CARGO_PKG_VERSION") {
+        tracing::warn!(
+            "{} was written by tissuefit {}, this is {}: the continuation may differ from an uninterrupted run",
+            path.display(),
+            info.version,
+            env!("CARGO_PKG_VERSION")
+        );
+    }
+    match std::fs::read(&info.input) {
+        Ok(bytes) if checksum(&bytes) != info.input_hash => {
+            tracing::warn!("{} changed since the run started (the checkpoint holds the state; resuming)", info.input)
+        }
+        _ => {}
+    }
+    let params = Parameters::from_toml_str(&info.parameters, &path.display().to_string())
+        .with_context(|| format!("reading the parameters saved in {}", path.display()))?;
+    let step = state.step;
+    let mut sim = Simulation::restore(state, &params).with_context(|| format!("resuming {}", path.display()))?;
+    let recorder = SimulationRecorder::resume(dir, time_is_step(&params), &info.output)
+        .with_context(|| format!("resuming the outputs in {}", dir.display()))?;
+    eprintln!("{}: resuming {} at step {step}", dir.display(), info.input);
+    drive(args, dir, &params, &mut sim, recorder, info)
+}
+
+/// Runs (or continues) the simulation, then writes the final outputs or explains how it stopped.
+fn drive(
+    args: &SimulateArgs,
+    out: &Path,
+    params: &Parameters,
+    sim: &mut Simulation<'_>,
+    recorder: SimulationRecorder,
+    info: RunInfo,
+) -> anyhow::Result<Outcome> {
     let s = &params.simulation;
     let total_steps = match s.mode {
         SimulationMode::Equilibrium => s.max_steps,
@@ -188,40 +358,77 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}")
             .expect("valid template"),
     );
-    let fire = s.mode == SimulationMode::Equilibrium && s.method == RelaxMethod::Fire;
-    let recorder = SimulationRecorder::create(&args.out, fire)?;
-    let mut observer = Progress { recorder, bar };
+    let every_seconds = args.checkpoint_every_seconds.unwrap_or(DEFAULT_CHECKPOINT_SECONDS);
+    if !(every_seconds.is_finite() && every_seconds >= 0.0) {
+        bail!("--checkpoint-every-seconds must be a finite number ≥ 0 (0: not by time), got {every_seconds}");
+    }
+    let (input, wall_before) = (info.input.clone(), info.wall_seconds);
+    let (cells, nodes) = (info.initial_cells as usize, info.initial_nodes as usize);
+    let checkpoints = Checkpoints {
+        path: out.join(CHECKPOINT_FILE),
+        info,
+        every_steps: args.checkpoint_every_steps.unwrap_or(0),
+        every_seconds,
+        stop_at_step: args.stop_at_step,
+        last: Instant::now(),
+        session: Instant::now(),
+        wall_before,
+        saved_step: None,
+    };
+    let mut observer = Progress { recorder, bar, checkpoints };
 
     let started = Instant::now();
     let result = sim.run(&mut observer);
-    let wall = started.elapsed().as_secs_f64();
+    let wall = wall_before + started.elapsed().as_secs_f64();
     observer.bar.finish_and_clear();
+    let checkpoint = out.join(CHECKPOINT_FILE);
     let summary: SimulationSummary = match result {
         Ok(summary) => summary,
+        Err(SimulationError::Interrupted { step }) => {
+            observer.recorder.abandon();
+            eprintln!(
+                "{input}: stopped at step {step}; the state is saved in {}. Continue with: tissuefit simulate --resume {}",
+                checkpoint.display(),
+                out.display()
+            );
+            return Ok(Outcome::Interrupted);
+        }
         Err(SimulationError::Unhealthy { step, cell, what, hint, last_good }) => {
             observer.recorder.abandon();
-            let saved = args.out.join("last_good.vtk");
+            let saved = out.join("last_good.vtk");
             write_simucell3d(&saved, &last_good, &[])?;
+            let kept = if checkpoint.exists() {
+                format!(
+                    "; the last checkpoint ({}) is kept in {}",
+                    observer
+                        .checkpoints
+                        .saved_step
+                        .map_or("from an earlier session".to_string(), |k| format!("step {k}")),
+                    checkpoint.display()
+                )
+            } else {
+                String::new()
+            };
             bail!(
-                "simulating {}: step {step}, cell {cell}: {what}. {hint}. The last good state (step {}) is in {}; \
-                 the statistics so far in {}",
-                args.tissue.display(),
+                "simulating {input}: step {step}, cell {cell}: {what}. {hint}. The last good state (step {}) is in {}{kept}; \
+                 the statistics so far in {}. To go on with changed parameters, simulate {} with the new config",
                 step.saturating_sub(1),
                 saved.display(),
-                args.out.join("stats.csv.partial").display()
+                out.join("stats.csv.partial").display(),
+                saved.display()
             );
         }
         Err(e) => {
             observer.recorder.abandon();
-            return Err(e).with_context(|| format!("simulating {}", args.tissue.display()));
+            return Err(e).with_context(|| format!("simulating {input}"));
         }
     };
     let frames = observer.recorder.frames();
     observer.recorder.finish()?;
-    write_events(&args.out.join("events.csv"), sim.events())?;
+    write_events(&out.join("events.csv"), sim.events())?;
     let pressure: Vec<f64> = sim.forces().cells.iter().map(|w| w.pressure).collect();
     write_simucell3d(
-        &args.out.join("final.vtk"),
+        &out.join("final.vtk"),
         sim.tissue(),
         &[crate::io::CellField { name: "pressure", values: &pressure }],
     )?;
@@ -242,28 +449,31 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         frames,
         energy: &summary.energy,
         energy_total: summary.energy.total(),
-        input: args.tissue.display().to_string(),
+        input: input.clone(),
         final_cells: sim.tissue().len(),
         final_nodes: sim.tissue().node_count(),
         divisions: summary.topology.divisions,
         removals: summary.topology.removals,
         topology: summary.topology,
     };
-    write_bytes_atomically(&args.out.join("summary.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
+    write_bytes_atomically(&out.join("summary.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
+    // The run is complete: its checkpoint could only restart finished work.
+    if checkpoint.exists() {
+        std::fs::remove_file(&checkpoint).with_context(|| format!("removing {}", checkpoint.display()))?;
+    }
     let verdict = match (s.mode, summary.converged) {
         (SimulationMode::Time, _) => "done".to_string(),
         (_, true) => "converged".to_string(),
         (_, false) => format!("NOT converged within {} steps", s.max_steps),
     };
     eprintln!(
-        "{}: {verdict}: {} steps, {} force evaluations, residual {:.3e} (max force / γ·l_min), {:.2} s wall, {} frames in {}",
-        args.tissue.display(),
+        "{input}: {verdict}: {} steps, {} force evaluations, residual {:.3e} (max force / γ·l_min), {:.2} s wall, {} frames in {}",
         summary.steps,
         summary.force_evaluations,
         summary.residual,
         wall,
         frames,
-        args.out.display()
+        out.display()
     );
     Ok(if s.mode == SimulationMode::Equilibrium && !summary.converged {
         Outcome::CheckFailed

@@ -5,6 +5,7 @@
 //! [`LengthScale`] converts them on reading.
 
 mod atomic;
+mod checkpoint;
 mod error;
 mod legacy_parse;
 mod legacy_tissue;
@@ -16,6 +17,10 @@ mod units;
 mod vtp;
 
 pub use atomic::{write_atomically, write_bytes_atomically};
+pub use checkpoint::{
+    CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, checksum, decode_checkpoint,
+    read_checkpoint, write_checkpoint,
+};
 pub use error::IoError;
 pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;

@@ -13,7 +13,7 @@ use super::{CellField, IoError, PvdEntry, write_pvd, write_vtp};
 use crate::geometry::Real;
 use crate::mechanics::{EnergyTerms, Observer, Sample};
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Seek, Write};
 use std::path::{Path, PathBuf};
 
 /// Records samples of a simulation into an output folder.
@@ -88,6 +88,46 @@ impl SimulationRecorder {
             writeln!(self.stats, ",{:e},{parent}", e.total()).map_err(io)?;
         }
         Ok(())
+    }
+
+    /// Continues the outputs of a checkpointed run in `dir`: the series holds the saved frames, and
+    /// `stats.csv.partial` is cut back to the saved length (rows a killed run wrote after the
+    /// checkpoint are dropped; the resumed run writes them again, identically).
+    pub fn resume(dir: &Path, time_is_step: bool, state: &super::OutputState) -> Result<Self, IoError> {
+        let partial = dir.join("stats.csv.partial");
+        let io = |source| IoError::Write { path: partial.clone(), source };
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&partial)
+            .map_err(|source| IoError::Open { path: partial.clone(), source })?;
+        let len = file.metadata().map_err(io)?.len();
+        if len < state.stats_bytes {
+            return Err(IoError::Unsupported {
+                path: partial.clone(),
+                message: format!(
+                    "holds {len} bytes but the checkpoint recorded {}: the statistics were truncated or replaced",
+                    state.stats_bytes
+                ),
+            });
+        }
+        file.set_len(state.stats_bytes).map_err(io)?;
+        file.seek(std::io::SeekFrom::End(0)).map_err(io)?;
+        let frames =
+            state.frames.iter().map(|(time, file)| PvdEntry { time: *time, file: PathBuf::from(file) }).collect();
+        Ok(Self { dir: dir.to_path_buf(), frames, stats: BufWriter::new(file), time_is_step })
+    }
+
+    /// What has been written so far, for a checkpoint; flushes the statistics to disk first, so
+    /// every byte the state counts is stored.
+    pub fn state(&mut self) -> Result<super::OutputState, IoError> {
+        let partial = self.dir.join("stats.csv.partial");
+        let io = |source| IoError::Write { path: partial.clone(), source };
+        self.stats.flush().map_err(io)?;
+        let file = self.stats.get_mut();
+        file.sync_data().map_err(io)?;
+        let stats_bytes = file.stream_position().map_err(io)?;
+        let frames = self.frames.iter().map(|e| (e.time, e.file.to_string_lossy().into_owned())).collect();
+        Ok(super::OutputState { frames, stats_bytes })
     }
 
     /// Number of frames written.

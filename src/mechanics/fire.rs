@@ -142,7 +142,8 @@ pub enum FireStep {
 }
 
 /// The FIRE 2.0 minimiser's state for one configuration of `nodes` nodes (see the module doc).
-#[derive(Clone, Debug)]
+/// Serialisable: a checkpoint holds it whole, so a resumed relaxation continues bitwise.
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Fire {
     settings: FireSettings,
     dt: Real,

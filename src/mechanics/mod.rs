@@ -40,7 +40,7 @@ pub use polarity::polarize_from_contacts;
 pub use pressure::pressure_energy;
 pub use settings::{RelaxMethod, SimulationMode, SimulationSettings};
 pub use simulation::{
-    LastGood, Observer, Sample, Simulation, SimulationError, SimulationSummary, TopologyEvent, TopologyEventKind,
-    TopologyStats,
+    CellForcesState, CellState, CheckpointRequest, LastGood, Observer, Phase, Sample, Simulation, SimulationError,
+    SimulationState, SimulationSummary, TopologyEvent, TopologyEventKind, TopologyStats,
 };
 pub use tension::tension_energy;

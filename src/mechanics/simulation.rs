@@ -44,7 +44,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, UnitSphere};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// What the driver shows an observer at each sample.
 pub struct Sample<'a> {
@@ -65,10 +65,89 @@ pub trait Observer {
     fn sample(&mut self, sample: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
     /// Called every step, cheaply.
     fn progress(&mut self, _step: u64, _residual: Real) {}
+    /// Called at the end of every step (after its sample, if any): whether to save the state now.
+    fn checkpoint_due(&mut self, _step: u64) -> CheckpointRequest {
+        CheckpointRequest::No
+    }
+    /// Receives the complete state when [`Self::checkpoint_due`] asked for it.
+    fn checkpoint(&mut self, _state: &SimulationState) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
+}
+
+/// What an observer wants at a step boundary.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum CheckpointRequest {
+    No,
+    /// Save the state and continue.
+    Save,
+    /// Save the state and stop ([`SimulationError::Interrupted`]).
+    SaveAndStop,
+}
+
+/// One cell of a saved state: identity, kind, mesh and face types, target volume, lineage.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellState {
+    pub id: CellId,
+    pub kind: crate::mesh::CellKind,
+    pub cell_type: u32,
+    pub parent: Option<CellId>,
+    /// V0 (m³).
+    pub target_volume: Real,
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub face_types: Vec<FaceType>,
+}
+
+/// The forces, pressure and energies of one cell at the last evaluation (the geometry is recomputed
+/// from the positions on restore, exactly).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellForcesState {
+    pub forces: Vec<Vec3>,
+    pub pressure: Real,
+    /// Energies (J) in [`EnergyTerms::NAMES`] order.
+    pub energy: [Real; 5],
+}
+
+/// Where in its loop the driver was saved.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub enum Phase {
+    /// Relaxation to equilibrium. `fire`: the minimiser (None: integrating, by choice or after a
+    /// stall); `previous`: energy and volumes of the step before (convergence history).
+    Relax { fire: Option<Box<Fire>>, previous: Option<(Real, Vec<Real>)>, residual: Real },
+    /// Time run with growth.
+    Time { residual: Real },
+}
+
+/// Everything a running simulation holds that influences its results: restoring it with
+/// [`Simulation::restore`] continues the run bitwise as if it had never stopped (same seed and
+/// threads). Caches that only affect speed (contact grid, hinges) are rebuilt.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SimulationState {
+    pub cells: Vec<CellState>,
+    /// The next fresh cell id (ids of dead cells are never reused).
+    pub next_id: CellId,
+    pub momenta: Vec<Vec<Vec3>>,
+    pub growth_rates: Vec<Real>,
+    pub division_volumes: Vec<Real>,
+    pub remesh_idle: Vec<u32>,
+    pub last_good: Vec<Vec<Vec3>>,
+    pub forces: Vec<CellForcesState>,
+    /// Node pairs tied by the coupling model at the last evaluation: (cell, node) of each side.
+    pub coupled: Vec<((u32, u32), (u32, u32))>,
+    pub events: Vec<TopologyEvent>,
+    pub topology: TopologyStats,
+    pub node_evaluations: u64,
+    pub force_scale: Real,
+    pub energy_scale: Real,
+    pub time: Real,
+    pub step: u64,
+    pub force_evaluations: u64,
+    pub phase: Phase,
 }
 
 /// What happened to a cell's identity.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TopologyEventKind {
     /// The cell divided into `daughters`.
@@ -78,7 +157,7 @@ pub enum TopologyEventKind {
 }
 
 /// One division or removal.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TopologyEvent {
     pub step: u64,
     /// Simulated time (s).
@@ -96,7 +175,7 @@ pub struct TopologyEvent {
 }
 
 /// Counts of topology changes and remeshing over a run (all summed over steps and cells).
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct TopologyStats {
     pub divisions: u64,
     pub removals: u64,
@@ -181,6 +260,11 @@ pub enum SimulationError {
     Topology { step: u64, cell: CellId, what: String },
     #[error("step {step}: output failed: {source}")]
     Observer { step: u64, source: Box<dyn std::error::Error + Send + Sync> },
+    /// The observer asked to stop after saving the state (Ctrl-C).
+    #[error("interrupted at step {step}; the state was saved")]
+    Interrupted { step: u64 },
+    #[error("the saved state is inconsistent: {0}")]
+    BadState(String),
 }
 
 const HINT: &str = "Use a smaller numerics.time_step or a larger numerics.damping (`tissuefit config check` \
@@ -232,6 +316,8 @@ pub struct Simulation<'p> {
     time: Real,
     step: u64,
     force_evaluations: u64,
+    /// Loop state of a restored run, consumed by [`Self::run`].
+    resume: Option<Phase>,
 }
 
 impl<'p> Simulation<'p> {
@@ -270,9 +356,153 @@ impl<'p> Simulation<'p> {
             time: 0.0,
             step: 0,
             force_evaluations: 0,
+            resume: None,
             tissue,
             params,
         })
+    }
+
+    fn snapshot(&self, phase: Phase) -> SimulationState {
+        let cells = self
+            .tissue
+            .cells()
+            .iter()
+            .map(|c| CellState {
+                id: c.id(),
+                kind: c.kind(),
+                cell_type: c.cell_type(),
+                parent: c.parent(),
+                target_volume: c.target_volume(),
+                positions: c.mesh().positions().to_vec(),
+                triangles: c.mesh().triangles().to_vec(),
+                face_types: c.face_types().to_vec(),
+            })
+            .collect();
+        let forces = self
+            .forces
+            .cells
+            .iter()
+            .map(|w| CellForcesState { forces: w.forces.clone(), pressure: w.pressure, energy: w.energy.values() })
+            .collect();
+        SimulationState {
+            cells,
+            next_id: self.tissue.next_id(),
+            momenta: self.momenta.clone(),
+            growth_rates: self.growth_rates.clone(),
+            division_volumes: self.division_volumes.clone(),
+            remesh_idle: self.remesh_idle.clone(),
+            last_good: self.last_good.clone(),
+            forces,
+            coupled: self.coupling.pairs().iter().map(|p| (p.a, p.b)).collect(),
+            events: self.events.clone(),
+            topology: self.topology,
+            node_evaluations: self.node_evaluations,
+            force_scale: self.force_scale,
+            energy_scale: self.energy_scale,
+            time: self.time,
+            step: self.step,
+            force_evaluations: self.force_evaluations,
+            phase,
+        }
+    }
+
+    /// Rebuilds a simulation from a saved state; [`Self::run`] then continues where it stopped.
+    /// `params` must be the parameters of the saved run.
+    pub fn restore(state: SimulationState, params: &'p Parameters) -> Result<Self, SimulationError> {
+        let bad = |what: String| SimulationError::BadState(what);
+        let n = state.cells.len();
+        let per_cell = [
+            ("momenta", state.momenta.len()),
+            ("growth rates", state.growth_rates.len()),
+            ("division volumes", state.division_volumes.len()),
+            ("remeshing counters", state.remesh_idle.len()),
+            ("forces", state.forces.len()),
+        ];
+        if let Some((name, len)) = per_cell.iter().find(|(_, len)| *len != n) {
+            return Err(bad(format!("{len} {name} for {n} cells")));
+        }
+        let mut cells = Vec::with_capacity(n);
+        let mut forces = TissueForces::default();
+        for (c, (cs, fs)) in state.cells.into_iter().zip(state.forces).enumerate() {
+            let nodes = cs.positions.len();
+            if state.momenta[c].len() != nodes || fs.forces.len() != nodes {
+                return Err(bad(format!("cell {}: momenta or forces do not match its {nodes} nodes", cs.id)));
+            }
+            let mesh = crate::mesh::CellMesh::from_triangles(cs.positions, cs.triangles)
+                .map_err(|e| bad(format!("cell {}: {e}", cs.id)))?;
+            let mut cell = Cell::new(cs.id, cs.kind, cs.cell_type, mesh)
+                .with_face_types(cs.face_types)
+                .map_err(|e| bad(e.to_string()))?
+                .with_target_volume(cs.target_volume);
+            if let Some(p) = cs.parent {
+                cell = cell.with_parent(p);
+            }
+            let mut work = CellForces::default();
+            work.geometry.update(cell.mesh());
+            work.forces = fs.forces;
+            work.pressure = fs.pressure;
+            let [pressure, area_elasticity, tension, bending, contact] = fs.energy;
+            work.energy = EnergyTerms { pressure, area_elasticity, tension, bending, contact };
+            forces.cells.push(work);
+            cells.push(cell);
+        }
+        let mut tissue = Tissue::from_cells(cells).map_err(|e| bad(e.to_string()))?;
+        tissue.reserve_ids_below(state.next_id);
+        let cell_params = cell_parameters(&tissue, params)?;
+        let mut contacts = ContactWorkspace::default();
+        contacts.set_model(params.numerics.contact_model);
+        let mut coupling = CouplingWorkspace::default();
+        coupling.restore_pairs(state.coupled.into_iter().map(|(a, b)| super::CoupledPair { a, b }).collect());
+        if let Phase::Relax { fire: Some(fire), .. } = &state.phase
+            && fire.velocities().len() != tissue.node_count()
+        {
+            return Err(bad(format!(
+                "FIRE holds {} velocities for {} nodes",
+                fire.velocities().len(),
+                tissue.node_count()
+            )));
+        }
+        Ok(Self {
+            tissue,
+            params,
+            cell_params,
+            forces,
+            contacts,
+            coupling,
+            momenta: state.momenta,
+            growth_rates: state.growth_rates,
+            division_volumes: state.division_volumes,
+            remesh_idle: state.remesh_idle,
+            last_good: state.last_good,
+            events: state.events,
+            topology: state.topology,
+            node_evaluations: state.node_evaluations,
+            force_scale: state.force_scale,
+            energy_scale: state.energy_scale,
+            time: state.time,
+            step: state.step,
+            force_evaluations: state.force_evaluations,
+            resume: Some(state.phase),
+        })
+    }
+
+    /// Asks the observer whether to save now; saves and (on request) stops.
+    fn maybe_checkpoint(
+        &self,
+        observer: &mut dyn Observer,
+        phase: impl FnOnce() -> Phase,
+    ) -> Result<(), SimulationError> {
+        let request = observer.checkpoint_due(self.step);
+        if request == CheckpointRequest::No {
+            return Ok(());
+        }
+        observer
+            .checkpoint(&self.snapshot(phase()))
+            .map_err(|source| SimulationError::Observer { step: self.step, source })?;
+        if request == CheckpointRequest::SaveAndStop {
+            return Err(SimulationError::Interrupted { step: self.step });
+        }
+        Ok(())
     }
 
     /// The current tissue.
@@ -488,15 +718,29 @@ impl<'p> Simulation<'p> {
         method: RelaxMethod,
     ) -> Result<SimulationSummary, SimulationError> {
         let s = self.params.simulation.clone();
-        let mut mover = match method {
-            RelaxMethod::Fire => Mover::fire(self),
-            RelaxMethod::Integrate => Mover::Integrate,
+        let (mut mover, mut residual, mut previous) = match self.resume.take() {
+            Some(Phase::Relax { fire, previous, residual }) => {
+                let mover = match fire {
+                    Some(fire) => Mover::with_fire(self, fire),
+                    None => Mover::Integrate,
+                };
+                (mover, residual, previous)
+            }
+            Some(Phase::Time { .. }) => {
+                return Err(SimulationError::BadState("a time run's state cannot continue a relaxation".into()));
+            }
+            None => {
+                let mover = match method {
+                    RelaxMethod::Fire => Mover::fire(self),
+                    RelaxMethod::Integrate => Mover::Integrate,
+                };
+                self.save_good();
+                self.evaluate()?;
+                let residual = self.residual();
+                self.sample(observer, residual)?;
+                (mover, residual, None)
+            }
         };
-        self.save_good();
-        self.evaluate()?;
-        let mut residual = self.residual();
-        self.sample(observer, residual)?;
-        let mut previous: Option<(Real, Vec<Real>)> = None;
         while self.step < s.max_steps {
             if self.relaxed(residual, previous.as_ref().map(|(e, v)| (*e, v.as_slice()))) {
                 self.sample(observer, residual)?;
@@ -526,6 +770,14 @@ impl<'p> Simulation<'p> {
             if self.step.is_multiple_of(s.sample_every_steps) {
                 self.sample(observer, residual)?;
             }
+            self.maybe_checkpoint(observer, || Phase::Relax {
+                fire: match &mover {
+                    Mover::Fire { fire, .. } => Some(fire.clone()),
+                    Mover::Integrate => None,
+                },
+                previous: previous.clone(),
+                residual,
+            })?;
         }
         let converged = self.relaxed(residual, previous.as_ref().map(|(e, v)| (*e, v.as_slice())));
         self.sample(observer, residual)?;
@@ -538,9 +790,18 @@ impl<'p> Simulation<'p> {
         let dt = self.params.numerics.time_step;
         let steps = (s.duration / dt).round() as u64;
         let sample_every = ((s.sampling_period / dt).round() as u64).max(1);
-        self.start()?;
-        let mut residual = self.residual();
-        self.sample(observer, residual)?;
+        let mut residual = match self.resume.take() {
+            Some(Phase::Time { residual }) => residual,
+            Some(Phase::Relax { .. }) => {
+                return Err(SimulationError::BadState("a relaxation's state cannot continue a time run".into()));
+            }
+            None => {
+                self.start()?;
+                let residual = self.residual();
+                self.sample(observer, residual)?;
+                residual
+            }
+        };
         while self.step < steps {
             self.time_step()?;
             residual = self.residual();
@@ -548,6 +809,7 @@ impl<'p> Simulation<'p> {
             if self.step.is_multiple_of(sample_every) || self.step == steps {
                 self.sample(observer, residual)?;
             }
+            self.maybe_checkpoint(observer, || Phase::Time { residual })?;
         }
         Ok(self.summary(false, residual))
     }
@@ -897,16 +1159,16 @@ enum Mover {
 
 impl Mover {
     fn fire(sim: &Simulation<'_>) -> Self {
+        let total = sim.tissue.node_count();
+        let settings = FireSettings::for_scales(sim.params.numerics.min_edge_length, sim.force_scale);
+        Self::with_fire(sim, Box::new(Fire::new(settings, total)))
+    }
+
+    /// FIRE with a given minimiser state (fresh, or restored from a checkpoint) for the current layout.
+    fn with_fire(sim: &Simulation<'_>, fire: Box<Fire>) -> Self {
         let (offsets, mobile) = sim.layout();
         let total = *offsets.last().unwrap_or(&0);
-        let settings = FireSettings::for_scales(sim.params.numerics.min_edge_length, sim.force_scale);
-        Mover::Fire {
-            fire: Box::new(Fire::new(settings, total)),
-            offsets,
-            mobile,
-            x: vec![Vec3::zeros(); total],
-            f: vec![Vec3::zeros(); total],
-        }
+        Mover::Fire { fire, offsets, mobile, x: vec![Vec3::zeros(); total], f: vec![Vec3::zeros(); total] }
     }
 
     /// One step from the current, evaluated state; evaluates the forces at the new positions.

@@ -276,6 +276,16 @@ impl Tissue {
         Ok(std::mem::replace(&mut self.cells[index], cell))
     }
 
+    /// The id [`Self::allocate_id`] hands out next.
+    pub fn next_id(&self) -> CellId {
+        CellId(self.next_id)
+    }
+
+    /// Raises the next fresh id to at least `next` (restoring a saved tissue whose largest ids died).
+    pub fn reserve_ids_below(&mut self, next: CellId) {
+        self.next_id = self.next_id.max(next.0);
+    }
+
     /// A fresh id, larger than every id this tissue has ever held.
     pub fn allocate_id(&mut self) -> CellId {
         let id = CellId(self.next_id);

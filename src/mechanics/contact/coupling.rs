@@ -53,6 +53,12 @@ impl CouplingWorkspace {
         &self.pairs
     }
 
+    /// Puts back the pairs of a saved state (a resumed run averages momenta and FIRE velocities
+    /// over the pairs of the evaluation it was saved after).
+    pub fn restore_pairs(&mut self, pairs: Vec<CoupledPair>) {
+        self.pairs = pairs;
+    }
+
     /// Finds the node pairs of the current configuration and snaps each pair together (to the
     /// midpoint; onto the static node when one side is static). Returns the number of pairs.
     pub fn couple(&mut self, tissue: &mut Tissue, cell_params: &[&CellTypeParams], cutoff: Real) -> usize {

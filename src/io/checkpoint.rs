@@ -1,0 +1,149 @@
+//! Checkpoints of a running simulation (`DIR/checkpoint.bin`): everything needed to continue a
+//! `tissuefit simulate` run so that it ends with exactly the outputs of an uninterrupted run.
+//!
+//! Layout (all integers little-endian):
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 8 | magic `TFCKPT\r\n` (the CR LF catches text-mode transfers) |
+//! | 4 | format version, [`CHECKPOINT_VERSION`] |
+//! | 8 | payload length in bytes |
+//! | 8 | checksum of the payload (64-bit multiply–rotate hash, see [`checksum`]) |
+//! | n | payload: postcard encoding of ([`RunInfo`], [`SimulationState`]) |
+//!
+//! postcard (not bincode: unmaintained) is compact (varints) and stable within a major version; the
+//! version field changes whenever the payload's structure does, and an older or newer file is
+//! refused with a message instead of being misread. The length and checksum catch truncated and
+//! corrupted files before decoding. The file is written atomically (temporary name + rename), so a
+//! crash while saving leaves the previous checkpoint intact.
+
+use super::atomic::write_atomically;
+use crate::mechanics::SimulationState;
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// File name of the checkpoint inside a simulation's output folder.
+pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
+/// Version of the payload's structure; bumped on every change to it.
+pub const CHECKPOINT_VERSION: u32 = 1;
+const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
+const HEADER: usize = 8 + 4 + 8 + 8;
+
+/// What the output recorder had written when the checkpoint was taken.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OutputState {
+    /// Frames of the ParaView series so far: (label, file relative to the output folder).
+    pub frames: Vec<(f64, String)>,
+    /// Bytes of `stats.csv.partial` that belong to the saved state; rows past them (written after
+    /// the checkpoint by a run that was then killed) are cut off on resume.
+    pub stats_bytes: u64,
+}
+
+/// The run a checkpoint belongs to: command inputs, resolved parameters, output progress.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunInfo {
+    /// tissuefit version that wrote the checkpoint.
+    pub version: String,
+    /// Input tissue as given on the command line.
+    pub input: String,
+    /// [`checksum`] of the input file's bytes (checked on resume: the input must not have changed).
+    pub input_hash: u64,
+    /// Resolved parameters (TOML, exactly what `config.toml` holds).
+    pub parameters: String,
+    /// Cells and nodes of the input (summary.json reports them).
+    pub initial_cells: u64,
+    pub initial_nodes: u64,
+    /// Rayon threads of the run (results are identical for any count; recorded for the summary).
+    pub threads: u64,
+    /// Wall time (s) spent before this checkpoint, over all earlier sessions.
+    pub wall_seconds: f64,
+    pub output: OutputState,
+}
+
+/// A checkpoint that cannot be written or used. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    #[error("cannot read checkpoint {path}: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("cannot write checkpoint {path}: {source}")]
+    Write { path: PathBuf, source: Box<super::IoError> },
+    #[error("{path} is not a tissuefit checkpoint (wrong magic bytes)")]
+    NotACheckpoint { path: PathBuf },
+    #[error(
+        "{path}: checkpoint format version {found}, this tissuefit reads version {CHECKPOINT_VERSION}; \
+         finish the run with the tissuefit that started it, or start it again"
+    )]
+    Version { path: PathBuf, found: u32 },
+    #[error("{path}: checkpoint is truncated ({found} of {expected} bytes); it cannot be resumed")]
+    Truncated { path: PathBuf, expected: u64, found: u64 },
+    #[error("{path}: checkpoint is corrupt (checksum mismatch); it cannot be resumed")]
+    Corrupt { path: PathBuf },
+    #[error("{path}: checkpoint cannot be decoded: {message}")]
+    Decode { path: PathBuf, message: String },
+    #[error("cannot encode the checkpoint for {path}: {message}")]
+    Encode { path: PathBuf, message: String },
+}
+
+/// 64-bit hash for corruption detection (not cryptographic): 8-byte words folded by multiply,
+/// rotate and xor, the tail and the length mixed in last. Any single flipped bit changes it.
+pub fn checksum(bytes: &[u8]) -> u64 {
+    const K: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut h: u64 = 0xCBF2_9CE4_8422_2325;
+    let mut words = bytes.chunks_exact(8);
+    for w in &mut words {
+        let v = u64::from_le_bytes(w.try_into().expect("8-byte chunk"));
+        h = (h ^ v).wrapping_mul(K).rotate_left(29);
+    }
+    let mut tail = [0u8; 8];
+    tail[..words.remainder().len()].copy_from_slice(words.remainder());
+    h = (h ^ u64::from_le_bytes(tail)).wrapping_mul(K).rotate_left(29);
+    (h ^ bytes.len() as u64).wrapping_mul(K) ^ (h >> 31)
+}
+
+/// Writes `path` atomically; returns the file's size in bytes.
+pub fn write_checkpoint(path: &Path, info: &RunInfo, state: &SimulationState) -> Result<u64, CheckpointError> {
+    let payload = postcard::to_stdvec(&(info, state))
+        .map_err(|e| CheckpointError::Encode { path: path.to_path_buf(), message: e.to_string() })?;
+    write_atomically(path, |w| {
+        w.write_all(&MAGIC)?;
+        w.write_all(&CHECKPOINT_VERSION.to_le_bytes())?;
+        w.write_all(&(payload.len() as u64).to_le_bytes())?;
+        w.write_all(&checksum(&payload).to_le_bytes())?;
+        w.write_all(&payload)
+    })
+    .map_err(|e| CheckpointError::Write { path: path.to_path_buf(), source: Box::new(e) })?;
+    Ok((HEADER + payload.len()) as u64)
+}
+
+/// Reads and checks a checkpoint written by [`write_checkpoint`].
+pub fn read_checkpoint(path: &Path) -> Result<(RunInfo, SimulationState), CheckpointError> {
+    let bytes = std::fs::read(path).map_err(|source| CheckpointError::Read { path: path.to_path_buf(), source })?;
+    decode_checkpoint(&bytes, path)
+}
+
+/// Decodes checkpoint bytes; `path` names the file in errors.
+pub fn decode_checkpoint(bytes: &[u8], path: &Path) -> Result<(RunInfo, SimulationState), CheckpointError> {
+    let path = || path.to_path_buf();
+    if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
+        return Err(CheckpointError::NotACheckpoint { path: path() });
+    }
+    if bytes.len() < HEADER {
+        return Err(CheckpointError::Truncated { path: path(), expected: HEADER as u64, found: bytes.len() as u64 });
+    }
+    let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().expect("8 bytes"));
+    let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
+    if version != CHECKPOINT_VERSION {
+        return Err(CheckpointError::Version { path: path(), found: version });
+    }
+    let (length, sum) = (word(12), word(20));
+    let payload = &bytes[HEADER..];
+    let expected = (HEADER as u64).saturating_add(length);
+    if (payload.len() as u64) < length {
+        return Err(CheckpointError::Truncated { path: path(), expected, found: bytes.len() as u64 });
+    }
+    if payload.len() as u64 != length || checksum(payload) != sum {
+        return Err(CheckpointError::Corrupt { path: path() });
+    }
+    postcard::from_bytes(payload).map_err(|e| CheckpointError::Decode { path: path(), message: e.to_string() })
+}

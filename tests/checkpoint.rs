@@ -1,0 +1,275 @@
+//! Checkpoints and resume (`tissuefit simulate --resume`): a run stopped at a step boundary, killed
+//! with SIGKILL or interrupted with SIGINT, then resumed, ends with exactly the outputs of an
+//! uninterrupted run (final tissue, stats.csv, events.csv, every frame, the .pvd index, and
+//! summary.json but for its wall times); a damaged checkpoint is refused with an error naming it.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+use tissuefit::io::write_simucell3d;
+use tissuefit::mesh::shapes::sphere_for_min_edge;
+use tissuefit::mesh::{Cell, CellId, CellKind, Tissue};
+
+fn tissuefit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
+}
+
+fn spawn(args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the tissuefit binary starts")
+}
+
+fn demo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/cell_quartet.vtk")
+}
+
+fn growth_config() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/growth.toml")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn ok(out: &Output) {
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// One 3 µm sphere (l_min 0.6 µm), the set-up of tests/growth_cli.rs: with pipelines/growth.toml
+/// it divides first at step ≈ 145 and again at ≈ 273 (coupling contacts, remeshing every step).
+fn sphere(dir: &Path) -> PathBuf {
+    let path = dir.join("sphere.vtk");
+    let mesh = sphere_for_min_edge(3e-6, 6e-7).unwrap();
+    let tissue = Tissue::from_cells(vec![Cell::new(CellId(1), CellKind::Epithelial, 0, mesh)]).unwrap();
+    write_simucell3d(&path, &tissue, &[]).unwrap();
+    path
+}
+
+/// Arguments of the growth run: 300 steps, two threads.
+fn growth_args<'a>(input: &'a Path, out: &'a Path) -> Vec<&'a str> {
+    vec![
+        "--threads",
+        "2",
+        "simulate",
+        s(input),
+        "--config",
+        s(growth_config().leak()),
+        "--out",
+        s(out),
+        "--duration",
+        "3e-5",
+    ]
+}
+
+/// The input sphere and the uninterrupted growth run (`run/`), shared by the tests of this file
+/// (summary.json names the input, so every run reads the same file).
+fn growth_reference() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let input = sphere(dir.path());
+        let out = dir.path().join("run");
+        ok(&tissuefit(&growth_args(&input, &out)));
+        dir
+    })
+    .path()
+}
+
+/// Every output of two runs is identical, byte for byte, except summary.json's wall times.
+fn assert_same_outputs(reference: &Path, resumed: &Path) {
+    for name in ["final.vtk", "stats.csv", "events.csv", "frames.pvd", "config.toml"] {
+        let a = std::fs::read(reference.join(name)).unwrap_or_else(|e| panic!("{name} of the reference: {e}"));
+        let b = std::fs::read(resumed.join(name)).unwrap_or_else(|e| panic!("{name} of the resumed run: {e}"));
+        assert!(a == b, "{name} differs between the uninterrupted and the resumed run");
+    }
+    let frames = |dir: &Path| {
+        let mut names: Vec<String> = std::fs::read_dir(dir.join("frames"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    let names = frames(reference);
+    assert!(names.len() >= 2, "{names:?}");
+    assert_eq!(names, frames(resumed), "the frames differ in number or names");
+    for name in &names {
+        let a = std::fs::read(reference.join("frames").join(name)).unwrap();
+        let b = std::fs::read(resumed.join("frames").join(name)).unwrap();
+        assert!(a == b, "frame {name} differs");
+    }
+    let summary = |dir: &Path| {
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("summary.json")).unwrap()).unwrap();
+        let map = v.as_object_mut().unwrap();
+        assert!(map.remove("wall_seconds").is_some());
+        assert!(map.remove("seconds_per_node_step").is_some());
+        v
+    };
+    assert_eq!(summary(reference), summary(resumed));
+    for dir in [reference, resumed] {
+        assert!(!dir.join("checkpoint.bin").exists(), "a completed run deletes its checkpoint");
+        assert!(!dir.join("stats.csv.partial").exists());
+    }
+}
+
+/// Runs `--resume DIR` and expects it to complete.
+fn resume(dir: &Path) {
+    let out = tissuefit(&["--threads", "2", "simulate", "--resume", s(dir)]);
+    ok(&out);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("resuming"));
+}
+
+#[test]
+fn a_fire_relaxation_stopped_and_resumed_matches_the_uninterrupted_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let (reference, split) = (dir.path().join("reference"), dir.path().join("split"));
+    let input = demo();
+    let run = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["--threads", "2", "simulate", s(&input), "--out", s(out), "--max-steps", "120"];
+        args.extend_from_slice(extra);
+        tissuefit(&args)
+    };
+    let full = run(&reference, &[]);
+    assert!(full.status.code() == Some(0) || full.status.code() == Some(1));
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(reference.join("summary.json")).unwrap()).unwrap();
+    // The stop must fall inside the run for the comparison to mean anything.
+    assert!(summary["steps"].as_u64().unwrap() > 60, "{summary}");
+
+    let stopped = run(&split, &["--stop-at-step", "60"]);
+    assert_eq!(stopped.status.code(), Some(130), "{}", String::from_utf8_lossy(&stopped.stderr));
+    let message = String::from_utf8_lossy(&stopped.stderr);
+    assert!(message.contains("--resume") && message.contains("step 60"), "{message}");
+    assert!(split.join("checkpoint.bin").exists());
+    assert!(!split.join("stats.csv").exists(), "an unfinished run has no stats.csv");
+    assert!(!split.join("summary.json").exists());
+    let out = tissuefit(&["--threads", "2", "simulate", "--resume", s(&split)]);
+    assert_eq!(out.status.code(), full.status.code(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_same_outputs(&reference, &split);
+}
+
+#[test]
+fn a_growth_run_stopped_after_a_division_and_resumed_matches_the_uninterrupted_run() {
+    let reference = growth_reference().join("run");
+    let events = std::fs::read_to_string(reference.join("events.csv")).unwrap();
+    assert!(events.lines().count() >= 3, "the reference divides: {events}");
+    let input = growth_reference().join("sphere.vtk");
+    let dir = tempfile::tempdir().unwrap();
+    let split = dir.path().join("run");
+    // Step 200: after the first division, before the second wave; not a sampling step.
+    let mut args = growth_args(&input, &split);
+    args.extend_from_slice(&["--stop-at-step", "200"]);
+    let stopped = tissuefit(&args);
+    assert_eq!(stopped.status.code(), Some(130), "{}", String::from_utf8_lossy(&stopped.stderr));
+    resume(&split);
+    assert_same_outputs(&reference, &split);
+}
+
+/// Waits until `path` exists while `child` runs; fails if the child exits first.
+fn wait_for(path: &Path, child: &mut Child) {
+    let start = Instant::now();
+    while !path.exists() {
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("the run ended ({status}) before {} appeared", path.display());
+        }
+        assert!(start.elapsed() < Duration::from_secs(300), "no checkpoint after 5 minutes");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+#[test]
+fn a_growth_run_killed_with_sigkill_and_resumed_matches_the_uninterrupted_run() {
+    let reference = growth_reference().join("run");
+    let input = growth_reference().join("sphere.vtk");
+    let dir = tempfile::tempdir().unwrap();
+    let split = dir.path().join("run");
+    let mut args = growth_args(&input, &split);
+    args.extend_from_slice(&["--checkpoint-every-steps", "10"]);
+    let mut child = spawn(&args);
+    wait_for(&split.join("checkpoint.bin"), &mut child);
+    // Let it run on past the checkpoint (frames and statistics rows after it get written).
+    std::thread::sleep(Duration::from_millis(50));
+    let still_running = child.try_wait().unwrap().is_none();
+    child.kill().unwrap();
+    let status = child.wait().unwrap();
+    assert!(still_running, "the run finished before it could be killed");
+    assert_eq!(status.code(), None, "killed by a signal");
+    assert!(!split.join("summary.json").exists());
+    resume(&split);
+    assert_same_outputs(&reference, &split);
+}
+
+#[test]
+fn sigint_saves_a_resumable_checkpoint_and_exits_cleanly() {
+    let reference = growth_reference().join("run");
+    let input = growth_reference().join("sphere.vtk");
+    let dir = tempfile::tempdir().unwrap();
+    let split = dir.path().join("run");
+    let mut args = growth_args(&input, &split);
+    // The first periodic checkpoint shows that the run (and its signal handler) is up.
+    args.extend_from_slice(&["--checkpoint-every-steps", "10"]);
+    let mut child = spawn(&args);
+    wait_for(&split.join("checkpoint.bin"), &mut child);
+    let sent = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(sent.success());
+    let out = child.wait_with_output().unwrap();
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{message}");
+    assert!(message.contains("tissuefit simulate --resume"), "{message}");
+    assert!(split.join("checkpoint.bin").exists());
+    assert!(split.join("stats.csv.partial").exists() && !split.join("stats.csv").exists());
+    resume(&split);
+    assert_same_outputs(&reference, &split);
+}
+
+#[test]
+fn a_damaged_checkpoint_is_refused_with_an_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let stopped = tissuefit(&["simulate", s(&demo()), "--out", s(&run), "--max-steps", "50", "--stop-at-step", "5"]);
+    assert_eq!(stopped.status.code(), Some(130), "{}", String::from_utf8_lossy(&stopped.stderr));
+    let path = run.join("checkpoint.bin");
+    let good = std::fs::read(&path).unwrap();
+    let stats = std::fs::read(run.join("stats.csv.partial")).unwrap();
+
+    let mut flipped = good.clone();
+    let middle = flipped.len() / 2;
+    flipped[middle] ^= 0x10;
+    let mut version = good.clone();
+    version[8] = version[8].wrapping_add(1);
+    let cases: [(&str, Vec<u8>, &str); 5] = [
+        ("truncated", good[..good.len() - 100].to_vec(), "truncated"),
+        ("header only", good[..10].to_vec(), "truncated"),
+        ("bit flip", flipped, "corrupt"),
+        ("version", version, "version"),
+        ("not a checkpoint", b"# vtk DataFile Version 4.2\n".to_vec(), "not a tissuefit checkpoint"),
+    ];
+    for (case, bytes, expected) in cases {
+        std::fs::write(&path, &bytes).unwrap();
+        let out = tissuefit(&["simulate", "--resume", s(&run)]);
+        let message = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{case}: {message}");
+        assert!(message.contains(s(&path)), "{case}: the error names the file: {message}");
+        assert!(message.contains(expected), "{case}: {message}");
+        assert!(!message.contains("panicked"), "{case}: {message}");
+        // Nothing was touched.
+        assert_eq!(std::fs::read(run.join("stats.csv.partial")).unwrap(), stats, "{case}");
+        assert!(!run.join("summary.json").exists(), "{case}");
+    }
+    // The intact checkpoint still resumes.
+    std::fs::write(&path, &good).unwrap();
+    let out = tissuefit(&["simulate", "--resume", s(&run)]);
+    assert!(out.status.code() == Some(0) || out.status.code() == Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(run.join("summary.json").exists() && !path.exists());
+
+    // A folder without a checkpoint: a clear error.
+    let out = tissuefit(&["simulate", "--resume", s(dir.path())]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("checkpoint.bin does not exist"));
+}
