@@ -50,7 +50,7 @@ fn sphere(dir: &Path) -> PathBuf {
     path
 }
 
-/// Arguments of the growth run: 300 steps, two threads.
+/// Arguments of the growth run: 600 steps (three division waves), two threads.
 fn growth_args<'a>(input: &'a Path, out: &'a Path) -> Vec<&'a str> {
     vec![
         "--threads",
@@ -62,7 +62,7 @@ fn growth_args<'a>(input: &'a Path, out: &'a Path) -> Vec<&'a str> {
         "--out",
         s(out),
         "--duration",
-        "3e-5",
+        "6e-5",
     ]
 }
 
@@ -190,11 +190,11 @@ fn a_growth_run_killed_with_sigkill_and_resumed_matches_the_uninterrupted_run() 
     let dir = tempfile::tempdir().unwrap();
     let split = dir.path().join("run");
     let mut args = growth_args(&input, &split);
-    args.extend_from_slice(&["--checkpoint-every-steps", "10"]);
+    args.extend_from_slice(&["--checkpoint-every-steps", "100"]);
     let mut child = spawn(&args);
     wait_for(&split.join("checkpoint.bin"), &mut child);
     // Let it run on past the checkpoint (frames and statistics rows after it get written).
-    std::thread::sleep(Duration::from_millis(50));
+    std::thread::sleep(Duration::from_millis(20));
     let still_running = child.try_wait().unwrap().is_none();
     child.kill().unwrap();
     let status = child.wait().unwrap();
@@ -213,7 +213,7 @@ fn sigint_saves_a_resumable_checkpoint_and_exits_cleanly() {
     let split = dir.path().join("run");
     let mut args = growth_args(&input, &split);
     // The first periodic checkpoint shows that the run (and its signal handler) is up.
-    args.extend_from_slice(&["--checkpoint-every-steps", "10"]);
+    args.extend_from_slice(&["--checkpoint-every-steps", "100"]);
     let mut child = spawn(&args);
     wait_for(&split.join("checkpoint.bin"), &mut child);
     let sent = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
@@ -272,4 +272,32 @@ fn a_damaged_checkpoint_is_refused_with_an_error_naming_it() {
     let out = tissuefit(&["simulate", "--resume", s(dir.path())]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("checkpoint.bin does not exist"));
+}
+
+#[test]
+fn the_config_sets_the_checkpoint_period_and_the_command_line_overrides_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("c.toml");
+    std::fs::write(&config, "[simulation]\ncheckpoint_every_steps = 5\ncheckpoint_every_seconds = 0\n").unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let out = dir.path().join(out);
+        let input = demo();
+        let mut args = vec!["-v", "simulate", s(&input), "--config", s(&config), "--out", s(&out), "--max-steps", "12"];
+        args.extend_from_slice(extra);
+        let o = tissuefit(&args);
+        assert!(o.status.code() == Some(0) || o.status.code() == Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(!out.join("checkpoint.bin").exists(), "a completed run deletes its checkpoint");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let log = run("config", &[]);
+    let saved: Vec<&str> = log.lines().filter(|l| l.contains("checkpoint at step")).collect();
+    assert_eq!(saved.len(), 2, "{log}");
+    assert!(saved[0].contains("step 5:") && saved[1].contains("step 10:"), "{log}");
+    let log = run("cli", &["--checkpoint-every-steps", "4"]);
+    assert_eq!(log.lines().filter(|l| l.contains("checkpoint at step")).count(), 3, "{log}");
+
+    std::fs::write(&config, "[simulation]\ncheckpoint_every_seconds = -1\n").unwrap();
+    let o = tissuefit(&["simulate", s(&demo()), "--config", s(&config), "--out", s(&dir.path().join("bad"))]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("simulation.checkpoint_every_seconds"));
 }

@@ -2,7 +2,8 @@
 //! `tissuefit simulate --resume DIR`: continue a run from `DIR/checkpoint.bin`.
 //!
 //! Checkpoints: the run saves its complete state every `--checkpoint-every-steps` steps and/or every
-//! `--checkpoint-every-seconds` seconds of wall time (default 600 s), and when interrupted (Ctrl-C,
+//! `--checkpoint-every-seconds` seconds of wall time (`[simulation]` checkpoint_every_steps and
+//! checkpoint_every_seconds in the config; default every 600 s), and when interrupted (Ctrl-C,
 //! SIGTERM) at the end of the step in progress, then exits with status 130. A resumed run ends with
 //! exactly the outputs of an uninterrupted one (same seed and threads; summary.json's wall time
 //! aside, which sums the sessions). A completed run deletes its checkpoint.
@@ -53,10 +54,12 @@ pub struct SimulateArgs {
     /// Continue the run whose checkpoint is DIR/checkpoint.bin, with its parameters and outputs.
     #[arg(long, value_name = "DIR")]
     pub resume: Option<PathBuf>,
-    /// Save a checkpoint every N steps (0: not by step count). Default 0.
+    /// Overrides simulation.checkpoint_every_steps: save a checkpoint every N steps (0: not by
+    /// step count).
     #[arg(long, value_name = "N")]
     pub checkpoint_every_steps: Option<u64>,
-    /// Save a checkpoint every S seconds of wall time (0: not by time). Default 600.
+    /// Overrides simulation.checkpoint_every_seconds: save a checkpoint every S seconds of wall
+    /// time (0: not by time).
     #[arg(long, value_name = "S")]
     pub checkpoint_every_seconds: Option<f64>,
     /// Save a checkpoint and stop (exit 130, as when interrupted) at the end of step K; continue
@@ -66,9 +69,6 @@ pub struct SimulateArgs {
     #[command(flatten)]
     pub input: InputArgs,
 }
-
-/// Default wall time (s) between checkpoints: at most ten minutes of work lost to a crash.
-const DEFAULT_CHECKPOINT_SECONDS: f64 = 600.0;
 
 /// `summary.json` (DESIGN.md §2 keys, SI units).
 #[derive(Serialize)]
@@ -358,7 +358,7 @@ fn drive(
         ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}")
             .expect("valid template"),
     );
-    let every_seconds = args.checkpoint_every_seconds.unwrap_or(DEFAULT_CHECKPOINT_SECONDS);
+    let every_seconds = args.checkpoint_every_seconds.unwrap_or(s.checkpoint_every_seconds);
     if !(every_seconds.is_finite() && every_seconds >= 0.0) {
         bail!("--checkpoint-every-seconds must be a finite number ≥ 0 (0: not by time), got {every_seconds}");
     }
@@ -367,7 +367,7 @@ fn drive(
     let checkpoints = Checkpoints {
         path: out.join(CHECKPOINT_FILE),
         info,
-        every_steps: args.checkpoint_every_steps.unwrap_or(0),
+        every_steps: args.checkpoint_every_steps.unwrap_or(s.checkpoint_every_steps),
         every_seconds,
         stop_at_step: args.stop_at_step,
         last: Instant::now(),

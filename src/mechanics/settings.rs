@@ -61,6 +61,12 @@ pub struct SimulationSettings {
     pub energy_tolerance: Real,
     /// … and no cell volume changes by more than this fraction per step. Default 1e-9.
     pub volume_tolerance: Real,
+    /// Steps between two checkpoints (`OUT/checkpoint.bin`, for `simulate --resume`); 0 = not by
+    /// step count. Default 0.
+    pub checkpoint_every_steps: u64,
+    /// Wall time between two checkpoints [s]; 0 = not by time. Default 600 s (at most ten minutes
+    /// of work lost to a crash).
+    pub checkpoint_every_seconds: Real,
 }
 
 impl Default for SimulationSettings {
@@ -76,6 +82,8 @@ impl Default for SimulationSettings {
             force_tolerance: 1e-3,
             energy_tolerance: 1e-9,
             volume_tolerance: 1e-9,
+            checkpoint_every_steps: 0,
+            checkpoint_every_seconds: 600.0,
         }
     }
 }

@@ -58,8 +58,15 @@ impl Parameters {
         if sim.sample_every_steps == 0 {
             report.errors.push("simulation.sample_every_steps = 0: must be at least 1".to_owned());
         }
+        if !(sim.checkpoint_every_seconds.is_finite() && sim.checkpoint_every_seconds >= 0.0) {
+            report.errors.push(format!(
+                "simulation.checkpoint_every_seconds = {}: must be a finite number ≥ 0 (0: not by time)",
+                sim.checkpoint_every_seconds
+            ));
+        }
         // A config must be writable back as TOML, whose integers are 64-bit signed.
         for (key, value) in [
+            ("simulation.checkpoint_every_steps", sim.checkpoint_every_steps),
             ("numerics.seed", self.numerics.seed),
             ("simulation.max_steps", sim.max_steps),
             ("simulation.sample_every_steps", sim.sample_every_steps),

@@ -226,6 +226,16 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         text: "Steps between saved frames (and stats rows) of an \"equilibrium\" run.",
     },
     FieldDoc {
+        path: "simulation.checkpoint_every_steps",
+        unit: "",
+        text: "Steps between checkpoints (OUT/checkpoint.bin, continued by `tissuefit simulate --resume OUT`); 0 = not by step count.",
+    },
+    FieldDoc {
+        path: "simulation.checkpoint_every_seconds",
+        unit: "s",
+        text: "Wall time between checkpoints; 0 = not by time. Ctrl-C/SIGTERM also saves one.",
+    },
+    FieldDoc {
         path: "simulation.remesh_every_steps",
         unit: "",
         text: "Steps between local remeshing passes of the moving cells (split edges longer than 3·l_min, collapse edges \
