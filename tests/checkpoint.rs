@@ -235,6 +235,10 @@ fn a_damaged_checkpoint_is_refused_with_an_error_naming_it() {
     let stopped = tissuefit(&["simulate", s(&demo()), "--out", s(&run), "--max-steps", "50", "--stop-at-step", "5"]);
     assert_eq!(stopped.status.code(), Some(130), "{}", String::from_utf8_lossy(&stopped.stderr));
     let path = run.join("checkpoint.bin");
+    // Starting afresh into the folder of an unfinished run is refused, pointing at --resume.
+    let again = tissuefit(&["simulate", s(&demo()), "--out", s(&run)]);
+    assert_eq!(again.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--resume"), "{}", String::from_utf8_lossy(&again.stderr));
     let good = std::fs::read(&path).unwrap();
     let stats = std::fs::read(run.join("stats.csv.partial")).unwrap();
 

@@ -156,8 +156,13 @@ fn prepare_output(dir: &Path, force: bool) -> anyhow::Result<()> {
     let taken: Vec<&str> = OUTPUTS.iter().copied().filter(|f| dir.join(f).exists()).collect();
     if !taken.is_empty() || dir.join("frames").exists() {
         if !force {
+            let unfinished = if taken.contains(&CHECKPOINT_FILE) {
+                format!(" (an unfinished run: continue it with `tissuefit simulate --resume {}`)", dir.display())
+            } else {
+                String::new()
+            };
             bail!(
-                "{} already holds the outputs of a simulation ({}); choose another --out or pass --force",
+                "{} already holds the outputs of a simulation ({}){unfinished}; choose another --out or pass --force",
                 dir.display(),
                 if taken.is_empty() { "frames/".to_string() } else { taken.join(", ") }
             );
