@@ -240,3 +240,22 @@ fn a_wrong_type_a_missing_input_and_conflicting_options_are_errors_naming_the_ke
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("mesh.border"), "{err}");
 }
+
+/// Needs ../shared/data/real (CI runs the ignored tests when it is there).
+#[test]
+#[ignore]
+fn the_real_ovule_pipeline_meshes_and_measures_every_border_cell_as_static() {
+    let pipeline = repo().join("pipelines/real-ovule.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("run");
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    let report = read_json(&run.join("mesh/report.json"));
+    // All 50 labels touch the crop's border: none is a free cell; most are meshed as static.
+    assert_eq!(report["kept"].as_u64(), Some(0));
+    let static_cells = report["static"].as_u64().unwrap();
+    assert!(static_cells >= 40, "{static_cells} static cells");
+    let summary = read_json(&run.join("measure/summary.json"));
+    assert_eq!(summary["cells"].as_u64(), Some(static_cells));
+    assert!(summary["mean_coordination"].as_f64().unwrap() > 4.0, "a dense tissue: {summary}");
+}
