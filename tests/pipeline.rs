@@ -259,3 +259,23 @@ fn the_real_ovule_pipeline_meshes_and_measures_every_border_cell_as_static() {
     assert_eq!(summary["cells"].as_u64(), Some(static_cells));
     assert!(summary["mean_coordination"].as_f64().unwrap() > 4.0, "a dense tissue: {summary}");
 }
+
+#[test]
+fn a_failing_stage_leaves_no_folder_that_looks_complete_and_is_recorded_as_failed() {
+    // Every label below min_voxels: the mesh stage fails.
+    let (code, err, _, t) = run_bad("[input]\nlabels = \"labels.tif\"\n[mesh]\nmin_voxels = 100000000\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("stage mesh") && err.contains("dropped"), "{err}");
+    let run = t.path().join("run");
+    assert!(!run.join("mesh").exists() && !run.join("measure").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(&run)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    let manifest = read_json(&run.join("manifest.json"));
+    assert_eq!(manifest["stages"][0]["name"].as_str(), Some("mesh"));
+    assert_eq!(manifest["stages"][0]["status"].as_str(), Some("failed"));
+    assert!(manifest["stages"][0]["note"].as_str().unwrap().contains("dropped"));
+}
