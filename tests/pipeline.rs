@@ -44,36 +44,40 @@ fn strip_wall_times(v: &mut serde_json::Value) {
     }
 }
 
-/// blake3 of every data output of the stage folders, wall times taken out (JSON keys
-/// `wall_seconds` and `threads`, CSV columns `wall_seconds`); everything else byte for byte.
+/// blake3 of a data file with its wall times taken out (JSON keys `wall_seconds` and `threads`, CSV
+/// columns `wall_seconds`); everything else byte for byte.
+fn normalised_hash(path: &Path) -> String {
+    let name = path.file_name().unwrap().to_string_lossy().into_owned();
+    let bytes = std::fs::read(path).unwrap();
+    let data = if name.ends_with(".json") {
+        let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        strip_wall_times(&mut v);
+        serde_json::to_vec(&v).unwrap()
+    } else if name.ends_with(".csv") {
+        let mut r = csv::Reader::from_reader(bytes.as_slice());
+        let header = r.headers().unwrap().clone();
+        let keep: Vec<usize> = (0..header.len()).filter(|&i| &header[i] != "wall_seconds").collect();
+        let mut w = csv::Writer::from_writer(Vec::new());
+        w.write_record(keep.iter().map(|&i| &header[i])).unwrap();
+        for rec in r.records() {
+            let rec = rec.unwrap();
+            w.write_record(keep.iter().map(|&i| &rec[i])).unwrap();
+        }
+        w.into_inner().unwrap()
+    } else {
+        bytes
+    };
+    blake3::hash(&data).to_hex().to_string()
+}
+
+/// [`normalised_hash`] of every file of the stage folders of a run directory.
 fn data_hashes(run: &Path) -> BTreeMap<String, String> {
     let mut out = BTreeMap::new();
     for stage in ["mesh", "measure", "simulate", "fit"] {
-        let dir = run.join(stage);
-        let mut entries: Vec<PathBuf> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
-        entries.sort();
-        for path in entries {
+        for entry in std::fs::read_dir(run.join(stage)).unwrap() {
+            let path = entry.unwrap().path();
             let name = path.file_name().unwrap().to_string_lossy().into_owned();
-            let bytes = std::fs::read(&path).unwrap();
-            let data = if name.ends_with(".json") {
-                let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
-                strip_wall_times(&mut v);
-                serde_json::to_vec(&v).unwrap()
-            } else if name.ends_with(".csv") {
-                let mut r = csv::Reader::from_reader(bytes.as_slice());
-                let header = r.headers().unwrap().clone();
-                let keep: Vec<usize> = (0..header.len()).filter(|&i| &header[i] != "wall_seconds").collect();
-                let mut w = csv::Writer::from_writer(Vec::new());
-                w.write_record(keep.iter().map(|&i| &header[i])).unwrap();
-                for rec in r.records() {
-                    let rec = rec.unwrap();
-                    w.write_record(keep.iter().map(|&i| &rec[i])).unwrap();
-                }
-                w.into_inner().unwrap()
-            } else {
-                bytes
-            };
-            out.insert(format!("{stage}/{name}"), blake3::hash(&data).to_hex().to_string());
+            out.insert(format!("{stage}/{name}"), normalised_hash(&path));
         }
     }
     out
@@ -161,6 +165,14 @@ fn the_demo_pipeline_recovers_its_truth_skips_reruns_and_reproduces_its_outputs(
     let o = tissuefit(&["--threads", "1", "run", p, "--out", b.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
     assert_eq!(data_hashes(&b), first);
+
+    // 6. `tissuefit fit --config PIPELINE.toml` runs the pipeline's fit stage alone: the same bytes.
+    let alone = tmp.path().join("fit-alone");
+    let o = tissuefit(&["--threads", "2", "fit", "--config", p, "--out", alone.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    for file in ["trace.csv", "result.json", "fit.toml", "model.toml", "objective.png", "landscape.png"] {
+        assert_eq!(normalised_hash(&alone.join(file)), first[&format!("fit/{file}")], "{file}");
+    }
 }
 
 #[test]
