@@ -2,12 +2,14 @@
 
 use super::Outcome;
 use crate::inference::{FitConfig, FitOptions, run_fit};
+use crate::pipeline::PipelineConfig;
 use anyhow::Context;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct FitArgs {
-    /// Fit configuration (TOML; see the README, "Fitting parameters").
+    /// Fit configuration (TOML; see the README, "Fitting parameters"), or a pipeline file (one with an
+    /// `[input]` table; its `[fit]` on the labels of `[input]` meshed like `[mesh]`, as `tissuefit run`).
     #[arg(long, value_name = "TOML")]
     pub config: PathBuf,
     /// Output folder: trace.csv, result.json, objective.png, landscape.png, fit.toml, model.toml.
@@ -24,8 +26,23 @@ pub struct FitArgs {
     pub seed: Option<u64>,
 }
 
+/// A fit config, or the fit of a pipeline file (recognised by its `[input]` table).
+fn load_config(path: &Path) -> anyhow::Result<FitConfig> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let is_pipeline = toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("input"));
+    if !is_pipeline {
+        return Ok(FitConfig::load(path)?);
+    }
+    let pipeline = PipelineConfig::load(path)?;
+    let fit = pipeline
+        .fit
+        .as_ref()
+        .ok_or_else(|| anyhow::anyhow!("{}: the pipeline has no [fit] section", path.display()))?;
+    Ok(fit.to_fit_config(&pipeline.input, &pipeline.mesh))
+}
+
 pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
-    let mut config = FitConfig::load(&args.config)?;
+    let mut config = load_config(&args.config)?;
     if let Some(n) = args.max_evaluations {
         anyhow::ensure!(n > 0, "--max-evaluations must be at least 1");
         config.optimizer.max_evaluations = n;

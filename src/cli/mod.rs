@@ -9,6 +9,7 @@ mod inspect;
 mod label_args;
 mod measure;
 mod mesh;
+mod run;
 mod simulate;
 mod voxelize;
 
@@ -66,6 +67,10 @@ pub enum Command {
     /// aggregate).
     #[command(subcommand)]
     Generate(generate::GenerateCommand),
+    /// Run a pipeline file: mesh → measure → (simulate) → (fit) into a run directory with a manifest
+    /// (input hashes, resolved config, timings); unchanged stages are skipped. Exits with 1 when the fit
+    /// did not converge or a `[demo]` truth was not recovered.
+    Run(run::RunArgs),
 }
 
 /// How a successful run ended.
@@ -119,6 +124,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Voxelize(args) => voxelize::run(&args),
         Command::Generate(cmd) => generate::run(&cmd),
         Command::Fit(args) => fit::run(&args),
+        Command::Run(args) => run::run(&args),
     })
 }
 

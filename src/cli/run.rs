@@ -1,0 +1,74 @@
+//! `tissuefit run PIPELINE.toml [--out DIR] [--force]`: every stage of a pipeline file into a run
+//! directory (see [`crate::pipeline`]).
+
+use super::Outcome;
+use crate::pipeline::{PipelineOptions, run_pipeline};
+use anyhow::Context;
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct RunArgs {
+    /// Pipeline file (TOML; see the README, "Pipelines").
+    pub pipeline: PathBuf,
+    /// Run directory. Default: runs/<pipeline file stem> in the current folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Run every stage again, even those whose inputs and config are unchanged.
+    #[arg(long)]
+    pub force: bool,
+}
+
+fn default_out(pipeline: &Path) -> PathBuf {
+    let stem = pipeline.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "pipeline".into());
+    Path::new("runs").join(stem)
+}
+
+pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
+    let out = args.out.clone().unwrap_or_else(|| default_out(&args.pipeline));
+    let print = |line: &str| println!("{line}");
+    let options = PipelineOptions { out: out.clone(), force: args.force, progress: true, on_event: &print };
+    let started = std::time::Instant::now();
+    let outcome =
+        run_pipeline(&args.pipeline, &options).with_context(|| format!("running {}", args.pipeline.display()))?;
+    let mut ok = true;
+    if outcome.fit_converged == Some(false) {
+        println!("fit: the optimiser stopped on its budget, not converged (see {}/fit/result.json)", out.display());
+        ok = false;
+    }
+    if outcome.simulate_converged == Some(false) {
+        println!("simulate: the relaxation ended unconverged (see {}/simulate/summary.json)", out.display());
+    }
+    if !outcome.demo.is_empty() {
+        println!(
+            "{:<28} {:>12} {:>12} {:>9}  within ±{:.0} %?",
+            "parameter",
+            "truth",
+            "fitted",
+            "error",
+            outcome.demo[0].tolerance * 100.0
+        );
+        for c in &outcome.demo {
+            let fitted = c.fitted.map_or("missing".to_string(), |f| format!("{f:.4e}"));
+            let error = c.relative_error.map_or("n/a".to_string(), |e| format!("{:+.1} %", e * 100.0));
+            println!(
+                "{:<28} {:>12.4e} {:>12} {:>9}  {}",
+                c.name,
+                c.truth,
+                fitted,
+                error,
+                if c.within { "yes" } else { "NO" }
+            );
+            ok &= c.within;
+        }
+    }
+    let times: Vec<String> =
+        outcome.manifest.stages.iter().map(|s| format!("{} {:?} {:.2} s", s.name, s.status, s.wall_seconds)).collect();
+    println!(
+        "run directory {} ({}); {:.2} s on {} threads",
+        out.display(),
+        times.join(", "),
+        started.elapsed().as_secs_f64(),
+        outcome.manifest.threads
+    );
+    Ok(if ok { Outcome::Success } else { Outcome::CheckFailed })
+}

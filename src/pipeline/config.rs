@@ -1,0 +1,433 @@
+//! The pipeline file (`tissuefit run PIPELINE.toml`): one section per stage, each reusing the schema of
+//! that stage's own config (the fit's [`FitConfig`] sections, the meshing's [`MeshingConfig`], the
+//! model's [`Parameters`]). Every table rejects unknown keys; the error names the file, the line and the
+//! dotted key, and suggests the nearest valid key (Levenshtein distance). Relative paths resolve
+//! against the pipeline file's folder.
+
+use super::PipelineError;
+use crate::geometry::Real;
+use crate::inference::{
+    FitConfig, ForwardConfig, MeshingConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, ParameterConfig,
+    ProfileConfig,
+};
+use crate::mechanics::Parameters;
+use crate::meshing::BorderPolicy;
+use crate::morphology::DEFAULT_EXTERIOR_FREE_FRACTION;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The whole pipeline. `[input]` is required; `[mesh]` and `[measure]` always run (defaults when
+/// absent); `[simulate]` and `[fit]` run when present.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipelineConfig {
+    /// The segmented tissue.
+    pub input: InputSection,
+    /// Meshing of the label volume (the options of `tissuefit mesh`). Default: [`MeshingConfig::default`].
+    #[serde(default)]
+    pub mesh: MeshingConfig,
+    /// Morphology of the meshed tissue (the options of `tissuefit measure`). Default: [`MeasureSection::default`].
+    #[serde(default)]
+    pub measure: MeasureSection,
+    /// A forward relaxation of the meshed tissue at given parameters. Default: absent (not run).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simulate: Option<SimulateSection>,
+    /// The fit of the model to the observed tissue. Default: absent (not run).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitSection>,
+    /// Known parameters of a synthetic input, printed next to the fitted ones and checked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub demo: Option<DemoSection>,
+}
+
+/// `[input]`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputSection {
+    /// Label TIFF (0 = background). Relative to the pipeline file.
+    pub labels: PathBuf,
+    /// Voxel size `[z, y, x]` (m) instead of the TIFF's metadata. Default: the metadata.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub voxel_size: Option<[Real; 3]>,
+    /// The run's seed: the meshing's sampling seed (`mesh.seed`) and the optimiser's
+    /// (`fit.optimizer.seed`) unless those sections set their own. Default 0.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// `[measure]`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeasureSection {
+    /// Contact distance δ (m). Default: 0.25 × the tissue's mean edge length.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_distance: Option<Real>,
+    /// Count static cells in the tissue statistics. Default false.
+    #[serde(default)]
+    pub include_static: bool,
+    /// Without an ECM body, a cell faces the exterior when at least this fraction of its surface is
+    /// free. Default 0.05 ([`DEFAULT_EXTERIOR_FREE_FRACTION`]).
+    #[serde(default = "default_exterior_free_fraction")]
+    pub exterior_free_fraction: Real,
+}
+
+fn default_exterior_free_fraction() -> Real {
+    DEFAULT_EXTERIOR_FREE_FRACTION
+}
+
+impl Default for MeasureSection {
+    fn default() -> Self {
+        Self { contact_distance: None, include_static: false, exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION }
+    }
+}
+
+/// `[simulate]`: relax the meshed tissue with `model` (+ `model_overrides`), same schema as `simulate --config`.
+#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulateSection {
+    /// Parameter file (TOML). Default: the built-in defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<PathBuf>,
+    /// Keys of the parameter schema given inline, applied on top of `model`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_overrides: Option<toml::Table>,
+}
+
+/// `[fit]`: the fit config of `tissuefit fit` without `[observed]` (the observed tissue is `[input]`
+/// meshed with `[mesh]`).
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FitSection {
+    /// Base model (TOML, the `simulate --config` schema). Default: the built-in defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<PathBuf>,
+    /// Keys of the model given inline, applied on top of `model`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_overrides: Option<toml::Table>,
+    /// Fitted (bounds) and fixed (value) parameters by name, as in `tissuefit fit`.
+    pub parameters: BTreeMap<String, ParameterConfig>,
+    #[serde(default)]
+    pub objective: ObjectiveConfig,
+    #[serde(default)]
+    pub optimizer: OptimizerConfig,
+    #[serde(default)]
+    pub forward: ForwardConfig,
+    #[serde(default)]
+    pub profile: ProfileConfig,
+}
+
+/// `[demo]`: the parameters a synthetic input was made with.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DemoSection {
+    /// Truth by name: a fitted parameter of `result.json` (`surface_tension_lateral`, …, SI) or a
+    /// ratio (`lateral_over_apical`, `adhesion_over_tension`, …).
+    pub truth: BTreeMap<String, Real>,
+    /// Largest relative error |fit − truth|/truth counted as recovered. Default 0.1.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: Real,
+}
+
+fn default_tolerance() -> Real {
+    0.1
+}
+
+impl PipelineConfig {
+    /// Reads, checks and resolves a pipeline file: relative paths become relative to its folder,
+    /// `input.seed` fills the seeds the sections leave out, and the inputs must exist.
+    pub fn load(path: &Path) -> Result<Self, PipelineError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| PipelineError::Config(format!("reading {}: {e}", path.display())))?;
+        let mut config = Self::from_toml_str(&text, path)?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let fix = |p: &mut PathBuf| {
+            if p.is_relative() {
+                *p = base.join(&*p);
+            }
+        };
+        fix(&mut config.input.labels);
+        if let Some(s) = &mut config.simulate {
+            s.model.as_mut().map(fix);
+        }
+        if let Some(f) = &mut config.fit {
+            f.model.as_mut().map(fix);
+        }
+        let origin = path.display();
+        let mut files = vec![("input.labels", &config.input.labels)];
+        if let Some(p) = config.simulate.as_ref().and_then(|s| s.model.as_ref()) {
+            files.push(("simulate.model", p));
+        }
+        if let Some(p) = config.fit.as_ref().and_then(|f| f.model.as_ref()) {
+            files.push(("fit.model", p));
+        }
+        for (key, file) in files {
+            if !file.is_file() {
+                return Err(PipelineError::Config(format!("{origin}: {key}: {} does not exist", file.display())));
+            }
+        }
+        // The model files are only read now that they are known to exist.
+        if let Some(s) = &config.simulate {
+            s.parameters().map_err(|e| PipelineError::Config(format!("{origin}: simulate: {e}")))?;
+        }
+        if let Some(f) = &config.fit {
+            f.to_fit_config(&config.input, &config.mesh)
+                .base_parameters()
+                .map_err(|e| PipelineError::Config(format!("{origin}: fit: {e}")))?;
+        }
+        Ok(config)
+    }
+
+    /// Parses and checks TOML text (paths as written); `origin` names the file in errors.
+    pub fn from_toml_str(text: &str, origin: &Path) -> Result<Self, PipelineError> {
+        // Parsed from the text first, so that schema errors carry their place in the file…
+        toml::from_str::<Self>(text).map_err(|e| describe_toml_error(&e, text, origin))?;
+        // …then again with `input.seed` filled in where the sections leave their seeds out.
+        let mut table: toml::Table = toml::from_str(text).map_err(|e| describe_toml_error(&e, text, origin))?;
+        inject_seed(&mut table);
+        let config: Self = table.try_into().map_err(|e: toml::de::Error| describe_toml_error(&e, text, origin))?;
+        config.check().map_err(|e| PipelineError::Config(format!("{}: {e}", origin.display())))?;
+        Ok(config)
+    }
+
+    /// Consistency checks beyond the schema; the message names the key.
+    fn check(&self) -> Result<(), String> {
+        self.mesh.border.parse::<BorderPolicy>().map_err(|e| format!("mesh.border: {e}"))?;
+        if self.mesh.target_nodes < 4 {
+            return Err(format!("mesh.target_nodes: need at least 4; got {}", self.mesh.target_nodes));
+        }
+        if let Some(l) = self.mesh.l_min
+            && !(l.is_finite() && l > 0.0)
+        {
+            return Err(format!("mesh.l_min: must be a length > 0 (m); got {l}"));
+        }
+        if let Some(v) = self.input.voxel_size
+            && !v.iter().all(|s| s.is_finite() && *s > 0.0)
+        {
+            return Err(format!("input.voxel_size: three sizes > 0 (m, z,y,x); got {v:?}"));
+        }
+        let f = self.measure.exterior_free_fraction;
+        if !(0.0..=1.0).contains(&f) {
+            return Err(format!("measure.exterior_free_fraction: must lie in [0, 1]; got {f}"));
+        }
+        if let Some(d) = self.measure.contact_distance
+            && !(d.is_finite() && d > 0.0)
+        {
+            return Err(format!("measure.contact_distance: must be a length > 0 (m); got {d}"));
+        }
+        if let Some(fit) = &self.fit {
+            // The fit's own checks (parameters, objective, optimiser), with the keys under `fit.`.
+            let mut probe = fit.to_fit_config(&self.input, &self.mesh);
+            probe.model = None;
+            let text = toml::to_string(&probe).map_err(|e| format!("fit: {e}"))?;
+            FitConfig::from_toml_str(&text, "fit").map_err(|e| {
+                let e = e.to_string();
+                e.strip_prefix("fit config: fit: ").map(|s| format!("fit.{s}")).unwrap_or(e)
+            })?;
+        }
+        if let Some(demo) = &self.demo {
+            if self.fit.is_none() {
+                return Err("demo: the truth is compared with a fit; add a [fit] section".into());
+            }
+            if !(demo.tolerance.is_finite() && demo.tolerance > 0.0) {
+                return Err(format!("demo.tolerance: must be > 0; got {}", demo.tolerance));
+            }
+            for (name, v) in &demo.truth {
+                if !(v.is_finite() && *v > 0.0) {
+                    return Err(format!("demo.truth.{name}: must be > 0; got {v}"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The resolved config as TOML (defaults filled in, paths resolved).
+    pub fn to_toml_string(&self) -> Result<String, PipelineError> {
+        toml::to_string(self).map_err(|e| PipelineError::Config(format!("writing the resolved config: {e}")))
+    }
+}
+
+impl SimulateSection {
+    /// The model: `model` (or the defaults) with `model_overrides` applied, validated.
+    pub fn parameters(&self) -> Result<Parameters, PipelineError> {
+        let mut table = match &self.model {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| PipelineError::Config(format!("model: reading {}: {e}", path.display())))?;
+                toml::from_str::<toml::Table>(&text)
+                    .map_err(|e| PipelineError::Config(format!("model: {}: {e}", path.display())))?
+            }
+            None => toml::Table::new(),
+        };
+        if let Some(over) = &self.model_overrides {
+            merge(&mut table, over);
+        }
+        let text = toml::to_string(&table).map_err(|e| PipelineError::Config(format!("model: {e}")))?;
+        let origin = match &self.model {
+            Some(p) => format!("model {} + model_overrides", p.display()),
+            None => "model_overrides".to_string(),
+        };
+        let params = Parameters::from_toml_str(&text, &origin).map_err(|e| PipelineError::Config(e.to_string()))?;
+        for w in params.validate().map_err(|e| PipelineError::Config(format!("{origin}: {e}")))? {
+            tracing::warn!("{origin}: {w}");
+        }
+        Ok(params)
+    }
+}
+
+impl FitSection {
+    /// The equivalent `tissuefit fit` config: observed = the input labels meshed like `[mesh]`.
+    pub fn to_fit_config(&self, input: &InputSection, mesh: &MeshingConfig) -> FitConfig {
+        FitConfig {
+            observed: ObservedConfig {
+                tissue: None,
+                labels: Some(input.labels.clone()),
+                length_unit: "m".to_string(),
+                voxel_size: input.voxel_size,
+                meshing: mesh.clone(),
+            },
+            model: self.model.clone(),
+            model_overrides: self.model_overrides.clone(),
+            parameters: self.parameters.clone(),
+            objective: self.objective.clone(),
+            optimizer: self.optimizer.clone(),
+            forward: self.forward.clone(),
+            profile: self.profile.clone(),
+        }
+    }
+}
+
+/// Deep merge of `over` into `base` (tables merged key by key, other values replaced).
+fn merge(base: &mut toml::Table, over: &toml::Table) {
+    for (key, value) in over {
+        match (base.get_mut(key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            _ => {
+                base.insert(key.clone(), value.clone());
+            }
+        }
+    }
+}
+
+/// `input.seed` becomes `mesh.seed` and `fit.optimizer.seed` where those are not given.
+fn inject_seed(table: &mut toml::Table) {
+    let Some(seed) = table.get("input").and_then(|i| i.get("seed")).cloned() else { return };
+    if let Some(toml::Value::Table(mesh)) = table.get_mut("mesh") {
+        mesh.entry("seed").or_insert(seed.clone());
+    } else if !table.contains_key("mesh") {
+        let mut mesh = toml::Table::new();
+        mesh.insert("seed".into(), seed.clone());
+        table.insert("mesh".into(), toml::Value::Table(mesh));
+    }
+    if let Some(toml::Value::Table(fit)) = table.get_mut("fit") {
+        match fit.get_mut("optimizer") {
+            Some(toml::Value::Table(opt)) => {
+                opt.entry("seed").or_insert(seed);
+            }
+            None => {
+                let mut opt = toml::Table::new();
+                opt.insert("seed".into(), seed);
+                fit.insert("optimizer".into(), toml::Value::Table(opt));
+            }
+            Some(_) => {}
+        }
+    }
+}
+
+/// A TOML or schema error as `FILE:LINE: key `a.b`: message`, with the nearest valid key for an
+/// unknown one.
+fn describe_toml_error(e: &toml::de::Error, text: &str, origin: &Path) -> PipelineError {
+    let message = e.message().trim().to_string();
+    let location = e.span().map(|span| {
+        let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
+        (line, key_at(text, span.start))
+    });
+    let suggestion =
+        unknown_field(&message).map_or(String::new(), |(field, expected)| match nearest(&field, &expected) {
+            Some(best) => format!("; did you mean `{best}`?"),
+            None => String::new(),
+        });
+    let text = match location {
+        Some((line, Some(key))) => format!("{}:{line}: key `{key}`: {message}{suggestion}", origin.display()),
+        Some((line, None)) => format!("{}:{line}: {message}{suggestion}", origin.display()),
+        None => format!("{}: {message}{suggestion}", origin.display()),
+    };
+    PipelineError::Config(text)
+}
+
+/// The dotted key of the `key = value` line holding byte `at` (its `[table]` header prepended).
+fn key_at(text: &str, at: usize) -> Option<String> {
+    let at = at.min(text.len());
+    let line_start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+    let line_end = text[at..].find('\n').map_or(text.len(), |i| at + i);
+    let line = text[line_start..line_end].trim();
+    let header = text[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('['))
+        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim().to_string());
+    if line.starts_with('[') {
+        return Some(line.trim_matches(|c| c == '[' || c == ']').trim().to_string());
+    }
+    let key = line.split('=').next()?.trim().trim_matches('"');
+    if key.is_empty() {
+        return header;
+    }
+    Some(match header {
+        Some(h) => format!("{h}.{key}"),
+        None => key.to_string(),
+    })
+}
+
+/// From serde's "unknown field `x`, expected one of `a`, `b`" (or "expected `a`"): x and the choices.
+fn unknown_field(message: &str) -> Option<(String, Vec<String>)> {
+    let rest = message.strip_prefix("unknown field `")?;
+    let (field, rest) = rest.split_once('`')?;
+    let expected: Vec<String> = rest.split('`').skip(1).step_by(2).map(str::to_string).collect();
+    Some((field.to_string(), expected))
+}
+
+/// The valid key closest to `key` by edit distance, if it is close enough to be a plausible typo
+/// (at most a third of the key's length, at least 2 edits allowed).
+pub fn nearest(key: &str, valid: &[String]) -> Option<String> {
+    let limit = (key.chars().count() / 3).max(2);
+    valid
+        .iter()
+        .map(|v| (strsim::levenshtein(key, v), v))
+        .filter(|(d, _)| *d <= limit)
+        .min_by_key(|(d, v)| (*d, v.as_str()))
+        .map(|(_, v)| v.clone())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_nearest_key_is_suggested_and_far_ones_are_not() {
+        let valid: Vec<String> = ["target_nodes", "l_min", "min_voxels"].iter().map(|s| s.to_string()).collect();
+        assert_eq!(nearest("target_node", &valid).as_deref(), Some("target_nodes"));
+        assert_eq!(nearest("lmin", &valid).as_deref(), Some("l_min"));
+        assert_eq!(nearest("completely_else", &valid), None);
+    }
+
+    #[test]
+    fn an_unknown_key_names_the_table_key_and_suggestion() {
+        let text = "[input]\nlabels = \"x.tif\"\n\n[mesh]\ntarget_node = 200\n";
+        let e = PipelineConfig::from_toml_str(text, Path::new("p.toml")).unwrap_err().to_string();
+        assert!(e.contains("p.toml:5"), "{e}");
+        assert!(e.contains("mesh.target_node"), "{e}");
+        assert!(e.contains("did you mean `target_nodes`"), "{e}");
+    }
+
+    #[test]
+    fn the_input_seed_fills_the_sections_that_leave_it_out() {
+        let text = "[input]\nlabels = \"x.tif\"\nseed = 7\n[fit.parameters.surface_tension]\nbounds = [1e-4, 1e-3]\n";
+        let c = PipelineConfig::from_toml_str(text, Path::new("p.toml")).unwrap();
+        assert_eq!(c.mesh.seed, 7);
+        assert_eq!(c.fit.unwrap().optimizer.seed, 7);
+        let text = "[input]\nlabels = \"x.tif\"\nseed = 7\n[mesh]\nseed = 3\n";
+        assert_eq!(PipelineConfig::from_toml_str(text, Path::new("p.toml")).unwrap().mesh.seed, 3);
+    }
+}

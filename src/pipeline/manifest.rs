@@ -1,0 +1,136 @@
+//! `manifest.json`: what a run directory holds and how it was made.
+
+use super::PipelineError;
+use crate::io::write_bytes_atomically;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// One input file and its blake3 hash (hex).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq, Eq)]
+pub struct FileHash {
+    pub path: PathBuf,
+    pub blake3: String,
+}
+
+/// Where a stage stands.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum StageStatus {
+    /// Started, not finished (an interrupted run leaves this).
+    Running,
+    /// Ran to the end in this run; outputs in place.
+    Complete,
+    /// Complete in an earlier run with the same key; outputs reused.
+    Skipped,
+    /// Ended with an error (the message is in `note`).
+    Failed,
+}
+
+impl StageStatus {
+    /// Whether the stage's outputs are in place.
+    pub fn done(self) -> bool {
+        matches!(self, StageStatus::Complete | StageStatus::Skipped)
+    }
+}
+
+/// One stage's record.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+pub struct StageRecord {
+    pub name: String,
+    pub status: StageStatus,
+    /// blake3 of the stage's config section and the hashes of what it reads.
+    pub key: String,
+    /// Seconds the stage ran (0 when skipped: see `ran_seconds` for the run that made the outputs).
+    pub wall_seconds: f64,
+    /// Seconds of the run that made the outputs.
+    pub ran_seconds: f64,
+    /// Output file (relative to the stage folder) → blake3.
+    pub outputs: BTreeMap<String, String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
+}
+
+/// The whole `manifest.json`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+pub struct Manifest {
+    pub tissuefit_version: String,
+    /// Git commit, when the build set `TISSUEFIT_GIT_COMMIT`; null otherwise.
+    pub git_commit: Option<String>,
+    pub pipeline: PathBuf,
+    pub seed: u64,
+    pub threads: usize,
+    pub inputs: Vec<FileHash>,
+    /// The resolved config (as `config.resolved.toml`).
+    pub config: serde_json::Value,
+    pub stages: Vec<StageRecord>,
+}
+
+impl Manifest {
+    /// Reads DIR/manifest.json if present and readable; a damaged manifest counts as absent (every
+    /// stage then runs again).
+    pub fn read(dir: &Path) -> Option<Manifest> {
+        let text = std::fs::read_to_string(dir.join("manifest.json")).ok()?;
+        match serde_json::from_str(&text) {
+            Ok(m) => Some(m),
+            Err(e) => {
+                tracing::warn!("{}: unreadable manifest ({e}); every stage runs again", dir.display());
+                None
+            }
+        }
+    }
+
+    /// Writes DIR/manifest.json atomically.
+    pub fn write(&self, dir: &Path) -> Result<(), PipelineError> {
+        let path = dir.join("manifest.json");
+        let mut json = serde_json::to_string_pretty(self)
+            .map_err(|e| PipelineError::Io { path: path.clone(), message: e.to_string() })?;
+        json.push('\n');
+        write_bytes_atomically(&path, json.as_bytes())
+            .map_err(|e| PipelineError::Io { path: path.clone(), message: e.to_string() })
+    }
+
+    pub fn stage(&self, name: &str) -> Option<&StageRecord> {
+        self.stages.iter().find(|s| s.name == name)
+    }
+
+    /// Replaces (or appends) the record of `record.name`.
+    pub fn set_stage(&mut self, record: StageRecord) {
+        match self.stages.iter_mut().find(|s| s.name == record.name) {
+            Some(s) => *s = record,
+            None => self.stages.push(record),
+        }
+    }
+}
+
+/// blake3 of a file's bytes, hex.
+pub fn hash_file(path: &Path) -> Result<String, PipelineError> {
+    let mut hasher = blake3::Hasher::new();
+    let mut file = std::fs::File::open(path)
+        .map_err(|e| PipelineError::Io { path: path.to_path_buf(), message: format!("hashing: {e}") })?;
+    std::io::copy(&mut file, &mut hasher)
+        .map_err(|e| PipelineError::Io { path: path.to_path_buf(), message: format!("hashing: {e}") })?;
+    Ok(hasher.finalize().to_hex().to_string())
+}
+
+/// blake3 of every file under `dir` (relative names with `/`, sorted).
+pub fn hash_outputs(dir: &Path) -> Result<BTreeMap<String, String>, PipelineError> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let entries =
+            std::fs::read_dir(&d).map_err(|e| PipelineError::Io { path: d.clone(), message: e.to_string() })?;
+        for entry in entries {
+            let entry = entry.map_err(|e| PipelineError::Io { path: d.clone(), message: e.to_string() })?;
+            let path = entry.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let rel = path.strip_prefix(dir).unwrap_or(&path);
+                let name = rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/");
+                out.insert(name, hash_file(&path)?);
+            }
+        }
+    }
+    Ok(out)
+}

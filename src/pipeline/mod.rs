@@ -1,0 +1,35 @@
+//! Pipelines (`tissuefit run PIPELINE.toml`, DESIGN.md §1 step 5, §2): one TOML file drives the
+//! stages mesh → measure → (simulate) → (fit) into a run directory, reproducibly.
+//!
+//! Run directory: `DIR/<stage>/` per stage, `DIR/config.resolved.toml` (defaults filled in, paths
+//! resolved) and `DIR/manifest.json` (version, git commit when known at build time, resolved config,
+//! blake3 hashes of the inputs, seed, threads, and per stage its key, status, wall time and the
+//! hashes of its outputs). A stage is written into a temporary sibling folder and renamed into
+//! place when all its files are there; only then is it marked complete in the manifest. A stage's
+//! key hashes its config section and the hashes of the files it reads (the label volume, an earlier
+//! stage's outputs, model files): a complete stage whose key and outputs are unchanged is skipped
+//! and its outputs reused, so an interrupted run resumes at its first unfinished stage. Results do
+//! not depend on the thread count, so the key leaves it out.
+
+mod config;
+mod manifest;
+mod run;
+mod stages;
+
+pub use config::{DemoSection, FitSection, InputSection, MeasureSection, PipelineConfig, SimulateSection, nearest};
+pub use manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file};
+pub use run::{DemoCheck, PipelineOptions, PipelineOutcome, run_pipeline};
+
+/// Why a pipeline could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    /// A bad pipeline file: the message names the file and the key.
+    #[error("{0}")]
+    Config(String),
+    /// A stage failed; the message names the stage.
+    #[error("stage {stage}: {message}")]
+    Stage { stage: &'static str, message: String },
+    /// Reading or writing the run directory.
+    #[error("{path}: {message}")]
+    Io { path: std::path::PathBuf, message: String },
+}

@@ -1,0 +1,293 @@
+//! `tissuefit run`: the demo pipeline end to end (truth recovered, stage skipping, `--force` and
+//! thread-count reproducibility, resume after an interruption) and pipeline-file errors (exit 2,
+//! naming the file and the key).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tissuefit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("runs the binary")
+}
+
+fn text(o: &Output) -> (String, String) {
+    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
+/// pipelines/demo.toml with its data paths made absolute and `edit` applied, written into `dir`.
+fn demo_pipeline(dir: &Path, edit: impl Fn(String) -> String) -> PathBuf {
+    let text = std::fs::read_to_string(repo().join("pipelines/demo.toml")).unwrap();
+    let data = repo().join("data/demo");
+    let text = edit(text.replace("\"../data/demo/", &format!("\"{}/", data.display())));
+    let path = dir.join("demo.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn strip_wall_times(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Object(map) => {
+            map.remove("wall_seconds");
+            map.remove("threads");
+            map.values_mut().for_each(strip_wall_times);
+        }
+        serde_json::Value::Array(items) => items.iter_mut().for_each(strip_wall_times),
+        _ => {}
+    }
+}
+
+/// blake3 of a data file with its wall times taken out (JSON keys `wall_seconds` and `threads`, CSV
+/// columns `wall_seconds`); everything else byte for byte.
+fn normalised_hash(path: &Path) -> String {
+    let name = path.file_name().unwrap().to_string_lossy().into_owned();
+    let bytes = std::fs::read(path).unwrap();
+    let data = if name.ends_with(".json") {
+        let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        strip_wall_times(&mut v);
+        serde_json::to_vec(&v).unwrap()
+    } else if name.ends_with(".csv") {
+        let mut r = csv::Reader::from_reader(bytes.as_slice());
+        let header = r.headers().unwrap().clone();
+        let keep: Vec<usize> = (0..header.len()).filter(|&i| &header[i] != "wall_seconds").collect();
+        let mut w = csv::Writer::from_writer(Vec::new());
+        w.write_record(keep.iter().map(|&i| &header[i])).unwrap();
+        for rec in r.records() {
+            let rec = rec.unwrap();
+            w.write_record(keep.iter().map(|&i| &rec[i])).unwrap();
+        }
+        w.into_inner().unwrap()
+    } else {
+        bytes
+    };
+    blake3::hash(&data).to_hex().to_string()
+}
+
+/// [`normalised_hash`] of every file of the stage folders of a run directory.
+fn data_hashes(run: &Path) -> BTreeMap<String, String> {
+    let mut out = BTreeMap::new();
+    for stage in ["mesh", "measure", "simulate", "fit"] {
+        for entry in std::fs::read_dir(run.join(stage)).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            out.insert(format!("{stage}/{name}"), normalised_hash(&path));
+        }
+    }
+    out
+}
+
+fn statuses(run: &Path) -> Vec<(String, String)> {
+    let m = read_json(&run.join("manifest.json"));
+    m["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| (s["name"].as_str().unwrap().to_string(), s["status"].as_str().unwrap().to_string()))
+        .collect()
+}
+
+#[test]
+fn the_demo_pipeline_recovers_its_truth_skips_reruns_and_reproduces_its_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A smaller budget than the demo's 24 evaluations (it converges in 9) and a one-point profile.
+    let pipeline = demo_pipeline(tmp.path(), |t| {
+        t.replace("max_evaluations = 24", "max_evaluations = 14").replace("points = 2", "points = 1")
+    });
+    let p = pipeline.to_str().unwrap();
+    let a = tmp.path().join("a");
+    let a_str = a.to_str().unwrap();
+
+    // 1. End to end on 2 threads: every stage complete, the truth recovered within the demo's ±10 %.
+    let o = tissuefit(&["--threads", "2", "run", p, "--out", a_str]);
+    let (stdout, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{stdout}\n{stderr}");
+    let all = |status: &str| -> Vec<(String, String)> {
+        ["mesh", "measure", "simulate", "fit"].iter().map(|s| (s.to_string(), status.to_string())).collect()
+    };
+    assert_eq!(statuses(&a), all("complete"));
+    let result = read_json(&a.join("fit/result.json"));
+    let ratio = result["ratios"]["lateral_over_apical"]["value"].as_f64().unwrap();
+    assert!((ratio - 0.5).abs() / 0.5 <= 0.1, "γ_l/γ_a = {ratio}, truth 0.5");
+    assert!(stdout.contains("lateral_over_apical") && stdout.contains("yes"), "{stdout}");
+    // The manifest's input hash is the label file's blake3; the resolved config is beside it.
+    let manifest = read_json(&a.join("manifest.json"));
+    let labels = std::fs::read(repo().join("data/demo/doublet.tif")).unwrap();
+    assert_eq!(manifest["inputs"][0]["blake3"].as_str().unwrap(), blake3::hash(&labels).to_hex().as_str());
+    assert_eq!(manifest["threads"].as_u64(), Some(2));
+    assert!(a.join("config.resolved.toml").is_file());
+    let first = data_hashes(&a);
+    assert!(first.len() >= 15, "{first:?}");
+
+    // 2. Again: every stage skipped, nothing rewritten.
+    let fit_mtime = std::fs::metadata(a.join("fit/trace.csv")).unwrap().modified().unwrap();
+    let o = tissuefit(&["--threads", "2", "run", p, "--out", a_str]);
+    let (stdout, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{stdout}\n{stderr}");
+    assert_eq!(stdout.matches(": skipped").count(), 4, "{stdout}");
+    assert_eq!(statuses(&a), all("skipped"));
+    assert_eq!(std::fs::metadata(a.join("fit/trace.csv")).unwrap().modified().unwrap(), fit_mtime);
+    assert_eq!(data_hashes(&a), first);
+
+    // 3. --force re-runs every stage and reproduces every data output byte for byte.
+    let o = tissuefit(&["--threads", "2", "run", p, "--out", a_str, "--force"]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    assert_eq!(statuses(&a), all("complete"));
+    assert_eq!(data_hashes(&a), first);
+
+    // 4. An interrupted run (the fit marked running, a temporary folder left behind) resumes at the
+    //    fit: the earlier stages are skipped and the result is the same.
+    let manifest_path = a.join("manifest.json");
+    let mut m = read_json(&manifest_path);
+    m["stages"][3]["status"] = serde_json::json!("running");
+    std::fs::write(&manifest_path, serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+    std::fs::create_dir_all(a.join(".fit.tmp-999999")).unwrap();
+    let o = tissuefit(&["--threads", "2", "run", p, "--out", a_str]);
+    let (stdout, _) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    let expected: Vec<(String, String)> =
+        [("mesh", "skipped"), ("measure", "skipped"), ("simulate", "skipped"), ("fit", "complete")]
+            .iter()
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+            .collect();
+    assert_eq!(statuses(&a), expected, "{stdout}");
+    assert!(!a.join(".fit.tmp-999999").exists());
+    assert_eq!(data_hashes(&a), first);
+
+    // 5. One thread gives the same bytes as two.
+    let b = tmp.path().join("b");
+    let o = tissuefit(&["--threads", "1", "run", p, "--out", b.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    assert_eq!(data_hashes(&b), first);
+
+    // 6. `tissuefit fit --config PIPELINE.toml` runs the pipeline's fit stage alone: the same bytes.
+    let alone = tmp.path().join("fit-alone");
+    let o = tissuefit(&["--threads", "2", "fit", "--config", p, "--out", alone.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    for file in ["trace.csv", "result.json", "fit.toml", "model.toml", "objective.png", "landscape.png"] {
+        assert_eq!(normalised_hash(&alone.join(file)), first[&format!("fit/{file}")], "{file}");
+    }
+}
+
+#[test]
+fn a_changed_section_reruns_its_stage_and_those_after_it_only() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cut = |t: String| t.split("[simulate]").next().unwrap().to_string();
+    let pipeline = demo_pipeline(tmp.path(), cut);
+    let run = tmp.path().join("run");
+    let args = ["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()];
+    assert_eq!(tissuefit(&args).status.code(), Some(0));
+    let pair = |a: &str, b: &str| (a.to_string(), b.to_string());
+    assert_eq!(statuses(&run), vec![pair("mesh", "complete"), pair("measure", "complete")]);
+    demo_pipeline(tmp.path(), |t| cut(t).replace("include_static = false", "exterior_free_fraction = 0.2"));
+    let o = tissuefit(&args);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    assert_eq!(statuses(&run), vec![pair("mesh", "skipped"), pair("measure", "complete")]);
+    // A changed label file re-runs the mesh too.
+    let labels = tmp.path().join("labels.tif");
+    std::fs::copy(repo().join("data/demo/doublet.tif"), &labels).unwrap();
+    let body = std::fs::read_to_string(&pipeline).unwrap();
+    let body = body.replace(&format!("{}/doublet.tif", repo().join("data/demo").display()), labels.to_str().unwrap());
+    std::fs::write(&pipeline, body).unwrap();
+    let o = tissuefit(&args);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    // Same bytes, same hash: still skipped (the key is the content, not the path).
+    assert_eq!(statuses(&run), vec![pair("mesh", "skipped"), pair("measure", "skipped")]);
+}
+
+/// Runs a pipeline made from `body` and returns its exit code and stderr.
+fn run_bad(body: &str) -> (Option<i32>, String, PathBuf, tempfile::TempDir) {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::copy(repo().join("data/demo/doublet.tif"), tmp.path().join("labels.tif")).unwrap();
+    let path = tmp.path().join("bad.toml");
+    std::fs::write(&path, body).unwrap();
+    let out = tmp.path().join("run");
+    let o = tissuefit(&["run", path.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    (o.status.code(), text(&o).1, path, tmp)
+}
+
+#[test]
+fn an_unknown_key_is_an_error_naming_the_file_the_key_and_the_nearest_valid_one() {
+    let (code, err, path, _t) = run_bad("[input]\nlabels = \"labels.tif\"\n[mesh]\ntarget_node = 200\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("{}:4", path.display())), "{err}");
+    assert!(err.contains("mesh.target_node") && err.contains("did you mean `target_nodes`?"), "{err}");
+    // Inside a reused schema (the fit's optimiser section).
+    let body = "[input]\nlabels = \"labels.tif\"\n[fit.parameters.surface_tension]\nbounds = [1e-4, 1e-3]\n\
+                [fit.optimizer]\nmax_evaluation = 3\n";
+    let (code, err, _, _t) = run_bad(body);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("fit.optimizer.max_evaluation") && err.contains("did you mean `max_evaluations`?"), "{err}");
+    // A section name.
+    let (code, err, _, _t) = run_bad("[input]\nlabels = \"labels.tif\"\n[mesure]\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("did you mean `measure`?"), "{err}");
+}
+
+#[test]
+fn a_wrong_type_a_missing_input_and_conflicting_options_are_errors_naming_the_key() {
+    let (code, err, path, _t) = run_bad("[input]\nlabels = \"labels.tif\"\n[mesh]\ntarget_nodes = \"many\"\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("{}:4", path.display())) && err.contains("mesh.target_nodes"), "{err}");
+
+    let (code, err, path, t) = run_bad("[input]\nlabels = \"missing.tif\"\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&path.display().to_string()) && err.contains("input.labels"), "{err}");
+    assert!(err.contains("missing.tif") && err.contains("does not exist"), "{err}");
+    assert!(!t.path().join("run").exists(), "nothing written for a bad config");
+
+    let body =
+        "[input]\nlabels = \"labels.tif\"\n[fit.parameters.surface_tension]\nbounds = [1e-4, 1e-3]\nvalue = 1e-3\n";
+    let (code, err, _, _t) = run_bad(body);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("fit.parameters.surface_tension") && err.contains("not both"), "{err}");
+
+    let (code, err, _, _t) = run_bad("[input]\nlabels = \"labels.tif\"\n[mesh]\nborder = \"sometimes\"\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("mesh.border"), "{err}");
+}
+
+/// Needs ../shared/data/real (CI runs the ignored tests when it is there).
+#[test]
+#[ignore]
+fn the_real_ovule_pipeline_meshes_and_measures_every_border_cell_as_static() {
+    let pipeline = repo().join("pipelines/real-ovule.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("run");
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    let report = read_json(&run.join("mesh/report.json"));
+    // All 50 labels touch the crop's border: none is a free cell; most are meshed as static.
+    assert_eq!(report["kept"].as_u64(), Some(0));
+    let static_cells = report["static"].as_u64().unwrap();
+    assert!(static_cells >= 40, "{static_cells} static cells");
+    let summary = read_json(&run.join("measure/summary.json"));
+    assert_eq!(summary["cells"].as_u64(), Some(static_cells));
+    assert!(summary["mean_coordination"].as_f64().unwrap() > 4.0, "a dense tissue: {summary}");
+}
+
+#[test]
+fn a_failing_stage_leaves_no_folder_that_looks_complete_and_is_recorded_as_failed() {
+    // Every label below min_voxels: the mesh stage fails.
+    let (code, err, _, t) = run_bad("[input]\nlabels = \"labels.tif\"\n[mesh]\nmin_voxels = 100000000\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("stage mesh") && err.contains("dropped"), "{err}");
+    let run = t.path().join("run");
+    assert!(!run.join("mesh").exists() && !run.join("measure").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(&run)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    let manifest = read_json(&run.join("manifest.json"));
+    assert_eq!(manifest["stages"][0]["name"].as_str(), Some("mesh"));
+    assert_eq!(manifest["stages"][0]["status"].as_str(), Some("failed"));
+    assert!(manifest["stages"][0]["note"].as_str().unwrap().contains("dropped"));
+}
