@@ -25,15 +25,7 @@ impl Adjacency {
     pub fn new(mesh: &CellMesh) -> Self {
         let tris = mesh.triangles();
         let nodes = mesh.node_count();
-        // (a, b, face, side) with a < b, sorted by edge.
-        let mut sides: Vec<(u32, u32, u32, u8)> = Vec::with_capacity(tris.len() * 3);
-        for (f, t) in tris.iter().enumerate() {
-            for s in 0..3 {
-                let (a, b) = (t[s], t[(s + 1) % 3]);
-                sides.push((a.min(b), a.max(b), f as u32, s as u8));
-            }
-        }
-        sides.sort_unstable();
+        let sides = sorted_sides(tris, nodes);
         let mut edges = Vec::with_capacity(sides.len() / 2 + 1);
         let mut edge_face_offsets = vec![0u32];
         let mut edge_faces = Vec::with_capacity(sides.len());
@@ -94,6 +86,49 @@ impl Adjacency {
 }
 
 /// Groups `(key, value)` pairs by key into CSR arrays, values in encounter order per key.
+/// Every side of every face as (a, b, face, side) with a ≤ b, in lexicographic order (so by edge,
+/// then by face): a counting sort by `a` (stable, and the sides are generated in (face, side)
+/// order), then a stable sort by `b` within each bucket of a few sides. Same result as sorting the
+/// tuples, without comparing them all.
+fn sorted_sides(tris: &[[u32; 3]], nodes: usize) -> Vec<(u32, u32, u32, u8)> {
+    let keys = tris.iter().flat_map(|t| t.iter()).map(|&i| i as usize + 1).max().unwrap_or(0).max(nodes);
+    let mut offsets = vec![0u32; keys + 1];
+    for t in tris {
+        for s in 0..3 {
+            offsets[t[s].min(t[(s + 1) % 3]) as usize + 1] += 1;
+        }
+    }
+    for i in 0..keys {
+        offsets[i + 1] += offsets[i];
+    }
+    let mut fill = offsets.clone();
+    let mut sides = vec![(0u32, 0u32, 0u32, 0u8); tris.len() * 3];
+    for (f, t) in tris.iter().enumerate() {
+        for s in 0..3 {
+            let (a, b) = (t[s], t[(s + 1) % 3]);
+            let k = a.min(b) as usize;
+            sides[fill[k] as usize] = (a.min(b), a.max(b), f as u32, s as u8);
+            fill[k] += 1;
+        }
+    }
+    for k in 0..keys {
+        let bucket = &mut sides[offsets[k] as usize..offsets[k + 1] as usize];
+        if bucket.len() <= 16 {
+            // Stable insertion sort by b.
+            for i in 1..bucket.len() {
+                let mut j = i;
+                while j > 0 && bucket[j - 1].1 > bucket[j].1 {
+                    bucket.swap(j - 1, j);
+                    j -= 1;
+                }
+            }
+        } else {
+            bucket.sort_by_key(|x| x.1);
+        }
+    }
+    sides
+}
+
 fn csr(keys: usize, pairs: impl Iterator<Item = (u32, u32)> + Clone) -> (Vec<u32>, Vec<u32>) {
     let mut offsets = vec![0u32; keys + 1];
     for (k, _) in pairs.clone() {
@@ -112,4 +147,32 @@ fn csr(keys: usize, pairs: impl Iterator<Item = (u32, u32)> + Clone) -> (Vec<u32
         values[offsets[k] as usize..offsets[k + 1] as usize].sort_unstable();
     }
     (offsets, values)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sorted_sides;
+
+    /// The bucketed sort must give exactly the order of sorting the tuples (edge, then face, side),
+    /// also for arbitrary (invalid, high-valence) triangle lists.
+    #[test]
+    fn sorted_sides_match_a_full_sort() {
+        let mut state = 12345u64;
+        let mut next = |n: u32| {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((state >> 33) % u64::from(n)) as u32
+        };
+        for (faces, nodes) in [(0, 0), (1, 3), (50, 6), (400, 40), (2000, 300)] {
+            let tris: Vec<[u32; 3]> = (0..faces).map(|_| [next(nodes), next(nodes), next(nodes)]).collect();
+            let mut expected: Vec<(u32, u32, u32, u8)> = Vec::new();
+            for (f, t) in tris.iter().enumerate() {
+                for s in 0..3 {
+                    let (a, b) = (t[s], t[(s + 1) % 3]);
+                    expected.push((a.min(b), a.max(b), f as u32, s as u8));
+                }
+            }
+            expected.sort_unstable();
+            assert_eq!(sorted_sides(&tris, nodes as usize), expected, "{faces} faces on {nodes} nodes");
+        }
+    }
 }

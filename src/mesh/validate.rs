@@ -167,8 +167,58 @@ fn directed(t: [u32; 3], a: u32, b: u32) -> bool {
 }
 
 /// Number of fans formed by the faces around node `n`: faces are joined when they share an edge
-/// incident to `n`.
+/// incident to `n`. Called only when every edge borders exactly two faces.
 fn count_fans(adj: &Adjacency, faces: &[u32], n: u32, tris: &[[u32; 3]]) -> usize {
+    if is_single_fan(adj, faces, n, tris) {
+        return 1;
+    }
+    count_fans_by_union(adj, faces, n, tris)
+}
+
+/// Fast path of [`count_fans`] for the common case: walks from the first face around `n`, always
+/// leaving a face through its other side incident to `n`. When every edge borders two faces, each
+/// face that holds `n` once has exactly two such sides, so the faces form cycles and the walk goes
+/// round one of them; it is a single fan iff that cycle holds all the faces. Returns false (the
+/// caller then counts with union–find) for anything unusual, such as a face holding `n` twice.
+fn is_single_fan(adj: &Adjacency, faces: &[u32], n: u32, tris: &[[u32; 3]]) -> bool {
+    // The side of face `f` leaving node `n` (side k joins corners k and k + 1) and the side coming
+    // into it, as edge indices; None if `n` is not exactly once in `f`.
+    let sides = |f: u32| -> Option<[u32; 2]> {
+        let t = tris[f as usize];
+        let mut corners = (0..3).filter(|&k| t[k] == n);
+        let k = corners.next()?;
+        if corners.next().is_some() {
+            return None;
+        }
+        if t[(k + 1) % 3] == t[(k + 2) % 3] {
+            return None;
+        }
+        let e = adj.face_edges(f as usize);
+        Some([e[k], e[(k + 2) % 3]])
+    };
+    let start = faces[0];
+    let Some([first, _]) = sides(start) else { return false };
+    let (mut face, mut edge) = (start, first);
+    for step in 1..=faces.len() {
+        let next = match *adj.edge_faces(edge as usize) {
+            [a, b] if a == face && b != face => b,
+            [a, b] if b == face && a != face => a,
+            _ => return false,
+        };
+        let Some([x, y]) = sides(next) else { return false };
+        edge = if x == edge { y } else { x };
+        face = next;
+        if face == start {
+            // Each step went to a face sharing an edge incident to `n` (so a face around `n`),
+            // never back through the edge it came in by: a cycle of `step` distinct faces.
+            return step == faces.len();
+        }
+    }
+    false
+}
+
+/// [`count_fans`] by union–find over the faces around `n`.
+fn count_fans_by_union(adj: &Adjacency, faces: &[u32], n: u32, tris: &[[u32; 3]]) -> usize {
     let mut parent: Vec<usize> = (0..faces.len()).collect();
     for (i, &f) in faces.iter().enumerate() {
         let t = tris[f as usize];

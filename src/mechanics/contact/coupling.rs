@@ -99,9 +99,13 @@ impl CouplingWorkspace {
         }
         self.boxes.clear();
         self.boxes.extend(self.positions.iter().map(|p| (*p, *p)));
-        let grid = self.grid.get_or_insert_with(|| SpatialGrid::new(cutoff));
-        if grid.cell_size() != cutoff {
-            grid.set_cell_size(cutoff);
+        // Cubes of edge 2c: a query box [p − c, p + c] then spans 2 cubes per axis (4 rows of
+        // cubes to look up) instead of 3 (9 rows) with cubes of edge c; the extra nodes it returns
+        // are rejected by the distance test. Every pair closer than c is found either way.
+        let cell_size = 2.0 * cutoff;
+        let grid = self.grid.get_or_insert_with(|| SpatialGrid::new(cell_size));
+        if grid.cell_size() != cell_size {
+            grid.set_cell_size(cell_size);
         }
         grid.rebuild(&self.boxes);
         let grid = &*grid;
@@ -119,7 +123,11 @@ impl CouplingWorkspace {
                 for i in chunk {
                     let (ci, p) = (nodes[i].0, positions[i]);
                     let r = Vec3::repeat(cutoff);
-                    grid.collect_candidates(&(p - r), &(p + r), &mut near);
+                    // Each node is a point, registered in exactly one grid cube, so the query
+                    // yields every node once: no sort or dedup needed (the candidates are sorted
+                    // in full below, so their order here does not matter).
+                    near.clear();
+                    grid.for_each_candidate(&(p - r), &(p + r), |j| near.push(j));
                     for &j in &near {
                         let j = j as usize;
                         let cj = nodes[j].0;
