@@ -62,7 +62,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
         }
     }
     let times: Vec<String> =
-        outcome.manifest.stages.iter().map(|s| format!("{} {:?} {:.2} s", s.name, s.status, s.wall_seconds)).collect();
+        outcome.manifest.stages.iter().map(|s| format!("{} {} {:.2} s", s.name, s.status, s.wall_seconds)).collect();
     println!(
         "run directory {} ({}); {:.2} s on {} threads",
         out.display(),

@@ -27,6 +27,17 @@ pub enum StageStatus {
     Failed,
 }
 
+impl std::fmt::Display for StageStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            StageStatus::Running => "running",
+            StageStatus::Complete => "complete",
+            StageStatus::Skipped => "skipped",
+            StageStatus::Failed => "failed",
+        })
+    }
+}
+
 impl StageStatus {
     /// Whether the stage's outputs are in place.
     pub fn done(self) -> bool {
