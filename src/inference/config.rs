@@ -488,35 +488,7 @@ impl FitConfig {
 
     /// The base model: `model` (or the defaults) with `model_overrides` applied, validated.
     pub fn base_parameters(&self) -> Result<Parameters, InferenceError> {
-        let mut table = match &self.model {
-            Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .map_err(|e| InferenceError::Config(format!("model: reading {}: {e}", path.display())))?;
-                toml::from_str::<toml::Table>(&text)
-                    .map_err(|e| InferenceError::Config(format!("model: {}: {e}", path.display())))?
-            }
-            None => toml::Table::new(),
-        };
-        if let Some(over) = &self.model_overrides {
-            merge(&mut table, over);
-        }
-        let text = toml::to_string(&table).map_err(|e| InferenceError::Config(format!("model: {e}")))?;
-        let origin = match &self.model {
-            Some(p) => format!("model {} + model_overrides", p.display()),
-            None => "model_overrides".to_string(),
-        };
-        Parameters::from_toml_str(&text, &origin).map_err(|e| InferenceError::Config(e.to_string()))
-    }
-}
-
-/// Deep merge of `over` into `base` (tables merged key by key, other values replaced).
-fn merge(base: &mut toml::Table, over: &toml::Table) {
-    for (key, value) in over {
-        match (base.get_mut(key), value) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
-            _ => {
-                base.insert(key.clone(), value.clone());
-            }
-        }
+        Parameters::load_with_overrides(self.model.as_deref(), self.model_overrides.as_ref())
+            .map_err(|e| InferenceError::Config(e.to_string()))
     }
 }

@@ -250,24 +250,12 @@ impl PipelineConfig {
 impl SimulateSection {
     /// The model: `model` (or the defaults) with `model_overrides` applied, validated.
     pub fn parameters(&self) -> Result<Parameters, PipelineError> {
-        let mut table = match &self.model {
-            Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .map_err(|e| PipelineError::Config(format!("model: reading {}: {e}", path.display())))?;
-                toml::from_str::<toml::Table>(&text)
-                    .map_err(|e| PipelineError::Config(format!("model: {}: {e}", path.display())))?
-            }
-            None => toml::Table::new(),
-        };
-        if let Some(over) = &self.model_overrides {
-            merge(&mut table, over);
-        }
-        let text = toml::to_string(&table).map_err(|e| PipelineError::Config(format!("model: {e}")))?;
         let origin = match &self.model {
             Some(p) => format!("model {} + model_overrides", p.display()),
             None => "model_overrides".to_string(),
         };
-        let params = Parameters::from_toml_str(&text, &origin).map_err(|e| PipelineError::Config(e.to_string()))?;
+        let params = Parameters::load_with_overrides(self.model.as_deref(), self.model_overrides.as_ref())
+            .map_err(|e| PipelineError::Config(e.to_string()))?;
         for w in params.validate().map_err(|e| PipelineError::Config(format!("{origin}: {e}")))? {
             tracing::warn!("{origin}: {w}");
         }
@@ -293,18 +281,6 @@ impl FitSection {
             optimizer: self.optimizer.clone(),
             forward: self.forward.clone(),
             profile: self.profile.clone(),
-        }
-    }
-}
-
-/// Deep merge of `over` into `base` (tables merged key by key, other values replaced).
-fn merge(base: &mut toml::Table, over: &toml::Table) {
-    for (key, value) in over {
-        match (base.get_mut(key), value) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
-            _ => {
-                base.insert(key.clone(), value.clone());
-            }
         }
     }
 }

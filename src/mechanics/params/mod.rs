@@ -378,11 +378,48 @@ pub enum ParamError {
     Invalid { origin: String, problems: Vec<String> },
 }
 
+/// Deep merge of `over` into `base` (tables merged key by key, other values replaced).
+fn merge_tables(base: &mut Table, over: &Table) {
+    for (key, value) in over {
+        match (base.get_mut(key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_tables(b, o),
+            _ => {
+                base.insert(key.clone(), value.clone());
+            }
+        }
+    }
+}
+
 fn prefixed_lines(origin: &str, problems: &[String]) -> String {
     problems.iter().map(|problem| format!("{origin}: {problem}")).collect::<Vec<_>>().join("\n")
 }
 
 impl Parameters {
+    /// A model file (or the defaults when `None`) with `overrides` merged over it key by key (tables
+    /// merged, other values replaced), then read like [`Parameters::from_toml_str`]. Errors name the
+    /// file and say that the overrides took part. This is how the fit and the pipeline take a model.
+    pub fn load_with_overrides(model: Option<&Path>, overrides: Option<&Table>) -> Result<Self, ParamError> {
+        let mut table = match model {
+            Some(path) => {
+                let origin = path.display().to_string();
+                let text = std::fs::read_to_string(path)
+                    .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
+                toml::from_str::<Table>(&text).map_err(|e| ParamError::Syntax { origin, message: e.to_string() })?
+            }
+            None => Table::new(),
+        };
+        if let Some(over) = overrides {
+            merge_tables(&mut table, over);
+        }
+        let origin = match model {
+            Some(p) => format!("model {} + model_overrides", p.display()),
+            None => "model_overrides".to_string(),
+        };
+        let text = toml::to_string(&table)
+            .map_err(|e| ParamError::Syntax { origin: origin.clone(), message: e.to_string() })?;
+        Self::from_toml_str(&text, &origin)
+    }
+
     /// Reads and validates a TOML parameter file (partial files allowed: see the module doc).
     /// The result passed [`Parameters::validate`]; call it again for the warnings.
     pub fn load(path: &Path) -> Result<Self, ParamError> {
