@@ -38,7 +38,7 @@ fn load_config(path: &Path) -> anyhow::Result<FitConfig> {
         .fit
         .as_ref()
         .ok_or_else(|| anyhow::anyhow!("{}: the pipeline has no [fit] section", path.display()))?;
-    Ok(fit.to_fit_config(&pipeline.input, &pipeline.mesh))
+    Ok(crate::pipeline::fit_config(fit, &pipeline.input, &pipeline.mesh))
 }
 
 pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {

@@ -14,8 +14,10 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct FitConfig {
-    /// The observed tissue.
-    pub observed: ObservedConfig,
+    /// The observed tissue. Required by `tissuefit fit`; a pipeline's `[fit]` leaves it out and
+    /// takes `[input]` and `[mesh]` instead.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub observed: Option<ObservedConfig>,
     /// The base model: a path to a simulation config (same schema as `simulate --config`), or absent
     /// for the built-in defaults; `[model_overrides]` then changes single keys.
     #[serde(default)]
@@ -370,8 +372,10 @@ impl FitConfig {
                 *p = base.join(&*p);
             }
         };
-        config.observed.tissue.as_mut().map(fix);
-        config.observed.labels.as_mut().map(fix);
+        if let Some(observed) = &mut config.observed {
+            observed.tissue.as_mut().map(fix);
+            observed.labels.as_mut().map(fix);
+        }
         config.model.as_mut().map(fix);
         Ok(config)
     }
@@ -383,13 +387,29 @@ impl FitConfig {
         Ok(config)
     }
 
+    /// The observed input, or an error naming the missing section.
+    pub fn observed(&self) -> Result<&ObservedConfig, InferenceError> {
+        self.observed
+            .as_ref()
+            .ok_or_else(|| InferenceError::Config("[observed]: missing; give `tissue` or `labels`".into()))
+    }
+
     /// Consistency checks beyond the schema; the message names the key.
     fn check(&self) -> Result<(), String> {
-        match (&self.observed.tissue, &self.observed.labels) {
+        let Some(observed) = &self.observed else {
+            return Err("[observed]: missing; give `tissue` (a mesh file) or `labels` (a label TIFF)".into());
+        };
+        match (&observed.tissue, &observed.labels) {
             (Some(_), Some(_)) => return Err("observed: give `tissue` or `labels`, not both".into()),
             (None, None) => return Err("observed: give `tissue` (a mesh file) or `labels` (a label TIFF)".into()),
             _ => {}
         }
+        self.check_settings()
+    }
+
+    /// The checks of everything but `[observed]` (parameters, objective, optimiser, forward,
+    /// profile); a pipeline runs these on its `[fit]` section.
+    pub fn check_settings(&self) -> Result<(), String> {
         if self.parameters.is_empty() {
             return Err("parameters: name at least one parameter to fit".into());
         }
@@ -455,7 +475,7 @@ impl FitConfig {
         if o.sphericity + o.contact_fraction + o.coordination + o.contact_angle + o.shape <= 0.0 {
             return Err("objective: every weight is 0".into());
         }
-        if o.shape > 0.0 && self.observed.labels.is_none() {
+        if o.shape > 0.0 && self.observed.as_ref().is_some_and(|obs| obs.labels.is_none()) {
             return Err("objective.shape: the shape term compares voxels and needs `observed.labels`".into());
         }
         let opt = &self.optimizer;

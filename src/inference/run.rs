@@ -34,7 +34,7 @@ pub struct FitOptions {
 
 /// Reads the observed input (meshing a label volume first) and measures it.
 pub fn load_observation(config: &FitConfig) -> Result<Observation, InferenceError> {
-    let obs = &config.observed;
+    let obs = config.observed()?;
     if let Some(path) = &obs.tissue {
         let scale: LengthScale = obs
             .length_unit

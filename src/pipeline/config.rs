@@ -6,10 +6,7 @@
 
 use super::PipelineError;
 use crate::geometry::Real;
-use crate::inference::{
-    FitConfig, ForwardConfig, MeshingConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, ParameterConfig,
-    ProfileConfig,
-};
+use crate::inference::{FitConfig, MeshingConfig, ObservedConfig};
 use crate::mechanics::Parameters;
 use crate::meshing::BorderPolicy;
 use crate::morphology::DEFAULT_EXTERIOR_FREE_FRACTION;
@@ -35,7 +32,9 @@ pub struct PipelineConfig {
     pub simulate: Option<SimulateSection>,
     /// The fit of the model to the observed tissue. Default: absent (not run).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub fit: Option<FitSection>,
+    /// The fit config of `tissuefit fit` without `[observed]`: the observed tissue is `[input]`
+    /// meshed with `[mesh]`.
+    pub fit: Option<FitConfig>,
     /// Known parameters of a synthetic input, printed next to the fitted ones and checked.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub demo: Option<DemoSection>,
@@ -94,29 +93,6 @@ pub struct SimulateSection {
     pub model_overrides: Option<toml::Table>,
 }
 
-/// `[fit]`: the fit config of `tissuefit fit` without `[observed]` (the observed tissue is `[input]`
-/// meshed with `[mesh]`).
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct FitSection {
-    /// Base model (TOML, the `simulate --config` schema). Default: the built-in defaults.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub model: Option<PathBuf>,
-    /// Keys of the model given inline, applied on top of `model`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub model_overrides: Option<toml::Table>,
-    /// Fitted (bounds) and fixed (value) parameters by name, as in `tissuefit fit`.
-    pub parameters: BTreeMap<String, ParameterConfig>,
-    #[serde(default)]
-    pub objective: ObjectiveConfig,
-    #[serde(default)]
-    pub optimizer: OptimizerConfig,
-    #[serde(default)]
-    pub forward: ForwardConfig,
-    #[serde(default)]
-    pub profile: ProfileConfig,
-}
-
 /// `[demo]`: the parameters a synthetic input was made with.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
@@ -171,9 +147,7 @@ impl PipelineConfig {
             s.parameters().map_err(|e| PipelineError::Config(format!("{origin}: simulate: {e}")))?;
         }
         if let Some(f) = &config.fit {
-            f.to_fit_config(&config.input, &config.mesh)
-                .base_parameters()
-                .map_err(|e| PipelineError::Config(format!("{origin}: fit: {e}")))?;
+            f.base_parameters().map_err(|e| PipelineError::Config(format!("{origin}: fit: {e}")))?;
         }
         Ok(config)
     }
@@ -216,14 +190,13 @@ impl PipelineConfig {
             return Err(format!("measure.contact_distance: must be a length > 0 (m); got {d}"));
         }
         if let Some(fit) = &self.fit {
-            // The fit's own checks (parameters, objective, optimiser), with the keys under `fit.`.
-            let mut probe = fit.to_fit_config(&self.input, &self.mesh);
-            probe.model = None;
-            let text = toml::to_string(&probe).map_err(|e| format!("fit: {e}"))?;
-            FitConfig::from_toml_str(&text, "fit").map_err(|e| {
-                let e = e.to_string();
-                e.strip_prefix("fit config: fit: ").map(|s| format!("fit.{s}")).unwrap_or(e)
-            })?;
+            if fit.observed.is_some() {
+                return Err(
+                    "fit.observed: the pipeline's observed tissue is [input] meshed with [mesh]; remove [fit.observed]"
+                        .into(),
+                );
+            }
+            fit.check_settings().map_err(|e| format!("fit.{e}"))?;
         }
         if let Some(demo) = &self.demo {
             if self.fit.is_none() {
@@ -263,25 +236,17 @@ impl SimulateSection {
     }
 }
 
-impl FitSection {
-    /// The equivalent `tissuefit fit` config: observed = the input labels meshed like `[mesh]`.
-    pub fn to_fit_config(&self, input: &InputSection, mesh: &MeshingConfig) -> FitConfig {
-        FitConfig {
-            observed: ObservedConfig {
-                tissue: None,
-                labels: Some(input.labels.clone()),
-                length_unit: "m".to_string(),
-                voxel_size: input.voxel_size,
-                meshing: mesh.clone(),
-            },
-            model: self.model.clone(),
-            model_overrides: self.model_overrides.clone(),
-            parameters: self.parameters.clone(),
-            objective: self.objective.clone(),
-            optimizer: self.optimizer.clone(),
-            forward: self.forward.clone(),
-            profile: self.profile.clone(),
-        }
+/// The `tissuefit fit` config of a pipeline's `[fit]`: observed = the input labels meshed like `[mesh]`.
+pub fn fit_config(fit: &FitConfig, input: &InputSection, mesh: &MeshingConfig) -> FitConfig {
+    FitConfig {
+        observed: Some(ObservedConfig {
+            tissue: None,
+            labels: Some(input.labels.clone()),
+            length_unit: "m".to_string(),
+            voxel_size: input.voxel_size,
+            meshing: mesh.clone(),
+        }),
+        ..fit.clone()
     }
 }
 

@@ -16,7 +16,7 @@ mod manifest;
 mod run;
 mod stages;
 
-pub use config::{DemoSection, FitSection, InputSection, MeasureSection, PipelineConfig, SimulateSection, nearest};
+pub use config::{DemoSection, InputSection, MeasureSection, PipelineConfig, SimulateSection, fit_config, nearest};
 pub use manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file};
 pub use run::{DemoCheck, PipelineOptions, PipelineOutcome, run_pipeline};
 

@@ -3,10 +3,10 @@
 //! `trace.csv`/`result.json`), so that reruns are byte-identical elsewhere.
 
 use super::PipelineError;
-use super::config::{FitSection, InputSection, MeasureSection, SimulateSection};
+use super::config::{InputSection, MeasureSection, SimulateSection, fit_config};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
-use crate::inference::{FitOptions, FitResult, MeshingConfig, run_fit};
+use crate::inference::{FitConfig, FitOptions, FitResult, MeshingConfig, run_fit};
 use crate::io::{LengthScale, ReadOptions, read_tissue, write_bytes_atomically, write_simucell3d, write_tissue};
 use crate::mechanics::{Observer, Sample, Simulation, SimulationSummary};
 use crate::mesh::Tissue;
@@ -191,11 +191,11 @@ pub fn run_simulate(
 pub fn run_fit_stage(
     input: &InputSection,
     mesh: &MeshingConfig,
-    fit: &FitSection,
+    fit: &FitConfig,
     out: &Path,
     progress: bool,
 ) -> Result<FitResult, PipelineError> {
-    let config = fit.to_fit_config(input, mesh);
+    let config = fit_config(fit, input, mesh);
     run_fit(&config, out, &FitOptions { resume: false, progress, plots: true })
         .map_err(|e| stage_err("fit")(e.to_string()))
 }
