@@ -9,6 +9,7 @@ mod inspect;
 mod label_args;
 mod measure;
 mod mesh;
+mod render;
 mod run;
 mod simulate;
 mod voxelize;
@@ -71,6 +72,8 @@ pub enum Command {
     /// (input hashes, resolved config, timings); unchanged stages are skipped. Exits with 1 when the fit
     /// did not converge or a `[demo]` truth was not recovered.
     Run(run::RunArgs),
+    /// Draw a tissue into a PNG picture (software rendering; colour by cell, kind or face type).
+    Render(render::RenderArgs),
 }
 
 /// How a successful run ended.
@@ -125,6 +128,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Generate(cmd) => generate::run(&cmd),
         Command::Fit(args) => fit::run(&args),
         Command::Run(args) => run::run(&args),
+        Command::Render(args) => render::run(&args),
     })
 }
 

@@ -13,12 +13,17 @@
 
 mod config;
 mod manifest;
+mod reference;
 mod run;
 mod stages;
 
-pub use config::{DemoSection, InputSection, MeasureSection, PipelineConfig, SimulateSection, fit_config, nearest};
+pub use config::{
+    DemoSection, InputSection, MeasureSection, PipelineConfig, SimulateSection, fit_config, is_pipeline_file, nearest,
+};
 pub use manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file};
+pub use reference::{REFERENCE_SECTIONS, config_reference};
 pub use run::{DemoCheck, PipelineOptions, PipelineOutcome, run_pipeline};
+pub use stages::{MESH_TISSUE, run_measure, run_mesh, run_simulate};
 
 /// Why a pipeline could not run.
 #[derive(Debug, thiserror::Error)]
