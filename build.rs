@@ -34,9 +34,10 @@ fn is_hash(s: &str) -> bool {
 /// The commit HEAD points at, or `None` when there is no readable repository.
 fn git_commit(root: &Path) -> Option<String> {
     let dot_git = root.join(".git");
-    watch(&dot_git);
-    // A worktree or submodule has a `.git` file naming its git directory.
+    // A worktree or submodule has a `.git` file naming its git directory. (A `.git` folder is not
+    // watched as a whole: cargo would scan all of it, and every `git add` would rebuild the crate.)
     let git_dir = if dot_git.is_file() {
+        watch(&dot_git);
         let text = fs::read_to_string(&dot_git).ok()?;
         let dir = PathBuf::from(text.trim().strip_prefix("gitdir:")?.trim());
         if dir.is_relative() { root.join(dir) } else { dir }
