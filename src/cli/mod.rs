@@ -11,6 +11,7 @@ mod measure;
 mod mesh;
 mod run;
 mod simulate;
+mod sweep;
 mod voxelize;
 
 use crate::io::{LengthScale, ReadOptions};
@@ -71,6 +72,10 @@ pub enum Command {
     /// (input hashes, resolved config, timings); unchanged stages are skipped. Exits with 1 when the fit
     /// did not converge or a `[demo]` truth was not recovered.
     Run(run::RunArgs),
+    /// Run a parameter sweep: every variant of a base pipeline (a [grid] of values or a [[runs]] list)
+    /// into DIR/run-NNNN, J at a time, then DIR/results.csv and plots; `--list`, `--index I` (job
+    /// arrays) and `--collect`. Exits with 1 when a run failed; a failed run never stops the others.
+    Sweep(sweep::SweepArgs),
 }
 
 /// How a successful run ended.
@@ -125,6 +130,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Generate(cmd) => generate::run(&cmd),
         Command::Fit(args) => fit::run(&args),
         Command::Run(args) => run::run(&args),
+        Command::Sweep(args) => sweep::run(&args),
     })
 }
 

@@ -15,10 +15,14 @@ mod config;
 mod manifest;
 mod run;
 mod stages;
+pub mod sweep;
+mod sweep_plot;
 
 pub use config::{DemoSection, InputSection, MeasureSection, PipelineConfig, SimulateSection, fit_config, nearest};
 pub use manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file};
 pub use run::{DemoCheck, PipelineOptions, PipelineOutcome, run_pipeline};
+pub use sweep::{RunReport, Sweep, SweepOptions, collect_results, run_sweep};
+pub use sweep_plot::plot_results;
 
 /// Why a pipeline could not run.
 #[derive(Debug, thiserror::Error)]
