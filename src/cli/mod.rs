@@ -12,6 +12,7 @@ mod mesh;
 mod render;
 mod run;
 mod simulate;
+mod sweep;
 mod voxelize;
 
 use crate::io::{LengthScale, ReadOptions};
@@ -74,6 +75,10 @@ pub enum Command {
     Run(run::RunArgs),
     /// Draw a tissue into a PNG picture (software rendering; colour by cell, kind or face type).
     Render(render::RenderArgs),
+    /// Run a parameter sweep: every variant of a base pipeline (a [grid] of values or a [[runs]] list)
+    /// into DIR/run-NNNN, J at a time, then DIR/results.csv and plots; `--list`, `--index I` (job
+    /// arrays) and `--collect`. Exits with 1 when a run failed; a failed run never stops the others.
+    Sweep(sweep::SweepArgs),
 }
 
 /// How a successful run ended.
@@ -129,6 +134,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Fit(args) => fit::run(&args),
         Command::Run(args) => run::run(&args),
         Command::Render(args) => render::run(&args),
+        Command::Sweep(args) => sweep::run(&args),
     })
 }
 

@@ -11,7 +11,7 @@
 use super::{InputArgs, Outcome};
 use crate::io::{
     CHECKPOINT_FILE, RunInfo, SimulationRecorder, checksum, read_checkpoint, read_tissue, write_bytes_atomically,
-    write_checkpoint, write_simucell3d,
+    write_checkpoint, write_events, write_simucell3d,
 };
 use crate::mechanics::{
     CheckpointRequest, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationError, SimulationMode,
@@ -113,22 +113,6 @@ const OUTPUTS: [&str; 9] = [
     "last_good.vtk",
     "events.csv",
 ];
-
-/// `events.csv`: one row per division or removal.
-fn write_events(path: &Path, events: &[crate::mechanics::TopologyEvent]) -> anyhow::Result<()> {
-    use std::fmt::Write as _;
-    let mut text = String::from("step,time,event,cell,daughter_a,daughter_b,volume\n");
-    for e in events {
-        let (a, b) = e.daughters.map_or((String::new(), String::new()), |[a, b]| (a.to_string(), b.to_string()));
-        let kind = match e.kind {
-            crate::mechanics::TopologyEventKind::Division => "division",
-            crate::mechanics::TopologyEventKind::Removal => "removal",
-        };
-        let _ = writeln!(text, "{},{:e},{kind},{},{a},{b},{:e}", e.step, e.time, e.cell, e.volume);
-    }
-    write_bytes_atomically(path, text.as_bytes())?;
-    Ok(())
-}
 
 /// Applies the command-line overrides (CLI > config file > defaults) and validates.
 fn resolve_parameters(args: &SimulateArgs) -> anyhow::Result<Parameters> {

@@ -18,7 +18,7 @@
 mod config;
 mod forward;
 mod optimise;
-mod plot;
+pub(crate) mod plot;
 mod profile;
 mod result;
 mod run;

@@ -15,7 +15,8 @@ use std::sync::Once;
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 static REGISTER: Once = Once::new();
 
-fn ensure_font() {
+/// Registers the embedded font as "sans-serif" (once per process).
+pub(crate) fn ensure_font() {
     REGISTER.call_once(|| {
         // The embedded file is a valid TrueType font; a failure would only lose the labels.
         if register_font("sans-serif", FontStyle::Normal, FONT).is_err() {

@@ -154,3 +154,19 @@ impl Observer for SimulationRecorder {
         self.write_sample(sample).map_err(|e| Box::new(e) as Box<dyn std::error::Error + Send + Sync>)
     }
 }
+
+/// `events.csv`: one row per division or removal (`step,time,event,cell,daughter_a,daughter_b,volume`),
+/// written atomically.
+pub fn write_events(path: &Path, events: &[crate::mechanics::TopologyEvent]) -> Result<(), IoError> {
+    use std::fmt::Write as _;
+    let mut text = String::from("step,time,event,cell,daughter_a,daughter_b,volume\n");
+    for e in events {
+        let (a, b) = e.daughters.map_or((String::new(), String::new()), |[a, b]| (a.to_string(), b.to_string()));
+        let kind = match e.kind {
+            crate::mechanics::TopologyEventKind::Division => "division",
+            crate::mechanics::TopologyEventKind::Removal => "removal",
+        };
+        let _ = writeln!(text, "{},{:e},{kind},{},{a},{b},{:e}", e.step, e.time, e.cell, e.volume);
+    }
+    super::write_bytes_atomically(path, text.as_bytes())
+}

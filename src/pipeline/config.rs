@@ -7,6 +7,7 @@
 use super::PipelineError;
 use crate::geometry::Real;
 use crate::inference::{FitConfig, MeshingConfig, ObservedConfig};
+use crate::io::LengthScale;
 use crate::mechanics::Parameters;
 use crate::meshing::BorderPolicy;
 use crate::morphology::DEFAULT_EXTERIOR_FREE_FRACTION;
@@ -41,13 +42,23 @@ pub struct PipelineConfig {
     pub demo: Option<DemoSection>,
 }
 
-/// `[input]`.
+/// `[input]`: a label volume (`labels`) or an already meshed tissue (`mesh`), exactly one of them.
 #[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InputSection {
-    /// Label TIFF (0 = background). Relative to the pipeline file.
-    pub labels: PathBuf,
-    /// Voxel size `[z, y, x]` (m) instead of the TIFF's metadata. Default: the metadata.
+    /// Label TIFF (0 = background), meshed by the mesh stage. Relative to the pipeline file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub labels: Option<PathBuf>,
+    /// A tissue mesh (.vtp or .vtk) instead of labels: the mesh stage checks it and copies it into
+    /// `mesh/tissue.vtp` (SI units). Relative to the pipeline file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<PathBuf>,
+    /// Length unit of the `mesh` file's coordinates (as `--length-unit`: m, mm, um, nm, metres per
+    /// unit). Default "m". Only with `mesh`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length_unit: Option<String>,
+    /// Voxel size `[z, y, x]` (m) instead of the TIFF's metadata. Default: the metadata. Only with
+    /// `labels`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub voxel_size: Option<[Real; 3]>,
     /// The run's seed: the meshing's sampling seed (`mesh.seed`) and the optimiser's
@@ -117,14 +128,21 @@ impl PipelineConfig {
     pub fn load(path: &Path) -> Result<Self, PipelineError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| PipelineError::Config(format!("reading {}: {e}", path.display())))?;
-        let mut config = Self::from_toml_str(&text, path)?;
+        Self::load_text(&text, path)
+    }
+
+    /// [`PipelineConfig::load`] of `text` as if it were the file `path` (which need not exist):
+    /// relative paths resolve against its folder.
+    pub fn load_text(text: &str, path: &Path) -> Result<Self, PipelineError> {
+        let mut config = Self::from_toml_str(text, path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         let fix = |p: &mut PathBuf| {
             if p.is_relative() {
                 *p = base.join(&*p);
             }
         };
-        fix(&mut config.input.labels);
+        config.input.labels.as_mut().map(fix);
+        config.input.mesh.as_mut().map(fix);
         if let Some(s) = &mut config.simulate {
             s.model.as_mut().map(fix);
         }
@@ -132,12 +150,12 @@ impl PipelineConfig {
             f.model.as_mut().map(fix);
         }
         let origin = path.display();
-        let mut files = vec![("input.labels", &config.input.labels)];
+        let mut files = vec![config.input.source()];
         if let Some(p) = config.simulate.as_ref().and_then(|s| s.model.as_ref()) {
-            files.push(("simulate.model", p));
+            files.push(("simulate.model", p.as_path()));
         }
         if let Some(p) = config.fit.as_ref().and_then(|f| f.model.as_ref()) {
-            files.push(("fit.model", p));
+            files.push(("fit.model", p.as_path()));
         }
         for (key, file) in files {
             if !file.is_file() {
@@ -168,6 +186,7 @@ impl PipelineConfig {
 
     /// Consistency checks beyond the schema; the message names the key.
     fn check(&self) -> Result<(), String> {
+        self.input.check()?;
         self.mesh.border.parse::<BorderPolicy>().map_err(|e| format!("mesh.border: {e}"))?;
         if self.mesh.target_nodes < 4 {
             return Err(format!("mesh.target_nodes: need at least 4; got {}", self.mesh.target_nodes));
@@ -199,6 +218,9 @@ impl PipelineConfig {
                 );
             }
             fit.check_settings().map_err(|e| format!("fit.{e}"))?;
+            if fit.objective.shape > 0.0 && self.input.mesh.is_some() {
+                return Err("fit.objective.shape: the shape term compares voxels and needs `input.labels`".into());
+            }
         }
         if let Some(demo) = &self.demo {
             if self.fit.is_none() {
@@ -238,13 +260,57 @@ impl SimulateSection {
     }
 }
 
-/// The `tissuefit fit` config of a pipeline's `[fit]`: observed = the input labels meshed like `[mesh]`.
+impl InputSection {
+    /// The input file and its key: `("input.labels", labels)` or `("input.mesh", mesh)`.
+    pub fn source(&self) -> (&'static str, &Path) {
+        match (&self.labels, &self.mesh) {
+            (Some(l), _) => ("input.labels", l),
+            (None, Some(m)) => ("input.mesh", m),
+            // `check` rejects a section without either; an empty path fails every later use.
+            (None, None) => ("input.labels", Path::new("")),
+        }
+    }
+
+    /// The length scale of a `mesh` input (metres when `length_unit` is absent).
+    pub fn length_scale(&self) -> Result<LengthScale, String> {
+        self.length_unit.as_deref().unwrap_or("m").parse().map_err(|e: String| format!("input.length_unit: {e}"))
+    }
+
+    /// Exactly one input, with only the options that apply to it; the message names the key.
+    fn check(&self) -> Result<(), String> {
+        match (&self.labels, &self.mesh) {
+            (Some(_), Some(_)) => {
+                return Err("input: give `labels` (a label TIFF) or `mesh` (a .vtp/.vtk tissue), not both".into());
+            }
+            (None, None) => return Err("input: give `labels` (a label TIFF) or `mesh` (a .vtp/.vtk tissue)".into()),
+            (Some(_), None) => {
+                if self.length_unit.is_some() {
+                    return Err("input.length_unit: applies to a `mesh` input; a label TIFF has a voxel size".into());
+                }
+            }
+            (None, Some(m)) => {
+                if self.voxel_size.is_some() {
+                    return Err("input.voxel_size: applies to a `labels` input, not to a mesh".into());
+                }
+                let ext = m.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+                if !matches!(ext.as_deref(), Some("vtp" | "vtk")) {
+                    return Err(format!("input.mesh: {}: expected a .vtp or .vtk tissue file", m.display()));
+                }
+                self.length_scale()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The `tissuefit fit` config of a pipeline's `[fit]`: observed = the input labels meshed like
+/// `[mesh]`, or the input mesh.
 pub fn fit_config(fit: &FitConfig, input: &InputSection, mesh: &MeshingConfig) -> FitConfig {
     FitConfig {
         observed: Some(ObservedConfig {
-            tissue: None,
-            labels: Some(input.labels.clone()),
-            length_unit: "m".to_string(),
+            tissue: input.mesh.clone(),
+            labels: input.labels.clone(),
+            length_unit: input.length_unit.clone().unwrap_or_else(|| "m".to_string()),
             voxel_size: input.voxel_size,
             meshing: mesh.clone(),
         }),
@@ -304,6 +370,15 @@ fn describe_toml_error(e: &toml::de::Error, text: &str, origin: &Path) -> Pipeli
         None => format!("{}: {message}{suggestion}", origin.display()),
     };
     PipelineError::Config(text)
+}
+
+/// A TOML or schema error's message (without its place) and, for an unknown key, the nearest valid one.
+pub(crate) fn schema_message(e: &toml::de::Error) -> String {
+    let message = e.message().trim().to_string();
+    match unknown_field(&message).and_then(|(field, expected)| nearest(&field, &expected)) {
+        Some(best) => format!("{message}; did you mean `{best}`?"),
+        None => message,
+    }
 }
 
 /// The dotted key of the `key = value` line holding byte `at` (its `[table]` header prepended).

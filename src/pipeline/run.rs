@@ -75,8 +75,9 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
     write_bytes_atomically(&resolved_path, resolved.as_bytes())
         .map_err(|e| PipelineError::Io { path: resolved_path.clone(), message: e.to_string() })?;
 
-    let labels_hash = hash_file(&config.input.labels)?;
-    let mut inputs = vec![FileHash { path: config.input.labels.clone(), blake3: labels_hash.clone() }];
+    let (_, input_path) = config.input.source();
+    let input_hash = hash_file(input_path)?;
+    let mut inputs = vec![FileHash { path: input_path.to_path_buf(), blake3: input_hash.clone() }];
     let simulate_model = config.simulate.as_ref().and_then(|s| s.model.clone());
     let fit_model = config.fit.as_ref().and_then(|f| f.model.clone());
     let mut model_hash = |p: &Option<PathBuf>| -> Result<String, PipelineError> {
@@ -111,8 +112,13 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
     let mut runner = Runner { out, previous: previous.as_ref(), manifest: &mut manifest, options };
 
     // mesh
-    let mesh_section = toml_of(&MeshKey { voxel_size: config.input.voxel_size, mesh: &config.mesh })?;
-    let mesh_key = stage_key("mesh", &mesh_section, &[&labels_hash]);
+    let mesh_section = toml_of(&MeshKey {
+        voxel_size: config.input.voxel_size,
+        mesh_input: config.input.mesh.is_some(),
+        length_unit: config.input.length_unit.as_deref(),
+        mesh: &config.mesh,
+    })?;
+    let mesh_key = stage_key("mesh", &mesh_section, &[&input_hash]);
     let mesh = runner.stage("mesh", mesh_key, |dir| run_mesh(&config.input, &config.mesh, dir).map(|s| (s, true)))?;
     let tissue_hash = mesh.outputs.get(MESH_TISSUE).cloned().unwrap_or_default();
     let tissue = out.join("mesh").join(MESH_TISSUE);
@@ -127,8 +133,8 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
         let text = toml_of(section)? + &toml_of(&config.measure)?;
         let key = stage_key("simulate", &text, &[&tissue_hash, &simulate_model_hash]);
         let record = runner.stage("simulate", key, |dir| run_simulate(&tissue, section, &config.measure, dir))?;
-        let summary = read_json(&out.join("simulate").join("summary.json"))?;
-        simulate_converged = Some(summary["converged"].as_bool().unwrap_or(false));
+        let run = read_json(&out.join("simulate").join("simulation.json"))?;
+        simulate_converged = Some(run["mode"] == "time" || run["converged"].as_bool().unwrap_or(false));
         debug_assert!(record.status.done());
     }
 
@@ -138,7 +144,7 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
     if let Some(section) = &config.fit {
         let text = toml_of(section)? + &mesh_section;
         // The fit starts from the mesh stage's tissue and measures simulations on the labels' grid.
-        let key = stage_key("fit", &text, &[&labels_hash, &tissue_hash, &fit_model_hash]);
+        let key = stage_key("fit", &text, &[&input_hash, &tissue_hash, &fit_model_hash]);
         let mesh_dir = out.join("mesh");
         runner.stage("fit", key, |dir| {
             let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, options.progress)?;
@@ -178,10 +184,15 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
     Ok(PipelineOutcome { manifest, fit_converged, simulate_converged, demo })
 }
 
-/// What the mesh stage's key covers besides the label file.
+/// What the mesh stage's key covers besides the input file's bytes: the input's kind and options
+/// (not its path, nor the seed when [mesh] sets its own) and the meshing options.
 #[derive(Serialize)]
 struct MeshKey<'a> {
     voxel_size: Option<[Real; 3]>,
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    mesh_input: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    length_unit: Option<&'a str>,
     mesh: &'a crate::inference::MeshingConfig,
 }
 

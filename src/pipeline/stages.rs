@@ -1,14 +1,16 @@
 //! The stages, each writing its files into a given (temporary) folder. Data files hold no wall
-//! times except where a stage contract asks for them (`summary.json` of simulate, the fit's
-//! `trace.csv`/`result.json`), so that reruns are byte-identical elsewhere.
+//! times except where a stage contract asks for them (the fit's `trace.csv`/`result.json`), so that
+//! reruns are byte-identical elsewhere; the manifest has every stage's wall time.
 
 use super::PipelineError;
 use super::config::{InputSection, MeasureSection, SimulateSection, fit_config};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
 use crate::inference::{FitConfig, FitOptions, FitResult, MeshingConfig, Observation, run_fit_observed};
-use crate::io::{LengthScale, ReadOptions, read_tissue, write_bytes_atomically, write_simucell3d, write_tissue};
-use crate::mechanics::{Observer, Sample, Simulation, SimulationSummary};
+use crate::io::{
+    LengthScale, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d, write_tissue,
+};
+use crate::mechanics::{Observer, RelaxMethod, Sample, Simulation, SimulationMode};
 use crate::mesh::Tissue;
 use crate::meshing::{LabelReport, LabelStatus, mesh_labels};
 use crate::morphology::{MeasureSettings, Morphology, measure_tissue};
@@ -54,10 +56,26 @@ struct MeshReport<'a> {
     cells: &'a [LabelReport],
 }
 
-/// Labels → `tissue.vtp` + `report.json`. Returns a one-line summary.
+/// `mesh/report.json` of a mesh input: what was read.
+#[derive(Serialize)]
+struct MeshInputReport<'a> {
+    input: &'a Path,
+    length_unit: &'a str,
+    cells: usize,
+    nodes: usize,
+    faces: usize,
+    kinds: std::collections::BTreeMap<String, usize>,
+}
+
+/// Labels → `tissue.vtp` + `report.json`, or a mesh input checked and copied. Returns a one-line
+/// summary.
 pub fn run_mesh(input: &InputSection, mesh: &MeshingConfig, out: &Path) -> Result<String, PipelineError> {
     let err = stage_err("mesh");
-    let path = &input.labels;
+    let path = match (&input.labels, &input.mesh) {
+        (Some(labels), _) => labels,
+        (None, Some(tissue)) => return copy_mesh(input, tissue, out),
+        (None, None) => return Err(err("[input] has neither `labels` nor `mesh`".into())),
+    };
     let read = read_label_tiff(path, &LabelReadOptions { voxel_size: input.voxel_size, ..Default::default() })
         .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
     for w in &read.warnings {
@@ -89,6 +107,52 @@ pub fn run_mesh(input: &InputSection, mesh: &MeshingConfig, out: &Path) -> Resul
         meshing.report.len(),
         meshing.tissue.node_count(),
         meshing.l_min.unwrap_or(Real::NAN) * 1e6
+    ))
+}
+
+/// A mesh input: read (in `input.length_unit`), every cell checked to be a valid closed surface, written
+/// as `tissue.vtp` in metres, plus `report.json`.
+fn copy_mesh(input: &InputSection, path: &Path, out: &Path) -> Result<String, PipelineError> {
+    let err = stage_err("mesh");
+    let scale = input.length_scale().map_err(&err)?;
+    let read = read_tissue(path, &ReadOptions { length_scale: scale, orient: false })
+        .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
+    for w in &read.warnings {
+        tracing::warn!("{}: {w}", path.display());
+    }
+    let tissue = read.tissue;
+    if tissue.is_empty() {
+        return Err(err(format!("{}: the tissue has no cells", path.display())));
+    }
+    let mut kinds = std::collections::BTreeMap::new();
+    for cell in tissue.cells() {
+        if let Err(defect) = cell.mesh().validate() {
+            return Err(err(format!(
+                "{}: cell {}: {defect}; repair the file (`tissuefit inspect` lists every defect, `tissuefit mesh` \
+                 re-triangulates a tissue) or give the label volume as input.labels",
+                path.display(),
+                cell.id().0
+            )));
+        }
+        let kind = serde_json::to_value(cell.kind()).ok().and_then(|v| v.as_str().map(str::to_string));
+        *kinds.entry(kind.unwrap_or_else(|| format!("{:?}", cell.kind()))).or_insert(0) += 1;
+    }
+    write_tissue(&out.join(MESH_TISSUE), &tissue, &[]).map_err(|e| err(e.to_string()))?;
+    let faces = tissue.cells().iter().map(|c| c.mesh().triangles().len()).sum();
+    let report = MeshInputReport {
+        input: path,
+        length_unit: input.length_unit.as_deref().unwrap_or("m"),
+        cells: tissue.len(),
+        nodes: tissue.node_count(),
+        faces,
+        kinds,
+    };
+    write_json(&out.join("report.json"), &report, "mesh")?;
+    Ok(format!(
+        "{} cells, {} nodes read from {}; every cell a valid closed surface",
+        tissue.len(),
+        tissue.node_count(),
+        path.display()
     ))
 }
 
@@ -141,17 +205,33 @@ impl Observer for Quiet {
     }
 }
 
+/// `simulate/simulation.json`: how the run went (no wall time: see the manifest).
 #[derive(Serialize)]
-struct SimulateSummary<'a> {
-    #[serde(flatten)]
-    run: &'a SimulationSummary,
+struct SimulationRecord<'a> {
+    mode: SimulationMode,
+    method: RelaxMethod,
+    steps: u64,
+    force_evaluations: u64,
+    converged: bool,
+    residual: Real,
+    simulated_time: Real,
+    energy: &'a crate::mechanics::EnergyTerms,
+    energy_total: Real,
+    /// Cells and nodes at the start and at the end (divisions, removals and remeshing change them).
     cells: usize,
     nodes: usize,
-    wall_seconds: f64,
+    final_cells: usize,
+    final_nodes: usize,
+    divisions: u64,
+    removals: u64,
+    topology: &'a crate::mechanics::TopologyStats,
 }
 
-/// The meshed tissue relaxed with the section's model → `final.vtk`, `summary.json`, `config.toml`,
-/// and the morphology of the final state (`cells.csv`, `contacts.csv`, `morphology.json`).
+/// The meshed tissue simulated with the section's model (an equilibrium relaxation or a time run, as
+/// `simulation.mode` says) → `final.vtp`, `final.vtk` (SimuCell3D legacy), `simulation.json`,
+/// `events.csv`, `config.toml`, and the morphology of the final tissue as the measure stage writes it
+/// (`cells.csv`, `contacts.csv`, `summary.json`). Returns the summary line and whether the run
+/// reached what it was asked for (an equilibrium run converged; a time run always).
 pub fn run_simulate(
     tissue: &Path,
     section: &SimulateSection,
@@ -163,27 +243,50 @@ pub fn run_simulate(
     let t = read_meshed(tissue, "simulate")?;
     let (cells, nodes) = (t.len(), t.node_count());
     let mut sim = Simulation::new(t, &params).map_err(|e| err(format!("{}: {e}", tissue.display())))?;
-    let started = std::time::Instant::now();
     let summary = sim.run(&mut Quiet).map_err(|e| err(format!("{}: {e}", tissue.display())))?;
-    let wall_seconds = started.elapsed().as_secs_f64();
+    write_events(&out.join("events.csv"), sim.events()).map_err(|e| err(e.to_string()))?;
     let final_tissue = sim.into_tissue();
+    write_tissue(&out.join("final.vtp"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
     write_simucell3d(&out.join("final.vtk"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
     write_bytes_atomically(&out.join("config.toml"), params.to_toml_string().as_bytes())
         .map_err(|e| err(e.to_string()))?;
-    write_json(&out.join("summary.json"), &SimulateSummary { run: &summary, cells, nodes, wall_seconds }, "simulate")?;
+    let s = &params.simulation;
+    let record = SimulationRecord {
+        mode: s.mode,
+        method: s.method,
+        steps: summary.steps,
+        force_evaluations: summary.force_evaluations,
+        converged: summary.converged,
+        residual: summary.residual,
+        simulated_time: summary.time,
+        energy: &summary.energy,
+        energy_total: summary.energy.total(),
+        cells,
+        nodes,
+        final_cells: final_tissue.len(),
+        final_nodes: final_tissue.node_count(),
+        divisions: summary.topology.divisions,
+        removals: summary.topology.removals,
+        topology: &summary.topology,
+    };
+    write_json(&out.join("simulation.json"), &record, "simulate")?;
     let m = measure_tissue(&final_tissue, &settings(measure)).map_err(|e| err(format!("measuring: {e}")))?;
-    write_csv(&out.join("cells.csv"), &m.cells, "simulate")?;
-    write_csv(&out.join("contacts.csv"), &m.contacts, "simulate")?;
-    write_json(&out.join("morphology.json"), &m.summary, "simulate")?;
-    Ok((
+    write_morphology(out, &m, "simulate")?;
+    let time_run = s.mode == SimulationMode::Time;
+    let how = if time_run {
         format!(
-            "{} steps, {}, residual {:.3e}; final {}",
-            summary.steps,
-            if summary.converged { "converged" } else { "NOT converged" },
-            summary.residual,
-            describe(&m)
-        ),
-        summary.converged,
+            "{:.3e} s simulated, {} divisions, {} removals",
+            summary.time, summary.topology.divisions, summary.topology.removals
+        )
+    } else if summary.converged {
+        "converged".to_string()
+    } else {
+        "NOT converged".to_string()
+    };
+    let layers = m.summary.layers.map_or(String::new(), |n| format!(", {n} layers"));
+    Ok((
+        format!("{} steps, {how}, residual {:.3e}; final {}{layers}", summary.steps, summary.residual, describe(&m)),
+        time_run || summary.converged,
     ))
 }
 
@@ -202,18 +305,24 @@ pub fn run_fit_stage(
     let err = stage_err("fit");
     let config = fit_config(fit, input, mesh);
     let tissue = read_meshed(&mesh_dir.join(MESH_TISSUE), "fit")?;
-    let report_path = mesh_dir.join("report.json");
-    let report: serde_json::Value = std::fs::read_to_string(&report_path)
-        .map_err(|e| e.to_string())
-        .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
-        .map_err(|e| err(format!("reading {}: {e}", report_path.display())))?;
-    let path = &input.labels;
-    let read = read_label_tiff(path, &LabelReadOptions { voxel_size: input.voxel_size, ..Default::default() })
-        .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
-    let mut options = mesh.options().map_err(|e| err(e.to_string()))?;
-    // Simulations are measured like the data: the meshing's options with the l_min it used.
-    options.l_min = report["l_min"].as_f64();
-    let observation = Observation::new(tissue, Some(read.volume), Some(options)).map_err(|e| err(e.to_string()))?;
+    // A mesh input is observed as it is; labels are kept so simulations are measured on their grid.
+    let observation = match &input.labels {
+        None => Observation::new(tissue, None, None),
+        Some(path) => {
+            let report_path = mesh_dir.join("report.json");
+            let report: serde_json::Value = std::fs::read_to_string(&report_path)
+                .map_err(|e| e.to_string())
+                .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
+                .map_err(|e| err(format!("reading {}: {e}", report_path.display())))?;
+            let read = read_label_tiff(path, &LabelReadOptions { voxel_size: input.voxel_size, ..Default::default() })
+                .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
+            let mut options = mesh.options().map_err(|e| err(e.to_string()))?;
+            // Simulations are measured like the data: the meshing's options with the l_min it used.
+            options.l_min = report["l_min"].as_f64();
+            Observation::new(tissue, Some(read.volume), Some(options))
+        }
+    }
+    .map_err(|e| err(e.to_string()))?;
     run_fit_observed(&config, Some(observation), out, &FitOptions { resume: false, progress, plots: true })
         .map_err(|e| err(e.to_string()))
 }
