@@ -78,7 +78,7 @@ pub struct MeasureSection {
     #[serde(default)]
     pub include_static: bool,
     /// Without an ECM body, a cell faces the exterior when at least this fraction of its surface is
-    /// free. Default 0.05 ([`DEFAULT_EXTERIOR_FREE_FRACTION`]).
+    /// free. Default 0.1 ([`DEFAULT_EXTERIOR_FREE_FRACTION`]).
     #[serde(default = "default_exterior_free_fraction")]
     pub exterior_free_fraction: Real,
 }

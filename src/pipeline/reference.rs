@@ -126,7 +126,7 @@ fn resolve<'a>(schema: &'a Value, defs: &'a Map<String, Value>) -> Result<(&'a V
 }
 
 /// A doc comment as reference text: rustdoc links to `Default` impls (`Default:
-/// [`X::default`].`) dropped, since the table lists every default.
+/// [`X::default`].`) dropped, since the table lists every default; other links as plain code.
 fn description_of(schema: &Value) -> String {
     let mut text = schema.get("description").and_then(Value::as_str).unwrap_or_default().trim().to_string();
     while let Some(start) = text.find("Default: [`") {
@@ -135,7 +135,8 @@ fn description_of(schema: &Value) -> String {
         text.replace_range(start..end, "");
         text = text.trim().to_string();
     }
-    text
+    // Other intra-doc links read as plain code.
+    text.replace("[`", "`").replace("`]", "`")
 }
 
 /// Walks a table schema: its scalar keys become rows of `table`, its sub-tables (and maps of
