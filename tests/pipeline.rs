@@ -318,7 +318,7 @@ fn the_stage_subcommands_fed_the_pipeline_file_write_the_bytes_of_tissuefit_run(
     let o = tissuefit(&["simulate", tissue, "--config", p, "--out", &dir("simulate")]);
     // The demo's 1000 steps end unconverged (the coupling model's hovering residual): exit 1, as
     // `simulate` says for any unconverged relaxation.
-    let converged = read_json(&by.join("simulate/summary.json"))["converged"].as_bool().unwrap();
+    let converged = read_json(&by.join("simulate/simulation.json"))["converged"].as_bool().unwrap();
     assert_eq!(o.status.code(), Some(if converged { 0 } else { 1 }), "{:?}", text(&o));
 
     let hashes = |run: &Path| -> BTreeMap<String, String> {
