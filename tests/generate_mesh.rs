@@ -23,6 +23,7 @@ fn spec(kind: TissueKind, cells: usize) -> TissueSpec {
         nucleus_radius: None,
         static_border: false,
         lumen: false,
+        ecm_room: 1.0,
     }
 }
 

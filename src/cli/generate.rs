@@ -63,6 +63,10 @@ pub struct GenerateMeshArgs {
     /// Tube only: fill the tube with a lumen.
     #[arg(long)]
     pub lumen: bool,
+    /// Vesicle only: room inside the ECM as a multiple of the cells' volume (1: the ECM touches the
+    /// cells; 2: the cells can grow to twice their volume, as in the paper's Application 1).
+    #[arg(long, default_value_t = 1.0)]
+    pub ecm_room: Real,
     /// Output tissue: .vtp (ParaView) or .vtk (SimuCell3D legacy).
     #[arg(long)]
     pub out: PathBuf,
@@ -151,6 +155,7 @@ fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
         nucleus_radius: args.nuclei.then_some(args.nucleus_radius),
         static_border: args.static_border,
         lumen: args.lumen,
+        ecm_room: args.ecm_room,
     };
     let generated = generate_tissue(&spec).with_context(|| format!("generating a {}", args.kind))?;
     let tissue = &generated.tissue;

@@ -18,7 +18,8 @@
 //! - `vesicle`: N columnar cells between the spheres R_in < r < R_out, the spherical Voronoi cells of N
 //!   seeds on the unit sphere (a Fibonacci lattice, turned by a seeded random rotation, jittered and
 //!   relaxed by a few steps of short-range repulsion); a lumen (kind lumen) fills r < R_in; an ECM (kind
-//!   ECM) encases the tissue. Mid-sphere area per cell = w², R_out − R_in = aspect·w.
+//!   ECM) encases the tissue. Mid-sphere area per cell = w², R_out − R_in = aspect·w. With `ecm_room`
+//!   F > 1 the ECM sphere leaves room for the cells to grow to F times their volume.
 //! - `sheet`: a flat columnar patch: the N points of a hexagonal lattice nearest to the centre, jittered,
 //!   their planar Voronoi cells extruded over −h/2 < z < h/2 and cut at 0.75 lattice spacings from the
 //!   seeds (the patch border). With `static_border`, the outer ring (lattice points with fewer than 6
@@ -38,7 +39,9 @@
 //! polyhedron (its test `cell_in_ecm_geometry.vtk`: an epithelial cell inside an ECM sphere) and never
 //! moves it. A shell (two surfaces) would not be a genus-0 cell, so the ECM here is one sphere of
 //! radius R_out + l_min/4 around the vesicle ([`ECM_GAP_PER_L_MIN`]): the cells' basal faces start
-//! within the contact cutoff of its inner side, without crossing it.
+//! within the contact cutoff of its inner side, without crossing it. Because it never moves, a
+//! growing vesicle needs room inside it (`ecm_room`): otherwise the cells can only grow by crushing
+//! the lumen.
 //!
 //! **Nuclei**: a sphere ([`sphere_for_min_edge`]) around each epithelial cell's volume centroid, of
 //! radius `nucleus_radius` × the cell's equivalent-sphere radius, capped so that it stays
@@ -158,6 +161,11 @@ pub struct TissueSpec {
     pub static_border: bool,
     /// Tube only: a lumen inside the tube.
     pub lumen: bool,
+    /// Vesicle only: room inside the ECM, as a multiple F ≥ 1 of the cells' shell volume: the ECM sphere
+    /// has radius (R_in³ + F·(R_out³ − R_in³))^(1/3) + l_min/4. 1 (default): the ECM touches the cells;
+    /// 2: the cells can double their volume by growing outward (the paper's Application 1; the ECM
+    /// never moves).
+    pub ecm_room: Real,
 }
 
 /// Errors generating a tissue.
@@ -271,6 +279,12 @@ impl TissueSpec {
         }
         if self.static_border && self.kind != TissueKind::Sheet {
             return bad("a static border applies to a sheet only".into());
+        }
+        if !(self.ecm_room.is_finite() && (1.0..=100.0).contains(&self.ecm_room)) {
+            return bad(format!("the ECM room factor {} must lie in [1, 100]", self.ecm_room));
+        }
+        if self.ecm_room != 1.0 && self.kind != TissueKind::Vesicle {
+            return bad("the ECM room applies to a vesicle only".into());
         }
         if self.lumen && self.kind != TissueKind::Tube {
             return bad(format!(
@@ -505,7 +519,8 @@ impl Layout {
                 let per_cell = 4.0 / 3.0 * PI * (r_out.powi(3) - r_in.powi(3)) / n as Real;
                 let s = l / per_cell.cbrt();
                 let (r_in, r_out) = (s * r_in, s * r_out);
-                let ecm = r_out + ECM_GAP_PER_L_MIN * spec.l_min;
+                let room = (r_in.powi(3) + spec.ecm_room * (r_out.powi(3) - r_in.powi(3))).cbrt();
+                let ecm = room + ECM_GAP_PER_L_MIN * spec.l_min;
                 geometry.cell_width = Some(s);
                 geometry.cell_height = Some(s * spec.aspect);
                 geometry.inner_radius = Some(r_in);
