@@ -208,3 +208,26 @@ fn cli_writes_the_tissue_and_a_report() {
     assert!(String::from_utf8_lossy(&run.stderr).contains("tube only"));
     assert!(!bad.exists());
 }
+
+#[test]
+fn ecm_room_leaves_space_for_the_cells_to_double() {
+    let g = generate_tissue(&TissueSpec { ecm_room: 2.0, ..spec(TissueKind::Vesicle, 20) }).unwrap();
+    let (r_in, r_out) = (g.geometry.inner_radius.unwrap(), g.geometry.outer_radius.unwrap());
+    let ecm = g.tissue.cells().iter().find(|c| c.kind() == CellKind::Ecm).unwrap();
+    // Inside the ECM: the lumen ball plus twice the cells' intended shell volume, plus the l_min/4 gap.
+    let expected = (r_in.powi(3) + 2.0 * (r_out.powi(3) - r_in.powi(3))).cbrt() + 0.25 * L_MIN;
+    assert!((g.geometry.ecm_radius.unwrap() - expected).abs() < 1e-12 * expected);
+    for p in ecm.mesh().positions() {
+        assert!((p.norm() - expected).abs() < 1e-9 * expected);
+    }
+    // The cells no longer touch the ECM: their outermost node is well inside it.
+    let outermost = g
+        .tissue
+        .cells()
+        .iter()
+        .filter(|c| c.kind() == CellKind::Epithelial)
+        .flat_map(|c| c.mesh().positions().iter().map(|p| p.norm()))
+        .fold(0.0, f64::max);
+    assert!(outermost < expected - L_MIN, "{outermost:e} vs ECM at {expected:e}");
+    assert!(generate_tissue(&TissueSpec { ecm_room: 2.0, ..spec(TissueKind::Sheet, 7) }).is_err());
+}
