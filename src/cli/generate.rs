@@ -1,18 +1,241 @@
 //! `tissuefit generate labels --kind KIND ... --out X.tif`: a synthetic label volume (sphere,
 //! ellipsoid, cube, doublet, aggregate with optional lumen) written as an ImageJ TIFF.
+//!
+//! `tissuefit generate mesh --kind KIND [--cells N] [--cell-size L] [--min-edge-length L] ... --out
+//! TISSUE.vtp|.vtk`: a synthetic tissue (sphere, cube, vesicle with lumen and ECM, sheet, tube,
+//! spheroid; optional nuclei) meshed at l_min ([`crate::meshing::generate_tissue`]), plus a JSON report
+//! beside it (counts by kind, nodes, volumes, geometry), both written atomically.
 
 use super::Outcome;
 use super::label_args::{LabelOutputArgs, describe_grid, parse_shape, parse_voxel_size};
 use crate::geometry::Real;
 use crate::imaging::{LabelPattern, LabelSpec, generate_labels, generate_nuclei, write_label_tiff};
-use anyhow::Context;
-use std::path::PathBuf;
+use crate::io::{parse_lengths, write_atomically, write_tissue};
+use crate::mesh::{CellKind, sphericity};
+use crate::meshing::{Penetration, TissueGeometry, TissueKind, TissueSpec, generate_tissue};
+use anyhow::{Context, bail};
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Subcommand, Debug)]
 pub enum GenerateCommand {
     /// A synthetic label volume: sphere, ellipsoid, cube, doublet (two cells with a flat interface)
     /// or aggregate (a seeded Voronoi packing of --cells cells in a ball, optionally around a lumen).
     Labels(GenerateLabelsArgs),
+    /// A synthetic tissue mesh: sphere or cube (one cell), vesicle (columnar cells around a lumen,
+    /// encased by an ECM), sheet (flat columnar patch), tube (cylindrical monolayer) or spheroid (bulk
+    /// Voronoi ball), at a given minimum edge length, optionally with nuclei.
+    Mesh(GenerateMeshArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct GenerateMeshArgs {
+    /// sphere, cube, vesicle, sheet, tube or spheroid.
+    #[arg(long, value_parser = |s: &str| s.parse::<TissueKind>())]
+    pub kind: TissueKind,
+    /// Number of cells (default: 1 for sphere and cube, 100 for a vesicle, 37 for a sheet, 60 for a tube,
+    /// 30 for a spheroid). The paper's Fig. 3a vesicle has 432.
+    #[arg(long)]
+    pub cells: Option<usize>,
+    /// Cube root of the mean cell volume, l (e.g. 8um; bare numbers are metres).
+    #[arg(long, value_name = "L", default_value = "8um", value_parser = parse_length)]
+    pub cell_size: Real,
+    /// Minimum edge length l_min of every surface (e.g. 0.8um). Default: cell size / 8 (about 300 nodes
+    /// per cell).
+    #[arg(long, value_name = "L", value_parser = parse_length)]
+    pub min_edge_length: Option<Real>,
+    /// Height / width of the columnar cells of a vesicle, sheet or tube.
+    #[arg(long, default_value_t = 1.5)]
+    pub aspect: Real,
+    /// Seed of the cell centres and of the surface sampling.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Put a nucleus (kind nucleus) inside every epithelial cell.
+    #[arg(long)]
+    pub nuclei: bool,
+    /// Nucleus radius as a fraction of its cell's equivalent-sphere radius (capped to stay 1.25·l_min
+    /// inside the cell).
+    #[arg(long, default_value_t = 0.5, requires = "nuclei")]
+    pub nucleus_radius: Real,
+    /// Sheet only: the outer ring of cells is static (never moves), as the imaged patch of the paper's
+    /// Application 2.
+    #[arg(long)]
+    pub static_border: bool,
+    /// Tube only: fill the tube with a lumen.
+    #[arg(long)]
+    pub lumen: bool,
+    /// Vesicle only: room inside the ECM as a multiple of the cells' volume (1: the ECM touches the
+    /// cells; 2: the cells can grow to twice their volume, as in the paper's Application 1).
+    #[arg(long, default_value_t = 1.0)]
+    pub ecm_room: Real,
+    /// Output tissue: .vtp (ParaView) or .vtk (SimuCell3D legacy).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// JSON report (default: beside --out, named after its stem: TISSUE.report.json).
+    #[arg(long, value_name = "PATH")]
+    pub report: Option<PathBuf>,
+}
+
+fn parse_length(s: &str) -> Result<Real, String> {
+    match parse_lengths(s)?.as_slice() {
+        [l] if l.is_finite() && *l > 0.0 => Ok(*l),
+        [_] => Err(format!("`{s}`: the length must be positive")),
+        _ => Err(format!("`{s}`: give one length, e.g. 0.8um")),
+    }
+}
+
+/// Per-kind figures of the report.
+#[derive(serde::Serialize, Default)]
+struct KindCount {
+    bodies: usize,
+    nodes: usize,
+    faces: usize,
+    /// m³.
+    volume: Real,
+    /// m³ (smallest, mean, largest body volume).
+    min_volume: Real,
+    mean_volume: Real,
+    max_volume: Real,
+}
+
+#[derive(serde::Serialize)]
+struct GenerateReport<'a> {
+    output: &'a Path,
+    wall_seconds: f64,
+    threads: usize,
+    spec: &'a TissueSpec,
+    geometry: &'a TissueGeometry,
+    cells: usize,
+    nodes: usize,
+    faces: usize,
+    /// Kind name → counts and volumes.
+    kinds: std::collections::BTreeMap<&'static str, KindCount>,
+    /// Mean volume of the epithelial and static cells (m³) and l = its cube root (m), the paper's length scale.
+    mean_cell_volume: Real,
+    length_scale: Real,
+    /// Deepest node inside another body (m), 0 when none; with the two cell ids.
+    max_penetration: Real,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    penetration: Option<Penetration>,
+    /// One row per body: id, kind, nodes, faces, volume (m³), sphericity.
+    bodies: Vec<BodyRow>,
+}
+
+#[derive(serde::Serialize)]
+struct BodyRow {
+    id: u32,
+    kind: CellKind,
+    nodes: usize,
+    faces: usize,
+    volume: Real,
+    sphericity: Real,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    host: Option<u32>,
+}
+
+fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
+    let started = std::time::Instant::now();
+    match args.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("vtp" | "vtk") => {}
+        _ => bail!("--out {}: use a .vtp (ParaView) or .vtk (SimuCell3D legacy) file name", args.out.display()),
+    }
+    let cells = args.cells.unwrap_or(match args.kind {
+        TissueKind::Sphere | TissueKind::Cube => 1,
+        TissueKind::Vesicle => 100,
+        TissueKind::Sheet => 37,
+        TissueKind::Tube => 60,
+        TissueKind::Spheroid => 30,
+    });
+    let spec = TissueSpec {
+        kind: args.kind,
+        cells,
+        cell_size: args.cell_size,
+        l_min: args.min_edge_length.unwrap_or(args.cell_size / 8.0),
+        aspect: args.aspect,
+        seed: args.seed,
+        nucleus_radius: args.nuclei.then_some(args.nucleus_radius),
+        static_border: args.static_border,
+        lumen: args.lumen,
+        ecm_room: args.ecm_room,
+    };
+    let generated = generate_tissue(&spec).with_context(|| format!("generating a {}", args.kind))?;
+    let tissue = &generated.tissue;
+    write_tissue(&args.out, tissue, &[]).with_context(|| format!("writing {}", args.out.display()))?;
+    let mut kinds: std::collections::BTreeMap<&'static str, KindCount> = std::collections::BTreeMap::new();
+    let mut bodies = Vec::with_capacity(tissue.len());
+    for c in tissue.cells() {
+        let (volume, area) = (c.mesh().signed_volume(), c.mesh().area());
+        let k = kinds.entry(c.kind().name()).or_default();
+        if k.bodies == 0 {
+            (k.min_volume, k.max_volume) = (volume, volume);
+        }
+        k.bodies += 1;
+        k.nodes += c.mesh().node_count();
+        k.faces += c.mesh().face_count();
+        k.volume += volume;
+        k.min_volume = k.min_volume.min(volume);
+        k.max_volume = k.max_volume.max(volume);
+        bodies.push(BodyRow {
+            id: c.id().0,
+            kind: c.kind(),
+            nodes: c.mesh().node_count(),
+            faces: c.mesh().face_count(),
+            volume,
+            sphericity: sphericity(volume, area),
+            host: generated.hosts.iter().find(|(n, _)| *n == c.id()).map(|(_, h)| h.0),
+        });
+    }
+    for k in kinds.values_mut() {
+        k.mean_volume = k.volume / k.bodies as Real;
+    }
+    let cell_volumes: Vec<Real> =
+        tissue.cells().iter().filter(|c| c.kind().is_cell()).map(|c| c.mesh().signed_volume()).collect();
+    let mean_cell_volume = cell_volumes.iter().sum::<Real>() / cell_volumes.len().max(1) as Real;
+    let report_path = args.report.clone().unwrap_or_else(|| {
+        let stem = args.out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "tissue".into());
+        args.out.with_file_name(format!("{stem}.report.json"))
+    });
+    let wall_seconds = started.elapsed().as_secs_f64();
+    let threads = rayon::current_num_threads();
+    let max_penetration = generated.penetration.map_or(0.0, |p| p.depth);
+    let report = GenerateReport {
+        output: &args.out,
+        wall_seconds,
+        threads,
+        spec: &spec,
+        geometry: &generated.geometry,
+        cells: tissue.len(),
+        nodes: tissue.node_count(),
+        faces: tissue.face_count(),
+        kinds,
+        mean_cell_volume,
+        length_scale: mean_cell_volume.cbrt(),
+        max_penetration,
+        penetration: generated.penetration,
+        bodies,
+    };
+    write_atomically(&report_path, |w| {
+        serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)?;
+        std::io::Write::write_all(w, b"\n")
+    })
+    .with_context(|| format!("writing {}", report_path.display()))?;
+    let counts: Vec<String> = report.kinds.iter().map(|(name, k)| format!("{} {name}", k.bodies)).collect();
+    println!(
+        "wrote {} ({}: {}; {} nodes) and {}",
+        args.out.display(),
+        args.kind,
+        counts.join(", "),
+        report.nodes,
+        report_path.display()
+    );
+    println!(
+        "l_min {:.4} µm; mean cell volume {:.4e} m³ (l = {:.4} µm); deepest node inside another body {:.4} µm; \
+         {wall_seconds:.2} s ({threads} threads)",
+        spec.l_min * 1e6,
+        mean_cell_volume,
+        report.length_scale * 1e6,
+        max_penetration * 1e6,
+    );
+    Ok(Outcome::Success)
 }
 
 #[derive(clap::Args, Debug)]
@@ -50,7 +273,10 @@ pub struct GenerateLabelsArgs {
 }
 
 pub fn run(cmd: &GenerateCommand) -> anyhow::Result<Outcome> {
-    let GenerateCommand::Labels(args) = cmd;
+    let args = match cmd {
+        GenerateCommand::Labels(args) => args,
+        GenerateCommand::Mesh(args) => return run_mesh(args),
+    };
     if args.lumen && args.kind != LabelPattern::Aggregate {
         anyhow::bail!("--lumen applies to --kind aggregate only");
     }

@@ -66,7 +66,7 @@ pub enum Command {
     /// stopped on its budget instead of converging.
     Fit(fit::FitArgs),
     /// Synthetic inputs: `generate labels` writes a label volume (sphere, ellipsoid, cube, doublet,
-    /// aggregate).
+    /// aggregate); `generate mesh` writes a tissue (sphere, cube, vesicle, sheet, tube, spheroid).
     #[command(subcommand)]
     Generate(generate::GenerateCommand),
     /// Run a pipeline file: mesh → measure → (simulate) → (fit) into a run directory with a manifest

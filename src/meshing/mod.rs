@@ -49,6 +49,7 @@
 
 mod ball_pivot;
 mod field;
+mod generate;
 mod labels;
 mod point_grid;
 mod poisson;
@@ -56,6 +57,10 @@ mod repair;
 mod retriangulate;
 mod surface_nets;
 
+pub use generate::{
+    ECM_GAP_PER_L_MIN, GenerateError, GeneratedTissue, Penetration, TissueGeometry, TissueKind, TissueSpec,
+    generate_tissue, max_penetration,
+};
 pub use labels::{
     BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, LabelMeshing, LabelMeshingError, LabelMeshingOptions,
     LabelReport, LabelStatus, MASK_MARGIN, label_seed, mesh_cells_and_nuclei, mesh_labels, mesh_labels_with_progress,
