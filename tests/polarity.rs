@@ -171,3 +171,71 @@ fn ray_casting_repolarises_after_a_division() {
     assert_eq!(sim.polarizations(), 2, "no division, no interval: no polarisation");
     assert!(sim.tissue().cells().iter().all(|c| c.mesh().validate().is_ok()));
 }
+
+fn tissuefit(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
+}
+
+fn demo() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/cell_quartet.vtk")
+}
+
+fn count(tissue: &Tissue, t: FaceType) -> usize {
+    tissue.cells().iter().map(|c| c.face_types().iter().filter(|x| **x == t).count()).sum()
+}
+
+/// `tissuefit polarize` writes a .vtp whose face types are those it reports, and those of the
+/// library call; bad input exits 2.
+#[test]
+fn polarize_command_writes_the_face_types_it_reports() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("polarised.vtp");
+    let o = tissuefit(&["polarize", demo().to_str().unwrap(), "--out", out.to_str().unwrap(), "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let written = tissuefit::io::read_vtp(&out).unwrap();
+    for t in FaceType::ALL {
+        assert_eq!(report[t.name()].as_u64(), Some(count(&written, t) as u64), "{t:?}: {report}");
+    }
+    // The four touching demo cells have interfaces, and faces towards the medium.
+    assert!(count(&written, FaceType::Lateral) > 0 && count(&written, FaceType::Basal) > 0, "{report}");
+    let mut tissue = read_tissue(&demo(), &ReadOptions::default()).unwrap().tissue;
+    let h = report["voxel_size"].as_f64().unwrap();
+    polarize_by_ray_casting(&mut tissue, &RayCastSettings::new(h)).unwrap();
+    for (a, b) in tissue.cells().iter().zip(written.cells()) {
+        assert_eq!(a.face_types(), b.face_types(), "cell {}", a.id());
+    }
+    let o = tissuefit(&["polarize", demo().to_str().unwrap(), "--out", out.to_str().unwrap(), "--voxel-size=0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--voxel-size"));
+    let o = tissuefit(&["polarize", demo().to_str().unwrap(), "--out", out.to_str().unwrap(), "--mode", "rays"]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+/// A simulation with `polarity = "ray_casting"` writes the face types into its ParaView frames.
+#[test]
+fn simulate_writes_ray_cast_face_types_into_its_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("config.toml");
+    std::fs::write(&config, "[numerics]\nmin_edge_length = 6e-7\npolarity = \"ray_casting\"\npolarity_interval = 2\n")
+        .unwrap();
+    let out = dir.path().join("run");
+    let o = tissuefit(&[
+        "simulate",
+        demo().to_str().unwrap(),
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--max-steps",
+        "4",
+    ]);
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut frames: Vec<_> = std::fs::read_dir(out.join("frames")).unwrap().map(|e| e.unwrap().path()).collect();
+    frames.sort();
+    let last = tissuefit::io::read_vtp(frames.last().unwrap()).unwrap();
+    assert!(count(&last, FaceType::Lateral) > 0 && count(&last, FaceType::Basal) > 0);
+    // The input file has every face apical (SimuCell3D's type 0): the frames show the new types.
+    let input = read_tissue(&demo(), &ReadOptions::default()).unwrap().tissue;
+    assert_eq!(count(&input, FaceType::Apical), input.face_count());
+}
