@@ -115,20 +115,21 @@ pub fn triangle_box_overlap(a: &Vec3, b: &Vec3, c: &Vec3, centre: &Vec3, half: &
         }
     }
     let edges = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+    // The triangle's plane (first: it rejects most boxes of a triangle's bounding box).
+    if separated(&v, &edges[0].cross(&edges[1]), half) {
+        return false;
+    }
     // The nine cross products of the box axes with the edges.
     for edge in &edges {
         for axis in 0..3 {
             let mut l = Vec3::zeros();
             l[axis] = 1.0;
-            let l = l.cross(edge);
-            if separated(&v, &l, half) {
+            if separated(&v, &l.cross(edge), half) {
                 return false;
             }
         }
     }
-    // The triangle's plane.
-    let normal = edges[0].cross(&edges[1]);
-    !separated(&v, &normal, half)
+    true
 }
 
 /// Whether axis `l` separates the triangle `v` (relative to the box centre) from the box.

@@ -280,7 +280,8 @@ pub fn polarize_by_ray_casting(tissue: &mut Tissue, settings: &RayCastSettings) 
 
 /// The padded grid over [lo, hi], coarsened to at most `max_voxels` voxels; and whether it was.
 fn make_grid(lo: Vec3, hi: Vec3, settings: &RayCastSettings) -> (Grid, bool) {
-    let cap = settings.max_voxels.clamp(1, BOUNDARY as usize - 1) as Real;
+    // The padding alone takes (1 + 2·PADDING)³ voxels: a smaller cap could never be met.
+    let cap = settings.max_voxels.clamp((1 + 2 * PADDING).pow(3), BOUNDARY as usize - 1) as Real;
     let extent = hi - lo;
     let dims_for = |h: Real| extent.map(|e| (e / h).floor() + 1.0 + 2.0 * PADDING as Real);
     let mut h = settings.voxel_size;
@@ -719,6 +720,10 @@ mod tests {
         let report = polarize_by_ray_casting(&mut tissue, &settings).unwrap();
         assert!(report.coarsened && report.voxel_size > 1e-4);
         assert!(report.dims.iter().product::<usize>() <= 50_000, "{:?}", report.dims);
+        // A cap below what the padding needs is raised to it instead of looping forever.
+        let settings = RayCastSettings { voxel_size: 1e-4, max_voxels: 10 };
+        let report = polarize_by_ray_casting(&mut tissue, &settings).unwrap();
+        assert_eq!(report.dims, [5, 5, 5]);
         assert_eq!(report.faces[2], tissue.cells()[0].face_types().len(), "a lone cell is basal all over");
         assert_eq!(polarize_by_ray_casting(&mut tissue, &RayCastSettings::new(0.0)), Err(RayCastError::VoxelSize(0.0)));
     }
