@@ -9,6 +9,7 @@ mod inspect;
 mod label_args;
 mod measure;
 mod mesh;
+mod polarize;
 mod render;
 mod run;
 mod simulate;
@@ -53,6 +54,10 @@ pub enum Command {
     /// Simulate a tissue: relax it to mechanical equilibrium, or run it for a time span with growth.
     /// Exits with 1 when an equilibrium run ends unconverged.
     Simulate(simulate::SimulateArgs),
+    /// Type the faces of the epithelial and static cells (apical, lateral, basal) by ray casting
+    /// (paper mode 2) or from contacts (mode 1) → a .vtp to colour by face_type in ParaView; prints
+    /// the counts per face type.
+    Polarize(polarize::PolarizeArgs),
     /// Throughput benchmarks: print one JSON object (forces-cell, forces-tissue FILE, relax-cube).
     Bench(bench::BenchArgs),
     /// Simulation parameters: print the commented defaults, or check a config file.
@@ -128,6 +133,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Simulate(args) => simulate::run(&args),
         Command::Measure(args) => measure::run(&args),
         Command::Mesh(args) => mesh::run(&args),
+        Command::Polarize(args) => polarize::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Voxelize(args) => voxelize::run(&args),
         Command::Generate(cmd) => generate::run(&cmd),

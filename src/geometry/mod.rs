@@ -1,5 +1,6 @@
 //! Math aliases, triangle kernels, exact closest-point queries (point–triangle, segment–segment,
-//! triangle–triangle) and a sparse uniform spatial grid: the geometry shared by every other module.
+//! triangle–triangle), a sparse uniform spatial grid and voxel kernels (ray walk, triangle–box
+//! overlap): the geometry shared by every other module.
 //!
 //! Only this module names `nalgebra` types; everyone else uses [`Real`], [`Vec3`] and [`Mat3`].
 //! Everything is `f64`: the model works in SI units (lengths ~1e-6 m, moduli up to 1e9), where `f32`
@@ -8,10 +9,12 @@
 mod closest_point;
 mod spatial_grid;
 mod triangle;
+mod voxel_ray;
 
 pub use closest_point::*;
 pub use spatial_grid::*;
 pub use triangle::{triangle_area, triangle_area_gradients, triangle_area_vector, triangle_normal};
+pub use voxel_ray::{VoxelWalk, triangle_box_overlap};
 
 /// Scalar type of every physical quantity.
 pub type Real = f64;

@@ -36,7 +36,9 @@ pub use params::{
     CellTypeParams, ContactModel, DivisionPlaneRule, Dynamics, FaceParams, FaceTypeParams, Numerics, ParamError,
     Parameters, Polarity, SPHERE_ISOPERIMETRIC_RATIO, TimeStepLimit,
 };
-pub use polarity::polarize_from_contacts;
+pub use polarity::{
+    RayCastError, RayCastReport, RayCastSettings, Region, polarize_by_ray_casting, polarize_from_contacts,
+};
 pub use pressure::pressure_energy;
 pub use settings::{RelaxMethod, SimulationMode, SimulationSettings};
 pub use simulation::{

@@ -1,4 +1,5 @@
-//! Polarisation from contacts (paper Methods, "Cell membrane polarization", mode 1).
+//! Polarisation from contacts (paper Methods, "Cell membrane polarization", mode 1); mode 2, by
+//! ray casting through a voxelised domain, is in [`ray_casting`].
 //!
 //! Every face of an epithelial or static cell is typed by what its three nodes touch (a node
 //! touches the cell whose surface lies within the contact cutoff; of several, the nearest):
@@ -10,6 +11,10 @@
 //!
 //! Requiring all three nodes (as the reference does for coupled nodes) keeps the rim faces free, so
 //! the interface is not wider than the contact.
+
+mod ray_casting;
+
+pub use ray_casting::{RayCastError, RayCastReport, RayCastSettings, Region, polarize_by_ray_casting};
 
 use super::ContactWorkspace;
 use crate::mesh::{CellKind, FaceType, Tissue};

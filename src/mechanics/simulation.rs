@@ -32,7 +32,7 @@ use super::fire::{Fire, FireSettings};
 use super::forces::{TermSet, TissueForces, UnknownCellType, cell_parameters};
 use super::growth::{division_seed, draw_division_volume, draw_division_volumes, draw_growth_rate, draw_growth_rates};
 use super::motion::integrate_step;
-use super::polarity::polarize_from_contacts;
+use super::polarity::{RayCastSettings, polarize_by_ray_casting, polarize_from_contacts};
 use super::{
     CellForces, CellTypeParams, ContactModel, ContactWorkspace, CouplingWorkspace, DivisionPlaneRule, EnergyTerms,
     Parameters, Polarity, RelaxMethod, SimulationMode,
@@ -318,6 +318,14 @@ pub struct Simulation<'p> {
     force_evaluations: u64,
     /// Loop state of a restored run, consumed by [`Self::run`].
     resume: Option<Phase>,
+    /// Ray-casting polarity: the step of the last polarisation (a step evaluated twice, after
+    /// remeshing, is not polarised twice), and whether a division asks for one now. Neither needs
+    /// saving: a checkpoint is taken after a step's last evaluation, and divisions are polarised in
+    /// their own step.
+    polarized_at: Option<u64>,
+    polarity_due: bool,
+    /// Ray-casting polarisations so far (this session).
+    polarizations: u64,
 }
 
 impl<'p> Simulation<'p> {
@@ -357,6 +365,9 @@ impl<'p> Simulation<'p> {
             step: 0,
             force_evaluations: 0,
             resume: None,
+            polarized_at: None,
+            polarity_due: false,
+            polarizations: 0,
             tissue,
             params,
         })
@@ -483,6 +494,9 @@ impl<'p> Simulation<'p> {
             step: state.step,
             force_evaluations: state.force_evaluations,
             resume: Some(state.phase),
+            polarized_at: None,
+            polarity_due: false,
+            polarizations: 0,
         })
     }
 
@@ -588,9 +602,52 @@ impl<'p> Simulation<'p> {
         }
     }
 
-    /// Evaluates forces at the current positions (re-typing faces from contacts first, when
-    /// polarity is on) and checks the state's health.
+    /// Ray-casting polarisations run so far in this session (0 unless `numerics.polarity` is
+    /// `"ray_casting"`).
+    pub fn polarizations(&self) -> u64 {
+        self.polarizations
+    }
+
+    /// Re-types the faces by ray casting when due: at the first evaluation, every
+    /// `polarity_interval` steps and after a division (once per step).
+    fn polarize_if_due(&mut self) {
+        let numerics = &self.params.numerics;
+        // Step 0 is a multiple of every interval: a fresh run polarises at its first evaluation.
+        let due = self.polarity_due
+            || (self.step.is_multiple_of(numerics.polarity_interval.max(1)) && self.polarized_at != Some(self.step));
+        if !due {
+            return;
+        }
+        match polarize_by_ray_casting(&mut self.tissue, &RayCastSettings::from_numerics(numerics)) {
+            Ok(report) => {
+                if !report.cells_without_cytoplasm.is_empty() && self.polarizations == 0 {
+                    tracing::warn!(
+                        "polarity: cells {:?} have no interior voxel at a voxel size of {:.3e} m, so rays cross                          them; lower numerics.polarity_voxel_size",
+                        report.cells_without_cytoplasm.iter().map(|c| c.0).collect::<Vec<_>>(),
+                        report.voxel_size
+                    );
+                }
+                tracing::debug!(
+                    "step {}: ray-casting polarity: {} faces changed (apical, lateral, basal: {:?})",
+                    self.step,
+                    report.changed,
+                    report.faces
+                );
+                self.polarizations += 1;
+            }
+            // Only non-finite positions stop it; the health check below names the cell.
+            Err(e) => tracing::debug!("step {}: polarity skipped: {e}", self.step),
+        }
+        self.polarized_at = Some(self.step);
+        self.polarity_due = false;
+    }
+
+    /// Evaluates forces at the current positions (re-typing faces by ray casting first, or from
+    /// contacts after, when polarity is on) and checks the state's health.
     fn evaluate(&mut self) -> Result<(), SimulationError> {
+        if self.params.numerics.polarity == Polarity::RayCasting {
+            self.polarize_if_due();
+        }
         self.compute_forces();
         if self.params.numerics.polarity == Polarity::Contacts
             && polarize_from_contacts(&mut self.tissue, &self.contacts) > 0
@@ -1071,6 +1128,7 @@ impl<'p> Simulation<'p> {
             daughter_volumes: Some(daughter_volumes),
         });
         self.topology.divisions += 1;
+        self.polarity_due = true;
         Ok(())
     }
 

@@ -101,11 +101,17 @@ pub enum Polarity {
     /// static cells whose three nodes touch another cell become lateral, those touching the lumen
     /// apical, and those touching the ECM or nothing (the medium) basal.
     Contacts,
+    /// Paper polarisation mode 2 (Fig. 2): the domain is voxelised, the voxels off the surfaces are
+    /// clustered into cytoplasm, lumen, exterior and ECM regions, and a ray cast from each face of an
+    /// epithelial or static cell along its normal types it by the first region it meets (another
+    /// cell → lateral, lumen → apical, exterior or ECM → basal). At the start, every
+    /// `polarity_interval` steps and after every division.
+    RayCasting,
 }
 
 impl Polarity {
     /// All variants.
-    pub const ALL: [Polarity; 2] = [Polarity::None, Polarity::Contacts];
+    pub const ALL: [Polarity; 3] = [Polarity::None, Polarity::Contacts, Polarity::RayCasting];
 }
 
 /// How the division plane of a cell is oriented (paper Methods, "Cell division"). The plane always
@@ -147,6 +153,12 @@ pub struct Numerics {
     pub contact_model: ContactModel,
     /// Face-type assignment during the simulation. Default [`Polarity::None`].
     pub polarity: Polarity,
+    /// Voxel edge h [m] of the ray-casting polarisation; 0 means 1.5·l_min (above the gaps between
+    /// cells in contact, fine against the cells; see `polarity::ray_casting`). Default 0.
+    pub polarity_voxel_size: Real,
+    /// Steps between two ray-casting polarisations (also at the start and after every division);
+    /// at least 1. Default 100.
+    pub polarity_interval: u64,
     /// Seed of every random draw (growth rates, division volumes and planes). Default 1.
     pub seed: u64,
 }
@@ -168,6 +180,8 @@ impl Numerics {
             dynamics,
             contact_model: ContactModel::Spring,
             polarity: Polarity::None,
+            polarity_voxel_size: 0.0,
+            polarity_interval: 100,
             seed: 1,
         }
     }

@@ -275,3 +275,29 @@ fn floats_print_as_exact_toml() {
     }
     assert_eq!(fmt_real(Real::INFINITY), "inf");
 }
+
+#[test]
+fn ray_casting_polarity_reads_with_its_keys_and_rejects_bad_values() {
+    let params = load("[numerics]\npolarity = \"ray_casting\"\npolarity_voxel_size = 5e-7\npolarity_interval = 20\n")
+        .expect("loads");
+    assert_eq!(params.numerics.polarity, Polarity::RayCasting);
+    assert_eq!((params.numerics.polarity_voxel_size, params.numerics.polarity_interval), (5e-7, 20));
+    // Files without the keys (older configs, checkpoints' resolved configs) get the defaults.
+    let params = load("[numerics]\npolarity = \"contacts\"\n").expect("loads");
+    assert_eq!((params.numerics.polarity_voxel_size, params.numerics.polarity_interval), (0.0, 100));
+    let message = rejection("[numerics]\npolarity = \"rays\"\n");
+    assert!(
+        message.contains(
+            "numerics.polarity = \"rays\": unknown value, expected one of \"none\", \"contacts\", \"ray_casting\""
+        ),
+        "{message}"
+    );
+    let message = rejection("[numerics]\npolarity_interval = 0\n");
+    assert!(message.contains("numerics.polarity_interval = 0: must be at least 1"), "{message}");
+    let message = rejection("[numerics]\npolarity_voxel_size = -1e-6\n");
+    assert!(message.contains("numerics.polarity_voxel_size = -1e-6 m: must be ≥ 0 m"), "{message}");
+    let message = rejection("[numerics]\npolarity_interval = -3\n");
+    assert!(message.contains("numerics.polarity_interval"), "{message}");
+    let message = rejection("[numerics]\npolarity_voxelsize = 1e-6\n");
+    assert!(message.contains("did you mean `polarity_voxel_size`?"), "{message}");
+}

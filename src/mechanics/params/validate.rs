@@ -24,6 +24,18 @@ impl Parameters {
         );
         report.number("numerics.damping", numerics.damping, numerics_defaults.damping, Bound::Positive);
         report.number("numerics.time_step", numerics.time_step, numerics_defaults.time_step, Bound::Positive);
+        report.number(
+            "numerics.polarity_voxel_size",
+            numerics.polarity_voxel_size,
+            numerics_defaults.polarity_voxel_size,
+            Bound::NonNegative,
+        );
+        if numerics.polarity_interval == 0 {
+            report.errors.push(
+                "numerics.polarity_interval = 0: must be at least 1 (steps between two ray-casting polarisations)"
+                    .to_owned(),
+            );
+        }
         if l_min_ok && cutoff_ok && numerics.contact_cutoff > numerics.max_edge_length() {
             report.errors.push(format!(
                 "numerics.contact_cutoff = {} m exceeds l_max = 3·numerics.min_edge_length = {} m; the reference model \
@@ -68,6 +80,7 @@ impl Parameters {
         for (key, value) in [
             ("simulation.checkpoint_every_steps", sim.checkpoint_every_steps),
             ("numerics.seed", self.numerics.seed),
+            ("numerics.polarity_interval", self.numerics.polarity_interval),
             ("simulation.max_steps", sim.max_steps),
             ("simulation.sample_every_steps", sim.sample_every_steps),
             ("simulation.remesh_every_steps", sim.remesh_every_steps),

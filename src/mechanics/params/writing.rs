@@ -86,8 +86,24 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
     FieldDoc {
         path: "numerics.polarity",
         unit: "",
-        text: "Face types during the simulation: \"none\" (as in the input file) or \"contacts\" (paper mode 1, every step: \
-               faces touching another cell lateral, the lumen apical, the ECM or the medium basal).",
+        text: "Face types during the simulation: \"none\" (as in the input file), \"contacts\" (paper mode 1, every step: \
+               faces touching another cell lateral, the lumen apical, the ECM or the medium basal) or \"ray_casting\" \
+               (paper mode 2: the domain is voxelised, the voxels off the surfaces are clustered into cytoplasm, lumen, \
+               exterior and ECM, and a ray cast from each face along its normal types it by the first region it meets: \
+               another cell lateral, lumen apical, exterior or ECM basal; at the start, every polarity_interval steps and \
+               after every division).",
+    },
+    FieldDoc {
+        path: "numerics.polarity_voxel_size",
+        unit: "m",
+        text: "Voxel edge of the ray-casting polarisation; 0 = 1.5·min_edge_length. It must exceed the gaps between \
+               cells in contact (else they read as lumen pockets) and be small against the cells; a grid above 2^24 \
+               voxels is coarsened with a warning.",
+    },
+    FieldDoc {
+        path: "numerics.polarity_interval",
+        unit: "",
+        text: "Steps between two ray-casting polarisations (also at the start and after every division); at least 1.",
     },
     FieldDoc {
         path: "numerics.seed",
