@@ -108,8 +108,10 @@ fn border_policies_drop_or_freeze_cells_cut_by_the_image_border_and_lumen_labels
             }
         } else {
             assert_eq!(r.status, LabelStatus::Kept, "label {}: {:?}", r.label, r.reason);
-            let kind = cell.unwrap().kind();
+            let (kind, cell_type) = (cell.unwrap().kind(), cell.unwrap().cell_type());
             assert_eq!(kind, if r.label == inner { CellKind::Lumen } else { CellKind::Epithelial });
+            // A lumen gets the lumen's parameter set (the default list's index 2), not the cells'.
+            assert_eq!(cell_type, if r.label == inner { 2 } else { 0 }, "label {}", r.label);
         }
     }
     assert!(meshing.count(LabelStatus::Static) > 0);
@@ -377,6 +379,7 @@ fn nuclei_become_nucleus_cells_inside_their_hosts_and_stray_nuclei_are_reported(
         let nucleus = meshing.tissue.cell(CellId(r.label + 50)).unwrap();
         let host = meshing.tissue.cell(CellId(r.label)).unwrap();
         assert_eq!(nucleus.kind(), CellKind::Nucleus);
+        assert_eq!(nucleus.cell_type(), CellKind::Nucleus.code(), "a nucleus gets the nuclei's parameter set");
         assert_eq!(nucleus.mesh().validate(), Ok(()));
         // Every node of the nucleus inside its host's surface, as the contact model expects.
         let outside = nucleus.mesh().positions().iter().filter(|p| host.mesh().winding_number(p) <= 0.5).count();

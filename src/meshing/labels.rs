@@ -18,7 +18,7 @@
 //! 3. **Kind**: labels in [`LabelMeshingOptions::lumen_labels`] become [`CellKind::Lumen`]; with
 //!    [`BorderPolicy::Static`], border labels become [`CellKind::Static`] (boundary cells of an imaged
 //!    patch, which the simulation holds fixed); the others are epithelial. Cell id = label; target
-//!    volume = mesh volume.
+//!    volume = mesh volume; parameter set (`cell_type`) 2 for a lumen, 3 for a nucleus, else 0.
 //!
 //! 4. **Nuclei** ([`mesh_cells_and_nuclei`], optional): a second label volume on the same grid; each
 //!    nucleus is meshed like a cell and becomes a [`CellKind::Nucleus`] cell with id label + the
@@ -447,7 +447,7 @@ fn mesh_nuclei(
             report.cell_id = Some(id.0);
             report.status = LabelStatus::Kept;
             report.reason = None;
-            (report, Some(Cell::new(id, CellKind::Nucleus, 0, cell.mesh().clone())))
+            (report, Some(Cell::new(id, CellKind::Nucleus, cell_type_of(CellKind::Nucleus), cell.mesh().clone())))
         })
         .collect();
     let mut reports = Vec::with_capacity(results.len());
@@ -559,9 +559,22 @@ fn mesh_one(
             if !failures.is_empty() {
                 report.refined_because = Some(failures.join("; "));
             }
-            let cell = Cell::new(CellId(info.label), kind, 0, m.mesh);
+            let cell = Cell::new(CellId(info.label), kind, cell_type_of(kind), m.mesh);
             (report, Some(cell))
         }
+    }
+}
+
+/// The parameter set (`[[cell_types]]` index) a meshed body gets. Lumens and nuclei get their kind's
+/// code, as SimuCell3D inputs do and as the default parameter list is ordered (0 epithelial, 1 ECM,
+/// 2 lumen, 3 nucleus, 4 static): a lumen with the cells' adhesion and tension, or a nucleus with the
+/// cytoplasm's, would be silently wrong physics, and a parameter file without those sets is refused
+/// by name instead. Static cells keep set 0: they do not move, and their surfaces should adhere like the
+/// cells they stand in for.
+fn cell_type_of(kind: CellKind) -> u32 {
+    match kind {
+        CellKind::Lumen | CellKind::Nucleus => kind.code(),
+        CellKind::Epithelial | CellKind::Static | CellKind::Ecm => 0,
     }
 }
 
