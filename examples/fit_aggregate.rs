@@ -5,8 +5,12 @@
 //!
 //! ```text
 //! cargo run --release --example fit_aggregate -- coupling 0.5 10      # γ_lateral/γ_apical = 0.5
-//! cargo run --release --example fit_aggregate -- spring 0.3 10        # w/(2γ) = ω·c²/(4γ) = 0.3
+//! cargo run --release --example fit_aggregate -- spring 0.2 10        # w/(2γ) = ω·c²/(4γ) = 0.2
 //! ```
+//!
+//! Spring truths are searched within w/(2γ) ∈ [0.05, 0.3]: at w/(2γ) = 0.3 the spring aggregate
+//! does not relax but crumples (mean sphericity 0.84 → 0.64 in 1500 FIRE steps, cells interpenetrating),
+//! while 0.15 and 0.2 settle (0.93–0.95, flat from step 500 to 3000).
 //!
 //! Arguments: contact model (`coupling` or `spring`), the true key ratio, voxels per cell diameter,
 //! and optionally the cells (default 20), the nodes per cell (default 150), the evaluation budget
@@ -57,11 +61,12 @@ fn model(contact: ContactModel, l_min: Real, gamma_lateral: Real, adhesion: Real
         f.bending_modulus = 0.0;
         f.adhesion = adhesion;
         if contact == ContactModel::Spring {
-            f.repulsion = 1e10;
+            f.repulsion = 1e11;
         }
     }
     if contact == ContactModel::Spring {
-        p.numerics.time_step = 2e-8;
+        // Stiff repulsion: the stability check asks for a shorter step than the default 1e-7 s.
+        p.numerics.time_step = 1.5e-8;
     }
     t.faces.lateral.surface_tension = gamma_lateral;
     t.area_elasticity = 0.0;
@@ -170,9 +175,9 @@ fn main() {
                 model(contact, l_min, GAMMA, omega),
                 format!(
                     "[parameters.surface_tension]\nvalue = 1e-3\n[parameters.adhesion]\nbounds = [{:e}, {:e}]\ninitial = {:e}\n",
-                    0.1 * 4.0 * GAMMA / (l_min * l_min),
-                    0.8 * 4.0 * GAMMA / (l_min * l_min),
-                    0.2 * 4.0 * GAMMA / (l_min * l_min),
+                    0.05 * 4.0 * GAMMA / (l_min * l_min),
+                    0.3 * 4.0 * GAMMA / (l_min * l_min),
+                    0.25 * 4.0 * GAMMA / (l_min * l_min),
                 ),
                 "adhesion_energy_over_tension",
             )
