@@ -87,10 +87,21 @@ fn initial_doublet() -> (Tissue, Real) {
 
 /// Relaxes the doublet with the truth and voxelises it at `voxels_per_diameter`; writes the TIFF.
 fn observed_labels(dir: &Path, truth: &Parameters, initial: &Tissue, voxels_per_diameter: Real) -> PathBuf {
+    observed_labels_after(dir, truth, initial, voxels_per_diameter, TRUTH_STEPS)
+}
+
+/// [`observed_labels`] with the truth relaxed for `steps`.
+fn observed_labels_after(
+    dir: &Path,
+    truth: &Parameters,
+    initial: &Tissue,
+    voxels_per_diameter: Real,
+    steps: u64,
+) -> PathBuf {
     // The truth is relaxed longer than an evaluation: it starts from the generated spheres, far
     // from equilibrium, while evaluations start from the observed (equilibrium) shape.
     let mut truth = truth.clone();
-    truth.simulation.max_steps = TRUTH_STEPS;
+    truth.simulation.max_steps = steps;
     let mut sim = Simulation::new(initial.clone(), &truth).unwrap();
     let summary = sim.run(&mut Quiet).unwrap();
     eprintln!("truth relaxation: {summary:?}");
@@ -674,4 +685,76 @@ fn warm_start_reaches_other_metrics_than_a_cold_start_so_evaluations_start_cold(
         "warm and cold starts agree to {:.1e}: a warm start could be enabled",
         (s_warm - s_cold).abs()
     );
+}
+
+/// The aggregate round trip's forward model in CI (the full fits, two truths, 10 and 20 voxels per
+/// diameter, are `examples/fit_aggregate.rs`, minutes each): a 20-cell coupled aggregate relaxed with
+/// γ_l/γ_a = 0.7, voxelised at 10 voxels per diameter and seen only as labels. Measured like the data
+/// with the observed δ, the objective (sphericity + contact-area fraction) is lowest at the truth
+/// among truth ÷ 1.3, truth, truth × 1.3, and φ falls as γ_l rises (less spreading): the aggregate's
+/// morphology brackets the ratio on both sides.
+#[test]
+fn aggregate_objective_brackets_the_true_tension_ratio_from_the_label_volume() {
+    use tissuefit::inference::{ForwardModel, ParameterSpace, load_observation};
+    let spec = LabelSpec {
+        pattern: LabelPattern::Aggregate,
+        shape: [40, 40, 40],
+        voxel_size: [0.4e-6; 3],
+        cells: 20,
+        seed: 2,
+        lumen: false,
+    };
+    let labels = generate_labels(&spec).unwrap();
+    let meshed = mesh_labels(&labels.volume, &LabelMeshingOptions { target_nodes: 150, ..Default::default() }).unwrap();
+    assert_eq!(meshed.tissue.len(), 20);
+    let l_min = meshed.l_min.unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let truth = model(ContactModel::Coupling, l_min, 1e-3, 0.7e-3, 0.0);
+    observed_labels_after(dir.path(), &truth, &meshed.tissue, 10.0, 3000);
+    let config = write_config(
+        dir.path(),
+        &model(ContactModel::Coupling, l_min, 1e-3, 1e-3, 0.0),
+        COUPLING,
+        "method = \"nelder_mead\"\nmax_evaluations = 3",
+        0,
+    );
+    let mut config = FitConfig::load(&config).unwrap();
+    config.observed.as_mut().unwrap().meshing.target_nodes = 150;
+    config.objective.contact_fraction = 1.0;
+    config.forward.max_steps = Some(600);
+    config.forward.volume_passes = 1;
+    let space = ParameterSpace::from_config(&config.parameters).unwrap();
+    let observation = load_observation(&config).unwrap();
+    assert_eq!(observation.cell_labels.len(), 20, "every cell of the observed labels meshed");
+    let m = ForwardModel::new(
+        observation,
+        config.base_parameters().unwrap(),
+        space,
+        config.objective.clone(),
+        config.forward.clone(),
+    )
+    .unwrap();
+    let points: Vec<Vec<Real>> = [0.7e-3 / 1.3, 0.7e-3, 0.7e-3 * 1.3].iter().map(|g: &Real| vec![g.ln()]).collect();
+    let evals: Vec<_> = {
+        use rayon::prelude::*;
+        points.par_iter().map(|x| m.evaluate(x)).collect()
+    };
+    for e in &evals {
+        eprintln!(
+            "γ_l = {:.3e}: {} objective {:.3} {:?} ({} steps, {:.1} s) {}",
+            e.x[0].exp(),
+            e.status.name(),
+            e.objective,
+            e.metrics,
+            e.steps,
+            e.wall_seconds,
+            e.reason
+        );
+        assert!(e.status.usable(), "{}", e.reason);
+    }
+    eprintln!("observed {:?}", m.observation.metrics);
+    let (low, mid, high) = (&evals[0], &evals[1], &evals[2]);
+    assert!(mid.objective < low.objective && mid.objective < high.objective);
+    let phi = |e: &tissuefit::inference::Evaluation| e.metrics.contact_fraction.unwrap();
+    assert!(phi(low) > phi(mid) && phi(mid) > phi(high), "φ: {} {} {}", phi(low), phi(mid), phi(high));
 }
