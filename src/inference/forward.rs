@@ -19,9 +19,23 @@
 //! voxelised on the observed grid and meshed again with the observed meshing options before it is
 //! measured, so simulated and observed morphology pass through the same measurement.
 //!
+//! One contact distance: faces within δ of another cell count as contact. The surfaces of two
+//! touching simulated cells do not coincide (coupled nodes are tied, the faces between them are not;
+//! the spring model holds them 0 to c apart), and neither do the separately meshed surfaces of two
+//! touching labels, so the contact-area fraction φ and the rim angle depend steeply on δ (on a
+//! relaxed 20-cell coupling aggregate φ = 0.28, 0.39, 0.51, 0.61, 0.68 and the rim angle 49° to
+//! 109° for δ = 0.05 … 0.45 µm). The default δ is a quarter of each tissue's own mean edge length,
+//! and a simulated mesh, remeshed between l_min and 3·l_min, has longer edges than a fresh meshing of
+//! the same labels; so every simulation is measured with the observed tissue's δ
+//! ([`Observation::contact_distance`]), never its own.
+//!
 //! No warm start: every evaluation starts from the observed tissue, so its result depends on its
 //! parameters only (never on which evaluations ran before), which is what makes the cache, the
-//! parallel evaluation and the resumption exact.
+//! parallel evaluation and the resumption exact. A warm start ([`ForwardModel::evaluate_from`] the
+//! equilibrium of a neighbouring point) was measured on the coupled doublet: it ends at another shape
+//! than a cold start at the same parameters (sphericity −0.0026, half a scale; rim angle −5.6°) and
+//! saves no steps (the coupling residual hovers, so every pass runs its max_steps); see
+//! `tests/fit.rs`, `warm_start_reaches_other_metrics_than_a_cold_start_so_evaluations_start_cold`.
 
 use super::config::{ForwardConfig, ObjectiveConfig};
 use super::space::ParameterSpace;
@@ -61,17 +75,22 @@ impl Metrics {
         Self { sphericity: v[0], contact_fraction: v[1], coordination: v[2], contact_angle: v[3], shape: v[4] }
     }
 
-    /// The summary metrics of a tissue (not the shape term).
-    pub fn measure(tissue: &Tissue) -> Result<Self, String> {
-        let m = measure_tissue(tissue, &MeasureSettings::default()).map_err(|e| format!("measuring: {e}"))?;
+    /// The summary metrics of a tissue (not the shape term), faces within `contact_distance` δ (m) of
+    /// another cell counting as contact (`None`: a quarter of the tissue's own mean edge length), and
+    /// the δ used.
+    pub fn measure(tissue: &Tissue, contact_distance: Option<Real>) -> Result<(Self, Real), String> {
+        let settings = MeasureSettings { contact_distance, ..MeasureSettings::default() };
+        let m = measure_tissue(tissue, &settings).map_err(|e| format!("measuring: {e}"))?;
         let s = &m.summary;
-        Ok(Self {
+        let delta = s.contact_distance.ok_or("measuring: no contact distance")?;
+        let metrics = Self {
             sphericity: s.mean_sphericity,
             contact_fraction: s.mean_contact_fraction,
             coordination: s.mean_coordination,
             contact_angle: s.mean_contact_angle_deg,
             shape: None,
-        })
+        };
+        Ok((metrics, delta))
     }
 }
 
@@ -141,6 +160,9 @@ pub struct Observation {
     pub l_min: Option<Real>,
     /// How the labels were meshed (with the l_min used), to measure simulations the same way.
     pub meshing: Option<LabelMeshingOptions>,
+    /// Contact distance δ (m) of the observed measurement (a quarter of its mean edge length); every
+    /// simulation is measured with this same δ (see the module doc).
+    pub contact_distance: Real,
 }
 
 impl Observation {
@@ -152,7 +174,7 @@ impl Observation {
         meshing: Option<LabelMeshingOptions>,
     ) -> Result<Self, super::InferenceError> {
         let l_min = meshing.as_ref().and_then(|m| m.l_min);
-        let metrics = Metrics::measure(&tissue).map_err(super::InferenceError::Observed)?;
+        let (metrics, contact_distance) = Metrics::measure(&tissue, None).map_err(super::InferenceError::Observed)?;
         let moving: Vec<&crate::mesh::Cell> =
             tissue.cells().iter().filter(|c| c.kind().is_cell() && !c.kind().is_immobile()).collect();
         if moving.is_empty() {
@@ -165,7 +187,16 @@ impl Observation {
             )));
         }
         let cell_labels = moving.iter().map(|c| c.id().0).collect();
-        Ok(Self { tissue, labels, cell_labels, metrics, length_scale: mean_volume.cbrt(), l_min, meshing })
+        Ok(Self {
+            tissue,
+            labels,
+            cell_labels,
+            metrics,
+            length_scale: mean_volume.cbrt(),
+            l_min,
+            meshing,
+            contact_distance,
+        })
     }
 }
 
@@ -243,6 +274,14 @@ impl ForwardModel {
     /// Runs one evaluation at log point `x` (clamped into the bounds first). Never fails: problems
     /// become a penalised [`Evaluation`] with its reason.
     pub fn evaluate(&self, x: &[Real]) -> Evaluation {
+        self.evaluate_from(x, &self.observation.tissue).0
+    }
+
+    /// Like [`ForwardModel::evaluate`], starting the relaxation from `start` (a tissue with the
+    /// observed tissue's cells in the same order, e.g. the equilibrium of an earlier evaluation: a
+    /// warm start) instead of the observed tissue; also returns the relaxed tissue (`None` when the
+    /// simulation failed). The fit itself always starts from the observed tissue (see the module doc).
+    pub fn evaluate_from(&self, x: &[Real], start: &Tissue) -> (Evaluation, Option<Tissue>) {
         let started = Instant::now();
         let (x, _) = self.space.clamp(x);
         let params = self.space.apply(&self.base, &x);
@@ -258,9 +297,9 @@ impl ForwardModel {
             wall_seconds: started.elapsed().as_secs_f64(),
         };
         if let Err(e) = params.validate() {
-            return failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default());
+            return (failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default()), None);
         }
-        let mut tissue = self.observation.tissue.clone();
+        let mut tissue = start.clone();
         let mut steps = 0;
         let mut summary = None;
         for pass in 0..=self.forward.volume_passes {
@@ -276,7 +315,9 @@ impl ForwardModel {
             }
             let mut sim = match Simulation::new(tissue, &params) {
                 Ok(sim) => sim,
-                Err(e) => return failed(format!("simulation setup: {e}"), steps, Real::NAN, Metrics::default()),
+                Err(e) => {
+                    return (failed(format!("simulation setup: {e}"), steps, Real::NAN, Metrics::default()), None);
+                }
             };
             match sim.run(&mut Quiet) {
                 Ok(s) => {
@@ -284,7 +325,10 @@ impl ForwardModel {
                     summary = Some(s);
                 }
                 Err(e) => {
-                    return failed(format!("simulation (pass {pass}): {e}"), steps, Real::NAN, Metrics::default());
+                    return (
+                        failed(format!("simulation (pass {pass}): {e}"), steps, Real::NAN, Metrics::default()),
+                        None,
+                    );
                 }
             };
             tissue = sim.into_tissue();
@@ -293,7 +337,7 @@ impl ForwardModel {
         summary.steps = steps;
         let metrics = match self.measure(&tissue) {
             Ok(m) => m,
-            Err(e) => return failed(e, summary.steps, summary.residual, Metrics::default()),
+            Err(e) => return (failed(e, summary.steps, summary.residual, Metrics::default()), Some(tissue)),
         };
         let (status, reason) = if summary.converged {
             (Status::Converged, String::new())
@@ -309,7 +353,7 @@ impl ForwardModel {
             )
         };
         let objective = if status.usable() { self.score(&metrics) } else { penalty };
-        Evaluation {
+        let evaluation = Evaluation {
             x,
             metrics,
             objective,
@@ -318,7 +362,8 @@ impl ForwardModel {
             steps: summary.steps,
             residual: summary.residual,
             wall_seconds: started.elapsed().as_secs_f64(),
-        }
+        };
+        (evaluation, Some(tissue))
     }
 
     /// The metrics of a relaxed tissue: measured directly, or voxelised on the observed grid and
@@ -336,18 +381,18 @@ impl ForwardModel {
             (Some(v), Some(options)) if like_data => {
                 let meshed =
                     mesh_labels(v, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
-                let lost: Vec<u32> = meshed
+                let lost: Vec<String> = meshed
                     .report
                     .iter()
                     .filter(|r| r.kind.is_none() && obs.cell_labels.contains(&r.label))
-                    .map(|r| r.label)
+                    .map(|r| format!("{} ({})", r.label, r.reason.as_deref().unwrap_or("no reason given")))
                     .collect();
                 if !lost.is_empty() || meshed.tissue.is_empty() {
-                    return Err(format!("meshing the relaxed tissue's voxels dropped cells {lost:?}"));
+                    return Err(format!("meshing the relaxed tissue's voxels dropped cells {}", lost.join(", ")));
                 }
-                Metrics::measure(&meshed.tissue)?
+                Metrics::measure(&meshed.tissue, Some(obs.contact_distance))?.0
             }
-            _ => Metrics::measure(tissue)?,
+            _ => Metrics::measure(tissue, Some(obs.contact_distance))?.0,
         };
         if self.objective.shape > 0.0
             && let Some(v) = &voxels

@@ -9,9 +9,11 @@
 //!
 //! Points lie at factors span^(±k/points), k = 1…points, from the optimum. A point is acceptable when
 //! its objective is at most best + `acceptable_increase`. The acceptable range on each side ends where
-//! the objective crosses that threshold (interpolated in log space between the last acceptable and
-//! the first unacceptable point); a side with no crossing inside the probed span is *open* and the
-//! range extends to the search bound. A quantity is reported determined when its range is closed on
+//! the objective crosses that threshold, interpolated between the last acceptable and the first
+//! unacceptable point linearly in √(J − J_best) (exact for a quadratic bowl; interpolating J itself
+//! put the crossing of a steep side at a tenth of its distance); a side with no crossing inside the
+//! probed span, or whose next point failed or did not converge (a penalty, not a misfit), is *open*
+//! and the range extends to the search bound. A quantity is reported determined when its range is closed on
 //! both sides (and, for an absolute parameter with several fitted, the scale direction is closed too).
 //! These are slices, not re-optimised profiles: they can call a quantity determined that a full
 //! profile would find correlated with another; the ratio and scale directions cover the correlations
@@ -134,29 +136,72 @@ pub fn profile(evaluator: &Evaluator<'_>, best: &[Real], best_objective: Real, c
     dirs.iter()
         .enumerate()
         .map(|(k, d)| {
-            let objs: Vec<Real> = evals[k * per..(k + 1) * per].iter().map(|e| e.objective).collect();
+            let slice = &evals[k * per..(k + 1) * per];
             // Full curve including the optimum at offset 0.
             let mut xs = offsets.clone();
-            let mut ys = objs.clone();
+            let mut ys: Vec<Real> = slice.iter().map(|e| e.objective).collect();
+            let mut usable: Vec<bool> = slice.iter().map(|e| e.status.usable()).collect();
             let mid = config.points;
             xs.insert(mid, 0.0);
             ys.insert(mid, best_objective);
-            let crossing = |range: Box<dyn Iterator<Item = usize>>| -> Option<Real> {
-                let mut prev = mid;
-                for i in range {
-                    if ys[i] > threshold {
-                        let (y0, y1) = (ys[prev], ys[i]);
-                        let t = if y1 > y0 { ((threshold - y0) / (y1 - y0)).clamp(0.0, 1.0) } else { 0.0 };
-                        return Some(xs[prev] + t * (xs[i] - xs[prev]));
-                    }
-                    prev = i;
-                }
-                None
-            };
-            let upper = crossing(Box::new(mid + 1..xs.len()));
-            let lower = crossing(Box::new((0..mid).rev()));
+            usable.insert(mid, true);
+            let upper = crossing(&xs, &ys, &usable, mid, threshold, best_objective, Box::new(mid + 1..xs.len()));
+            let lower = crossing(&xs, &ys, &usable, mid, threshold, best_objective, Box::new((0..mid).rev()));
             let name = d.name.split('=').next().unwrap_or(&d.name).to_string();
             Slice { name, offsets: xs, objectives: ys, lower, upper }
         })
         .collect()
+}
+
+/// Where the objective first crosses `threshold` walking from the optimum (index `mid`) through
+/// `order`: interpolated linearly in √(J − J_best), which grows linearly with the distance from the
+/// optimum of a quadratic bowl (exact for a χ²-like objective; interpolating J itself puts the
+/// crossing far too close to the optimum when the next point is steep). `None` (open) when no
+/// point crosses, or when the walk meets a failed or unconverged run first: its objective is a
+/// penalty, not a measured misfit, and says nothing about the objective there.
+fn crossing(
+    xs: &[Real],
+    ys: &[Real],
+    usable: &[bool],
+    mid: usize,
+    threshold: Real,
+    best: Real,
+    order: Box<dyn Iterator<Item = usize>>,
+) -> Option<Real> {
+    let root = |y: Real| (y - best).max(0.0).sqrt();
+    let mut prev = mid;
+    for i in order {
+        if !usable[i] {
+            return None;
+        }
+        if ys[i] > threshold {
+            let (r0, r1, rt) = (root(ys[prev]), root(ys[i]), root(threshold));
+            let t = if r1 > r0 { ((rt - r0) / (r1 - r0)).clamp(0.0, 1.0) } else { 0.0 };
+            return Some(xs[prev] + t * (xs[i] - xs[prev]));
+        }
+        prev = i;
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A quadratic bowl J = 1 + 100·x² probed at x = ±0.2 (J = 5): best + 1 is crossed at x = ±0.1
+    /// exactly (linear interpolation in J would say ±0.05).
+    #[test]
+    fn crossing_of_a_quadratic_bowl_is_exact_and_a_failed_point_leaves_the_side_open() {
+        let xs = [-0.2, 0.0, 0.2];
+        let ys = [5.0, 1.0, 5.0];
+        let up = crossing(&xs, &ys, &[true; 3], 1, 2.0, 1.0, Box::new(2..3)).unwrap();
+        let lo = crossing(&xs, &ys, &[true; 3], 1, 2.0, 1.0, Box::new((0..1).rev())).unwrap();
+        assert!((up - 0.1).abs() < 1e-12 && (lo + 0.1).abs() < 1e-12, "{lo} {up}");
+        // A penalised run below the optimum: that side is open, not closed at the optimum.
+        let ys = [1e6, 1.0, 5.0];
+        assert_eq!(crossing(&xs, &ys, &[false, true, true], 1, 2.0, 1.0, Box::new((0..1).rev())), None);
+        // No crossing within the probed span: open.
+        let ys = [1.5, 1.0, 1.5];
+        assert_eq!(crossing(&xs, &ys, &[true; 3], 1, 2.0, 1.0, Box::new(2..3)), None);
+    }
 }

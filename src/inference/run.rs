@@ -198,6 +198,13 @@ fn assemble(
     let mut parameters = BTreeMap::new();
     let mut statements = Vec::new();
     let increase = config.profile.acceptable_increase;
+    // An absolute value is pinned only relative to what was held fixed (a shape fixes ratios).
+    let given = if space.fixed.is_empty() {
+        String::new()
+    } else {
+        let fixed: Vec<&str> = space.fixed.iter().map(|(n, _)| n.as_str()).collect();
+        format!(" given the fixed {}", fixed.join(", "))
+    };
     for (name, &v) in &values {
         let fitted = space.fitted.iter().find(|p| &p.name == name);
         let (range, determined, bounds) = match fitted {
@@ -220,7 +227,10 @@ fn assemble(
         };
         if let Some(d) = determined {
             statements.push(if d {
-                format!("{name}: determined by the data: {v:.4e} SI, acceptable range [{:.4e}, {:.4e}]", range[0], range[1])
+                format!(
+                    "{name}: determined by the data{given}: {v:.4e} SI, acceptable range [{:.4e}, {:.4e}]",
+                    range[0], range[1]
+                )
             } else if scale_open {
                 format!(
                     "{name}: NOT determined by the data: scaling every fitted parameter together keeps the objective \

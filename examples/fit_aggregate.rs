@@ -1,0 +1,257 @@
+//! The fit's acceptance round trip on an aggregate (issue 8; README "Fitting parameters"): a
+//! 20-cell aggregate is relaxed with known tensions/adhesion, voxelised at a given number of voxels
+//! per cell diameter, and fitted from that label volume alone (mesh → measure → fit). Prints one
+//! JSON line with the truth, the recovered key ratio, its error, the evaluations and the wall time.
+//!
+//! ```text
+//! cargo run --release --example fit_aggregate -- coupling 0.5 10      # γ_lateral/γ_apical = 0.5
+//! cargo run --release --example fit_aggregate -- spring 0.2 10        # w/(2γ) = ω·c²/(4γ) = 0.2
+//! ```
+//!
+//! Spring truths are searched within w/(2γ) ∈ [0.05, 0.3]: at w/(2γ) = 0.3 the spring aggregate
+//! does not relax but crumples (mean sphericity 0.84 → 0.64 in 1500 FIRE steps, cells interpenetrating),
+//! while 0.15 and 0.2 settle (0.93–0.95, flat from step 500 to 3000).
+//!
+//! Arguments: contact model (`coupling` or `spring`), the true key ratio, voxels per cell diameter,
+//! and optionally the cells (default 20), the nodes per cell (default 150), the evaluation budget
+//! (default 14) and an output folder (default: a temporary one). Too slow for CI (a relaxation of
+//! 20 cells × 150 nodes takes 10–40 s on 2 cores); `tests/fit.rs` runs the doublet round trips.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tissuefit::geometry::{Real, Vec3};
+use tissuefit::imaging::{
+    LabelPattern, LabelSpec, LabelWriteOptions, VoxelGrid, generate_labels, voxelize_with_stats, write_label_tiff,
+};
+use tissuefit::inference::{FitConfig, FitOptions, run_fit};
+use tissuefit::mechanics::{
+    ContactModel, Dynamics, Observer, Parameters, Polarity, RelaxMethod, Sample, Simulation, SimulationMode,
+};
+use tissuefit::mesh::{FaceType, Tissue};
+use tissuefit::meshing::{LabelMeshingOptions, mesh_labels};
+
+struct Quiet;
+impl Observer for Quiet {
+    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
+}
+
+/// Relaxation steps of the truth (from the generated polyhedra) and of each evaluation pass (from
+/// the observed, near-equilibrium shape): coupling contacts settle within 600 steps a pass; spring
+/// contacts in an aggregate do not converge (residual 7–100 after 3000 steps) and their shape still
+/// drifts, so each evaluation gets the truth's 3000 steps (2 passes of 1500): with 600 a pass the
+/// fits were biased (truth w/(2γ) = 0.1 → 0.063, 0.2 → 0.220).
+const TRUTH_STEPS: u64 = 3000;
+const STEPS: u64 = 600;
+const SPRING_STEPS: u64 = 1500;
+/// Apical (free-surface) tension of every truth (N/m).
+const GAMMA: Real = 1e-3;
+
+/// The round-trip model: no bending, area elasticity, pressure cap or growth (the shape is set by
+/// tensions, adhesion and K), polarity from contacts, FIRE.
+fn model(contact: ContactModel, l_min: Real, gamma_lateral: Real, adhesion: Real) -> Parameters {
+    let mut p = Parameters::default();
+    p.numerics.contact_model = contact;
+    p.numerics.polarity = Polarity::Contacts;
+    p.numerics.dynamics = Dynamics::Overdamped;
+    p.numerics.damping = 3e-9;
+    p.numerics.min_edge_length = l_min;
+    p.numerics.contact_cutoff = l_min;
+    let t = &mut p.cell_types[0];
+    for ft in FaceType::ALL {
+        let f = t.faces.get_mut(ft);
+        f.surface_tension = GAMMA;
+        f.bending_modulus = 0.0;
+        f.adhesion = adhesion;
+        if contact == ContactModel::Spring {
+            f.repulsion = 1e11;
+        }
+    }
+    if contact == ContactModel::Spring {
+        // Stiff repulsion: the stability check asks for a shorter step than the default 1e-7 s.
+        p.numerics.time_step = 1.5e-8;
+    }
+    t.faces.lateral.surface_tension = gamma_lateral;
+    t.area_elasticity = 0.0;
+    t.max_pressure = Real::INFINITY;
+    t.growth_rate = 0.0;
+    p.simulation.mode = SimulationMode::Equilibrium;
+    p.simulation.method = RelaxMethod::Fire;
+    p.simulation.remesh_every_steps = 50;
+    p.simulation.max_steps = if contact == ContactModel::Spring { SPRING_STEPS } else { STEPS };
+    p.simulation.sample_every_steps = i64::MAX as u64;
+    p
+}
+
+fn initial_aggregate(cells: usize, nodes: usize) -> (Tissue, Real) {
+    let spec = LabelSpec {
+        pattern: LabelPattern::Aggregate,
+        shape: [40, 40, 40],
+        voxel_size: [0.4e-6; 3],
+        cells,
+        seed: 2,
+        lumen: false,
+    };
+    let labels = generate_labels(&spec).expect("aggregate labels");
+    let meshed = mesh_labels(&labels.volume, &LabelMeshingOptions { target_nodes: nodes, ..Default::default() })
+        .expect("meshing the aggregate");
+    assert_eq!(meshed.tissue.len(), cells, "every generated cell meshed");
+    (meshed.tissue, meshed.l_min.expect("l_min"))
+}
+
+/// Relaxes the truth, voxelises it at `vpd` voxels per mean cell diameter into DIR/observed.tif.
+fn observe(dir: &Path, truth: &Parameters, initial: &Tissue, vpd: Real) -> (Real, u64) {
+    let mut truth = truth.clone();
+    truth.simulation.max_steps = TRUTH_STEPS;
+    let mut sim = Simulation::new(initial.clone(), &truth).expect("truth simulation");
+    let summary = sim.run(&mut Quiet).expect("truth relaxation");
+    let tissue = sim.into_tissue();
+    let mean_volume = tissue.cells().iter().map(|c| c.mesh().signed_volume()).sum::<Real>() / tissue.len() as Real;
+    let diameter = 2.0 * (3.0 * mean_volume / (4.0 * std::f64::consts::PI)).cbrt();
+    let (mut lo, mut hi) = (Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY));
+    for c in tissue.cells() {
+        for p in c.mesh().positions() {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+    }
+    let voxel = diameter / vpd;
+    let grid = VoxelGrid::covering(lo, hi, [voxel; 3], 2).expect("grid");
+    let (labels, stats) = voxelize_with_stats(&tissue, &grid).expect("voxelise");
+    write_label_tiff(&dir.join("observed.tif"), &labels, &LabelWriteOptions::default()).expect("write");
+    eprintln!(
+        "truth: {} steps, residual {:.3e}, diameter {:.3} µm, voxel {:.3} µm, {} overlapping voxels",
+        summary.steps,
+        summary.residual,
+        diameter * 1e6,
+        voxel * 1e6,
+        stats.overlapping_voxels
+    );
+    (diameter, stats.overlapping_voxels)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let usage = "usage: fit_aggregate coupling|spring RATIO VOXELS_PER_DIAMETER [CELLS [NODES [BUDGET [OUT]]]]";
+    if args.len() < 3 {
+        eprintln!("{usage}");
+        std::process::exit(2);
+    }
+    let contact = match args[0].as_str() {
+        "coupling" => ContactModel::Coupling,
+        "spring" => ContactModel::Spring,
+        other => {
+            eprintln!("unknown contact model `{other}`; {usage}");
+            std::process::exit(2);
+        }
+    };
+    let num = |i: usize, default: Real| -> Real {
+        args.get(i).map_or(default, |s| {
+            s.parse().unwrap_or_else(|_| {
+                eprintln!("argument {} `{s}` is not a number; {usage}", i + 1);
+                std::process::exit(2)
+            })
+        })
+    };
+    let ratio = num(1, 0.5);
+    let vpd = num(2, 10.0);
+    let cells = num(3, 20.0) as usize;
+    let nodes = num(4, 150.0) as usize;
+    let budget = num(5, 14.0) as usize;
+    let temp = tempfile::tempdir().expect("temporary folder");
+    let dir: PathBuf = args.get(6).map_or_else(|| temp.path().to_path_buf(), PathBuf::from);
+    std::fs::create_dir_all(&dir).expect("output folder");
+
+    let started = Instant::now();
+    let (initial, l_min) = initial_aggregate(cells, nodes);
+    let (truth, parameters, ratio_name) = match contact {
+        ContactModel::Coupling => (
+            model(contact, l_min, ratio * GAMMA, 0.0),
+            "[parameters.surface_tension]\nvalue = 1e-3\n[parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\ninitial = 8e-4\n"
+                .to_string(),
+            "lateral_over_apical",
+        ),
+        ContactModel::Spring => {
+            // w/(2γ) = ω·c²/(4γ), c = l_min.
+            let omega = ratio * 4.0 * GAMMA / (l_min * l_min);
+            (
+                model(contact, l_min, GAMMA, omega),
+                format!(
+                    "[parameters.surface_tension]\nvalue = 1e-3\n[parameters.adhesion]\nbounds = [{:e}, {:e}]\ninitial = {:e}\n",
+                    0.05 * 4.0 * GAMMA / (l_min * l_min),
+                    0.3 * 4.0 * GAMMA / (l_min * l_min),
+                    0.25 * 4.0 * GAMMA / (l_min * l_min),
+                ),
+                "adhesion_energy_over_tension",
+            )
+        }
+    };
+    let (diameter, overlapping) = observe(&dir, &truth, &initial, vpd);
+    let truth_seconds = started.elapsed().as_secs_f64();
+    let base = model(contact, l_min, GAMMA, 0.0);
+    // Spring contacts: the cutoff c (= l_min, `forward.match_mesh_length`) is the adhesion's range, a
+    // length of the model, not only of the mesh; meshing the observed voxels at the truth's l_min keeps
+    // the model the truth was made with. (Left free, a fresh meshing of 10 voxels per diameter picks
+    // l_min = 0.51 µm against the truth's 0.59 µm, and the fit runs into its upper bound.)
+    let meshing_l_min = match contact {
+        ContactModel::Spring => format!("l_min = {l_min:e}"),
+        ContactModel::Coupling => String::new(),
+    };
+    std::fs::write(dir.join("model.toml"), base.to_toml_string()).expect("model.toml");
+    let config = format!(
+        r#"model = "model.toml"
+[observed]
+labels = "observed.tif"
+[observed.meshing]
+target_nodes = {nodes}
+{meshing_l_min}
+{parameters}
+[objective]
+sphericity = 1.0
+contact_fraction = 1.0
+coordination = 0.0
+# The rim angle of re-meshed voxels hardly moves with the ratio at 10 voxels per diameter
+# (40.7° → 46.1° for γ_l/γ_a 0.8 → 0.44) against ±1–2° between neighbouring points: left out.
+contact_angle = 0.0
+[optimizer]
+method = "nelder_mead"
+max_evaluations = {budget}
+tolerance = 0.01
+[forward]
+accept_residual = 1e9
+volume_passes = 1
+[profile]
+points = 2
+span = 1.3
+"#
+    );
+    std::fs::write(dir.join("fit.toml"), config).expect("fit.toml");
+    let config = FitConfig::load(&dir.join("fit.toml")).expect("fit config");
+    let result = run_fit(&config, &dir.join("out"), &FitOptions { plots: true, ..Default::default() }).expect("fit");
+    let r = &result.ratios[ratio_name];
+    let error = (r.value - ratio) / ratio;
+    let line = serde_json::json!({
+        "contact_model": args[0],
+        "cells": cells,
+        "nodes_per_cell": nodes,
+        "voxels_per_diameter": vpd,
+        "diameter_um": diameter * 1e6,
+        "truth_overlapping_voxels": overlapping,
+        "ratio": ratio_name,
+        "truth": ratio,
+        "recovered": r.value,
+        "error_percent": 100.0 * error,
+        "range": r.range,
+        "determined": r.determined,
+        "evaluations": result.evaluations,
+        "profile_evaluations": result.profile_evaluations,
+        "converged": result.converged,
+        "fit_wall_seconds": result.wall_seconds,
+        "truth_wall_seconds": truth_seconds,
+        "threads": result.threads,
+        "observed": result.observed,
+        "best": result.best_metrics,
+    });
+    println!("{line}");
+}
