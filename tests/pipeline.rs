@@ -291,3 +291,138 @@ fn a_failing_stage_leaves_no_folder_that_looks_complete_and_is_recorded_as_faile
     assert_eq!(manifest["stages"][0]["status"].as_str(), Some("failed"));
     assert!(manifest["stages"][0]["note"].as_str().unwrap().contains("dropped"));
 }
+
+/// The demo pipeline without its fit (cheap: mesh, measure, one relaxation) in `dir`.
+fn demo_without_fit(dir: &Path) -> PathBuf {
+    demo_pipeline(dir, |t| t.split("[fit]").next().unwrap().to_string())
+}
+
+#[test]
+fn the_stage_subcommands_fed_the_pipeline_file_write_the_bytes_of_tissuefit_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let pipeline = demo_without_fit(tmp.path());
+    let p = pipeline.to_str().unwrap();
+    let whole = tmp.path().join("whole");
+    let o = tissuefit(&["run", p, "--out", whole.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+
+    // The same pipeline stage by stage, each subcommand reading its section of the same file.
+    let by = tmp.path().join("stages");
+    let dir = |stage: &str| by.join(stage).to_str().unwrap().to_string();
+    let tissue = by.join("mesh/tissue.vtp");
+    let tissue = tissue.to_str().unwrap();
+    let o = tissuefit(&["mesh", "--config", p, "--out", &dir("mesh")]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    let o = tissuefit(&["measure", tissue, "--config", p, "--out", &dir("measure")]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    let o = tissuefit(&["simulate", tissue, "--config", p, "--out", &dir("simulate")]);
+    // The demo's 1000 steps end unconverged (the coupling model's hovering residual): exit 1, as
+    // `simulate` says for any unconverged relaxation.
+    let converged = read_json(&by.join("simulate/simulation.json"))["converged"].as_bool().unwrap();
+    assert_eq!(o.status.code(), Some(if converged { 0 } else { 1 }), "{:?}", text(&o));
+
+    let hashes = |run: &Path| -> BTreeMap<String, String> {
+        let mut out = BTreeMap::new();
+        for stage in ["mesh", "measure", "simulate"] {
+            for entry in std::fs::read_dir(run.join(stage)).unwrap() {
+                let path = entry.unwrap().path();
+                let name = path.file_name().unwrap().to_string_lossy().into_owned();
+                out.insert(format!("{stage}/{name}"), normalised_hash(&path));
+            }
+        }
+        out
+    };
+    let expected = hashes(&whole);
+    assert!(expected.len() >= 10, "{expected:?}");
+    assert_eq!(hashes(&by), expected);
+    // The data files proper are byte-identical, not just equal after taking wall times out.
+    for file in ["mesh/tissue.vtp", "mesh/report.json", "measure/cells.csv", "simulate/final.vtk"] {
+        assert_eq!(std::fs::read(whole.join(file)).unwrap(), std::fs::read(by.join(file)).unwrap(), "{file}");
+    }
+
+    // The manifest records the commit the binary was built from (build.rs reads .git without git).
+    let commit = read_json(&whole.join("manifest.json"))["git_commit"].clone();
+    if repo().join(".git").exists() && std::env::var_os("TISSUEFIT_GIT_COMMIT").is_none() {
+        let c = commit.as_str().unwrap_or_else(|| panic!("git_commit is {commit} in a git checkout"));
+        assert!(c.len() == 40 && c.bytes().all(|b| b.is_ascii_hexdigit()), "{c}");
+    }
+}
+
+/// Runs `tissuefit ARGS` where `{p}` stands for a pipeline made from `body` (labels.tif beside it) and
+/// `{t}` for a meshed tissue; returns the exit code, stderr and the pipeline's path.
+fn stage_with_bad(args: &[&str], body: &str) -> (Option<i32>, String, PathBuf, tempfile::TempDir) {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::copy(repo().join("data/demo/doublet.tif"), tmp.path().join("labels.tif")).unwrap();
+    let path = tmp.path().join("bad.toml");
+    std::fs::write(&path, body).unwrap();
+    let tissue = repo().join("data/demo/cell_quartet.vtk");
+    let out = tmp.path().join("out");
+    let args: Vec<String> = args
+        .iter()
+        .map(|a| {
+            a.replace("{p}", path.to_str().unwrap())
+                .replace("{t}", tissue.to_str().unwrap())
+                .replace("{o}", out.to_str().unwrap())
+        })
+        .collect();
+    let o = Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(&args).output().unwrap();
+    assert!(!out.join("tissue.vtp").exists() && !out.join("cells.csv").exists(), "nothing written on an error");
+    (o.status.code(), text(&o).1, path, tmp)
+}
+
+#[test]
+fn every_stage_subcommand_reports_pipeline_config_errors_with_the_file_and_key_and_exit_2() {
+    let stages: [&[&str]; 4] = [
+        &["mesh", "--config", "{p}", "--out", "{o}"],
+        &["measure", "{t}", "--config", "{p}", "--out", "{o}"],
+        &["simulate", "{t}", "--config", "{p}", "--out", "{o}"],
+        &["fit", "--config", "{p}", "--out", "{o}"],
+    ];
+    let fit = "[simulate]\n[fit.parameters.surface_tension]\nbounds = [1e-4, 1e-3]\n";
+    for args in stages {
+        let stage = args[0];
+        // Unknown key, with the nearest valid one.
+        let body = format!("[input]\nlabels = \"labels.tif\"\n[mesh]\ntarget_node = 200\n{fit}");
+        let (code, err, path, _t) = stage_with_bad(args, &body);
+        assert_eq!(code, Some(2), "{stage}: {err}");
+        assert!(err.contains(&format!("{}:4", path.display())), "{stage}: {err}");
+        assert!(err.contains("mesh.target_node") && err.contains("did you mean `target_nodes`?"), "{stage}: {err}");
+        // Wrong type.
+        let body = format!("[input]\nlabels = \"labels.tif\"\n[measure]\ninclude_static = \"no\"\n{fit}");
+        let (code, err, path, _t) = stage_with_bad(args, &body);
+        assert_eq!(code, Some(2), "{stage}: {err}");
+        assert!(err.contains(&format!("{}:4", path.display())) && err.contains("measure.include_static"), "{err}");
+        // Missing input file.
+        let body = format!("[input]\nlabels = \"missing.tif\"\n{fit}");
+        let (code, err, path, _t) = stage_with_bad(args, &body);
+        assert_eq!(code, Some(2), "{stage}: {err}");
+        assert!(err.contains(&path.display().to_string()) && err.contains("input.labels"), "{stage}: {err}");
+        assert!(err.contains("does not exist"), "{stage}: {err}");
+        // Conflicting options inside the file.
+        let body = "[input]\nlabels = \"labels.tif\"\n[simulate]\n[fit.parameters.surface_tension]\n\
+                    bounds = [1e-4, 1e-3]\nvalue = 1e-3\n";
+        let (code, err, _, _t) = stage_with_bad(args, body);
+        assert_eq!(code, Some(2), "{stage}: {err}");
+        assert!(err.contains("fit.parameters.surface_tension") && err.contains("not both"), "{stage}: {err}");
+    }
+    // Conflicting options between the command line and the file: the file configures the stage.
+    let good = format!("[input]\nlabels = \"labels.tif\"\n{fit}");
+    let cases: [(&[&str], &str); 4] = [
+        (&["mesh", "--config", "{p}", "--out", "{o}", "--target-nodes", "50"], "--target-nodes"),
+        (&["mesh", "{t}", "--config", "{p}", "--out", "{o}"], "--config"),
+        (&["measure", "{t}", "--config", "{p}", "--out", "{o}", "--include-static"], "--include-static"),
+        (&["simulate", "{t}", "--config", "{p}", "--out", "{o}", "--max-steps", "3"], "--max-steps"),
+    ];
+    for (args, flag) in cases {
+        let (code, err, _, _t) = stage_with_bad(args, &good);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(err.contains(flag) && err.contains("cannot be used with"), "{args:?}: {err}");
+    }
+    // A stage whose section is missing.
+    let (code, err, path, _t) = stage_with_bad(stages[2], "[input]\nlabels = \"labels.tif\"\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&path.display().to_string()) && err.contains("no [simulate] section"), "{err}");
+    let (code, err, _, _t) = stage_with_bad(stages[3], "[input]\nlabels = \"labels.tif\"\n");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("no [fit] section"), "{err}");
+}

@@ -1,4 +1,4 @@
-//! `tissuefit config defaults` and `tissuefit config check FILE`.
+//! `tissuefit config defaults`, `tissuefit config check FILE` and `tissuefit config reference [--section S]`.
 
 use super::Outcome;
 use crate::mechanics::Parameters;
@@ -13,12 +13,25 @@ pub enum ConfigCommand {
         /// Parameter file (TOML).
         file: PathBuf,
     },
+    /// Print the Markdown reference of every pipeline-file key (type, default, description) and of
+    /// the model parameters, generated from the schemas (docs/config-reference.md is this output).
+    Reference {
+        /// Only this section: input, mesh, measure, simulate, fit, demo or model.
+        #[arg(long, value_name = "SECTION")]
+        section: Option<String>,
+    },
 }
 
 pub fn run(cmd: &ConfigCommand) -> anyhow::Result<Outcome> {
     match cmd {
         ConfigCommand::Defaults => {
             print!("{}", Parameters::default_toml_commented());
+            Ok(Outcome::Success)
+        }
+        ConfigCommand::Reference { section } => {
+            let text =
+                crate::pipeline::config_reference(section.as_deref()).map_err(|e| anyhow::anyhow!("--section: {e}"))?;
+            print!("{text}");
             Ok(Outcome::Success)
         }
         ConfigCommand::Check { file } => {

@@ -28,16 +28,14 @@ pub struct FitArgs {
 
 /// A fit config, or the fit of a pipeline file (recognised by its `[input]` table).
 fn load_config(path: &Path) -> anyhow::Result<FitConfig> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let is_pipeline = toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("input"));
-    if !is_pipeline {
+    if !crate::pipeline::is_pipeline_file(path) {
         return Ok(FitConfig::load(path)?);
     }
     let pipeline = PipelineConfig::load(path)?;
     let fit = pipeline
         .fit
         .as_ref()
-        .ok_or_else(|| anyhow::anyhow!("{}: the pipeline has no [fit] section", path.display()))?;
+        .ok_or_else(|| anyhow::anyhow!("{}: the pipeline has no [fit] section; add one to fit", path.display()))?;
     Ok(crate::pipeline::fit_config(fit, &pipeline.input, &pipeline.mesh))
 }
 

@@ -14,6 +14,7 @@ use crate::morphology::{
     ContactMorphology, DEFAULT_EXTERIOR_FREE_FRACTION, DroppedLabel, LabelMeasureSettings, MeasureSettings, Morphology,
     compare_shapes, compare_tissues, mean_edge_length, measure_labels, measure_tissue,
 };
+use crate::pipeline::{PipelineConfig, run_measure};
 use anyhow::{Context, bail};
 use serde::Serialize;
 use std::io::{Read, Write};
@@ -28,6 +29,17 @@ pub struct MeasureArgs {
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// A pipeline file: measure TISSUE (its mesh stage's `tissue.vtp`) with the file's `[measure]`
+    /// section, exactly as `tissuefit run` does; the measurement options come from the file only.
+    #[arg(
+        long,
+        value_name = "PIPELINE.toml",
+        conflicts_with_all = [
+            "contact_distance", "include_static", "exterior_free_fraction", "length_unit", "orient", "voxel_size",
+            "border", "lumen_labels", "min_voxels", "normal_smoothing", "compare", "compare_voxel_size",
+        ]
+    )]
+    pub config: Option<PathBuf>,
     /// Contact distance δ: a face whose centroid lies within δ of another cell's surface is in contact
     /// with it. A length with unit (0.1um, 1e-7). Default: 0.25 × the tissue's mean edge length.
     #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
@@ -141,7 +153,33 @@ struct SummaryFile<'a> {
     summary: &'a crate::morphology::MorphologySummary,
 }
 
+/// `measure TISSUE --config PIPELINE.toml --out DIR`: the pipeline's measure stage into DIR.
+fn run_stage(tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outcome> {
+    let config = PipelineConfig::load(pipeline)?;
+    if is_tiff(tissue) {
+        bail!(
+            "{}: with a pipeline file ({}), measure takes the mesh stage's tissue (e.g. runs/NAME/mesh/tissue.vtp), \
+             not a label volume",
+            tissue.display(),
+            pipeline.display()
+        );
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let started = Instant::now();
+    let line = run_measure(tissue, &config.measure, out)?;
+    println!(
+        "measure ({}): {line}; {:.2} s; outputs in {}",
+        pipeline.display(),
+        started.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(Outcome::Success)
+}
+
 pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
+    if let Some(pipeline) = &args.config {
+        return run_stage(&args.tissue, pipeline, &args.out);
+    }
     let input = read_input(&args.tissue, args)?;
     let labels_only = args.voxel_size.is_some()
         || args.border != BorderPolicy::Keep

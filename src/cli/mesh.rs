@@ -17,6 +17,7 @@ use crate::meshing::{
     BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshing, LabelMeshingOptions,
     LabelReport, LabelStatus, mesh_cells_and_nuclei, retriangulate,
 };
+use crate::pipeline::{PipelineConfig, run_mesh};
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -26,8 +27,22 @@ use std::time::Instant;
 pub struct MeshArgs {
     /// Label TIFF (.tif/.tiff: 0 = background; 8/16/32-bit, multi-page, ImageJ/OME voxel size), or a
     /// tissue mesh (.vtk/.vtp, e.g. a multi-material mesh from an image tool) to re-triangulate.
-    pub labels: PathBuf,
-    /// Output tissue: .vtp (ParaView) or .vtk (SimuCell3D legacy).
+    /// Not with --config (the pipeline's `[input]` names the labels).
+    #[arg(required_unless_present = "config", conflicts_with = "config")]
+    pub labels: Option<PathBuf>,
+    /// A pipeline file: mesh its `[input]` with its `[mesh]` section, exactly as `tissuefit run` does;
+    /// --out is then the stage folder (DIR/tissue.vtp, DIR/report.json) and the meshing options come
+    /// from the file only.
+    #[arg(
+        long,
+        value_name = "PIPELINE.toml",
+        conflicts_with_all = [
+            "voxel_size", "l_min", "target_nodes", "min_voxels", "border", "lumen_labels", "nuclei",
+            "max_refinements", "length_unit", "seed", "report",
+        ]
+    )]
+    pub config: Option<PathBuf>,
+    /// Output tissue: .vtp (ParaView) or .vtk (SimuCell3D legacy); with --config, the stage folder.
     #[arg(long)]
     pub out: PathBuf,
     /// Voxel size z,y,x (or one for all) overriding the file's metadata: a unit suffix (0.235um,
@@ -157,30 +172,30 @@ fn progress_bar(len: u64) -> ProgressBar {
     bar
 }
 
-fn mesh_input(args: &MeshArgs, options: &LabelMeshingOptions) -> anyhow::Result<Meshed> {
-    if !is_tiff(&args.labels) {
-        match args.labels.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+fn mesh_input(args: &MeshArgs, labels: &Path, options: &LabelMeshingOptions) -> anyhow::Result<Meshed> {
+    if !is_tiff(labels) {
+        match labels.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
             Some("vtk" | "vtp") => {}
             _ => bail!(
                 "{}: give a label TIFF (.tif/.tiff) or a tissue mesh to re-triangulate (.vtk/.vtp)",
-                args.labels.display()
+                labels.display()
             ),
         }
         if args.nuclei.is_some() {
-            bail!("--nuclei applies to a label TIFF input, not to a mesh ({})", args.labels.display());
+            bail!("--nuclei applies to a label TIFF input, not to a mesh ({})", labels.display());
         }
         let read_options = ReadOptions { length_scale: args.length_unit.unwrap_or_default(), orient: true };
-        let read = read_tissue(&args.labels, &read_options)
-            .with_context(|| format!("reading tissue {}", args.labels.display()))?;
+        let read =
+            read_tissue(labels, &read_options).with_context(|| format!("reading tissue {}", labels.display()))?;
         for w in &read.warnings {
-            tracing::warn!("{}: {w}", args.labels.display());
+            tracing::warn!("{}: {w}", labels.display());
         }
         let r = retriangulate(&read.tissue, options, args.voxel_size)
-            .with_context(|| format!("re-triangulating {}", args.labels.display()))?;
+            .with_context(|| format!("re-triangulating {}", labels.display()))?;
         if r.odd_rows > 0 {
             tracing::warn!(
                 "{}: {} voxel rows crossed an open cell surface an odd number of times; inside/outside may be wrong there",
-                args.labels.display(),
+                labels.display(),
                 r.odd_rows
             );
         }
@@ -200,25 +215,44 @@ fn mesh_input(args: &MeshArgs, options: &LabelMeshingOptions) -> anyhow::Result<
     if args.length_unit.is_some() {
         bail!("--length-unit applies to a mesh input (.vtk/.vtp); for a label TIFF use --voxel-size");
     }
-    let volume = read_labels(&args.labels, args.voxel_size, "label volume")?;
+    let volume = read_labels(labels, args.voxel_size, "label volume")?;
     let nuclei = match &args.nuclei {
         Some(path) => Some(read_labels(path, args.voxel_size, "nuclei volume")?),
         None => None,
     };
-    let labels = volume.label_stats().len() + nuclei.as_ref().map_or(0, |n| n.label_stats().len());
-    let bar = progress_bar(labels as u64);
+    let label_count = volume.label_stats().len() + nuclei.as_ref().map_or(0, |n| n.label_stats().len());
+    let bar = progress_bar(label_count as u64);
     let meshing =
         mesh_cells_and_nuclei(&volume, nuclei.as_ref(), options, &|_| bar.inc(1)).with_context(|| {
             match &args.nuclei {
-                Some(n) => format!("meshing {} with nuclei {}", args.labels.display(), n.display()),
-                None => format!("meshing {}", args.labels.display()),
+                Some(n) => format!("meshing {} with nuclei {}", labels.display(), n.display()),
+                None => format!("meshing {}", labels.display()),
             }
         })?;
     bar.finish_and_clear();
     Ok(Meshed { grid_description: describe_grid(&volume), volume_grid: volume.grid(), retriangulated: None, meshing })
 }
 
+/// `mesh --config PIPELINE.toml --out DIR`: the pipeline's mesh stage into DIR.
+fn run_stage(pipeline: &Path, out: &Path) -> anyhow::Result<Outcome> {
+    let config = PipelineConfig::load(pipeline)?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let started = Instant::now();
+    let line = run_mesh(&config.input, &config.mesh, out)?;
+    println!(
+        "mesh ({}): {line}; {:.2} s; outputs in {}",
+        pipeline.display(),
+        started.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(Outcome::Success)
+}
+
 pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
+    if let Some(pipeline) = &args.config {
+        return run_stage(pipeline, &args.out);
+    }
+    let labels = args.labels.as_deref().expect("clap requires LABELS without --config");
     let started = Instant::now();
     match args.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
         Some("vtp" | "vtk") => {}
@@ -234,10 +268,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
         seed: args.seed,
         max_refinements: args.max_refinements,
     };
-    let Meshed { meshing, volume_grid, grid_description, retriangulated } = mesh_input(args, &options)?;
+    let Meshed { meshing, volume_grid, grid_description, retriangulated } = mesh_input(args, labels, &options)?;
     for label in &options.lumen_labels {
         if !meshing.report.iter().any(|r| r.label == *label) {
-            tracing::warn!("--lumen-labels: label {label} is not in {}", args.labels.display());
+            tracing::warn!("--lumen-labels: label {label} is not in {}", labels.display());
         }
     }
     let (kept, static_cells, dropped) =
@@ -249,7 +283,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
     let threads = rayon::current_num_threads();
     let with_nuclei = args.nuclei.is_some();
     let report = MeshReport {
-        input: &args.labels,
+        input: labels,
         output: &args.out,
         wall_seconds,
         threads,
@@ -291,7 +325,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
     if meshing.tissue.is_empty() {
         bail!(
             "no cell meshed from {} ({grid_description}): all {dropped} labels were dropped ({}); see {}",
-            args.labels.display(),
+            labels.display(),
             summarise_reasons(&meshing.report),
             report_path.display()
         );

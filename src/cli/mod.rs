@@ -9,6 +9,7 @@ mod inspect;
 mod label_args;
 mod measure;
 mod mesh;
+mod render;
 mod run;
 mod simulate;
 mod sweep;
@@ -72,6 +73,8 @@ pub enum Command {
     /// (input hashes, resolved config, timings); unchanged stages are skipped. Exits with 1 when the fit
     /// did not converge or a `[demo]` truth was not recovered.
     Run(run::RunArgs),
+    /// Draw a tissue into a PNG picture (software rendering; colour by cell, kind or face type).
+    Render(render::RenderArgs),
     /// Run a parameter sweep: every variant of a base pipeline (a [grid] of values or a [[runs]] list)
     /// into DIR/run-NNNN, J at a time, then DIR/results.csv and plots; `--list`, `--index I` (job
     /// arrays) and `--collect`. Exits with 1 when a run failed; a failed run never stops the others.
@@ -130,6 +133,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Generate(cmd) => generate::run(&cmd),
         Command::Fit(args) => fit::run(&args),
         Command::Run(args) => run::run(&args),
+        Command::Render(args) => render::run(&args),
         Command::Sweep(args) => sweep::run(&args),
     })
 }

@@ -17,6 +17,7 @@ use crate::mechanics::{
     CheckpointRequest, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationError, SimulationMode,
     SimulationState, SimulationSummary,
 };
+use crate::pipeline::{PipelineConfig, is_pipeline_file, run_simulate};
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -29,7 +30,10 @@ pub struct SimulateArgs {
     /// Input tissue (.vtk or .vtp).
     #[arg(required_unless_present = "resume", conflicts_with = "resume")]
     pub tissue: Option<PathBuf>,
-    /// Parameter file (TOML; see `tissuefit config defaults`). Default: built-in defaults.
+    /// Parameter file (TOML; see `tissuefit config defaults`), or a pipeline file (one with an `[input]`
+    /// table): then TISSUE (its mesh stage's `tissue.vtp`) is relaxed with its `[simulate]` section
+    /// and measured with its `[measure]`, exactly as `tissuefit run` does, into --out. Default:
+    /// built-in defaults.
     #[arg(long, value_name = "TOML", conflicts_with = "resume")]
     pub config: Option<PathBuf>,
     /// Output folder: frames.pvd + frames/, stats.csv, final.vtk, summary.json, config.toml
@@ -98,13 +102,15 @@ struct Summary<'a> {
     topology: crate::mechanics::TopologyStats,
 }
 
-const OUTPUTS: [&str; 9] = [
+const OUTPUTS: [&str; 11] = [
     CHECKPOINT_FILE,
     "frames.pvd",
     "stats.csv",
     "stats.csv.partial",
     "final.vtk",
+    "final.vtp",
     "summary.json",
+    "simulation.json",
     "config.toml",
     "last_good.vtk",
     "events.csv",
@@ -262,6 +268,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
     let (Some(tissue), Some(out)) = (&args.tissue, &args.out) else {
         bail!("simulate needs a TISSUE and --out DIR, or --resume DIR");
     };
+    if let Some(pipeline) = args.config.as_deref().filter(|p| is_pipeline_file(p)) {
+        return run_stage(args, tissue, pipeline, out);
+    }
     let params = resolve_parameters(args)?;
     let read =
         read_tissue(tissue, &args.input.read_options()).with_context(|| format!("reading {}", tissue.display()))?;
@@ -288,6 +297,46 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         output: crate::io::OutputState { frames: Vec::new(), stats_bytes: 0 },
     };
     drive(args, out, &params, &mut sim, recorder, info)
+}
+
+/// `simulate TISSUE --config PIPELINE.toml --out DIR`: the pipeline's simulate stage into DIR. The
+/// model comes from the file only: the command-line overrides are refused rather than silently
+/// making the stage differ from `tissuefit run`'s.
+fn run_stage(args: &SimulateArgs, tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outcome> {
+    let overrides = [
+        ("--mode", args.mode.is_some()),
+        ("--method", args.method.is_some()),
+        ("--max-steps", args.max_steps.is_some()),
+        ("--duration", args.duration.is_some()),
+        ("--checkpoint-every-steps", args.checkpoint_every_steps.is_some()),
+        ("--checkpoint-every-seconds", args.checkpoint_every_seconds.is_some()),
+        ("--stop-at-step", args.stop_at_step.is_some()),
+        ("--length-unit", args.input.length_unit != crate::io::LengthScale::default()),
+        ("--orient", args.input.orient),
+    ];
+    let given: Vec<&str> = overrides.iter().filter(|(_, on)| *on).map(|(name, _)| *name).collect();
+    if !given.is_empty() {
+        bail!(
+            "{} cannot be used with the pipeline file {}: its [simulate] section configures the stage (set e.g. \
+             simulation.max_steps in [simulate.model_overrides.simulation]), or give a parameter file to --config",
+            given.join(", "),
+            pipeline.display()
+        );
+    }
+    let config = PipelineConfig::load(pipeline)?;
+    let Some(section) = &config.simulate else {
+        bail!("{}: the pipeline has no [simulate] section; add one to simulate", pipeline.display());
+    };
+    prepare_output(out, args.force)?;
+    let started = Instant::now();
+    let (line, converged) = run_simulate(tissue, section, &config.measure, out)?;
+    println!(
+        "simulate ({}): {line}; {:.2} s; outputs in {}",
+        pipeline.display(),
+        started.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(if converged { Outcome::Success } else { Outcome::CheckFailed })
 }
 
 /// FIRE relaxations have no physical time: their frames are labelled by step.

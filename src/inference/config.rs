@@ -6,12 +6,13 @@ use super::InferenceError;
 use crate::geometry::Real;
 use crate::mechanics::Parameters;
 use crate::meshing::{BorderPolicy, DEFAULT_TARGET_NODES, LabelMeshingOptions};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// The whole fit configuration. Relative paths are resolved against the config file's folder.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FitConfig {
     /// The observed tissue. Required by `tissuefit fit`; a pipeline's `[fit]` leaves it out and
@@ -25,6 +26,7 @@ pub struct FitConfig {
     /// Keys of the simulation config given inline (same schema as `simulate --config`), applied on
     /// top of `model`. Default: none.
     #[serde(default)]
+    #[schemars(with = "Option<BTreeMap<String, serde_json::Value>>")]
     pub model_overrides: Option<toml::Table>,
     /// The parameters to fit or fix, by name: `surface_tension` (every face type),
     /// `surface_tension_apical`, `surface_tension_lateral`, `surface_tension_basal`, `adhesion`
@@ -45,7 +47,7 @@ pub struct FitConfig {
 }
 
 /// The observed input: exactly one of `tissue` or `labels`.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ObservedConfig {
     /// A tissue mesh file (.vtk or .vtp, lengths in `length_unit`).
@@ -70,7 +72,7 @@ fn default_length_unit() -> String {
 }
 
 /// Meshing of an observed label volume (the options of `tissuefit mesh`).
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeshingConfig {
     /// Minimum edge length l_min (m). Default: chosen from `target_nodes`.
@@ -143,7 +145,7 @@ impl MeshingConfig {
 }
 
 /// One parameter: fitted within `bounds` (SI units), or fixed at `value`.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ParameterConfig {
     /// Search interval `[lo, hi]` (SI, 0 < lo < hi); searched in log space. Absent: fixed.
@@ -161,7 +163,7 @@ pub struct ParameterConfig {
 /// w_shape·(mean(1 − IoU)/s_shape)². A scale sᵢ is the difference one is willing to call "one unit
 /// of misfit" (a measurement tolerance); the objective is then a mean squared misfit in those units,
 /// and the profile's acceptance threshold ([`ProfileConfig::acceptable_increase`]) is in the same units.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ObjectiveConfig {
     /// Weight of the mean sphericity. Default 1.
@@ -226,7 +228,7 @@ impl Default for ObjectiveConfig {
 }
 
 /// Which optimiser.
-#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum OptimizerMethod {
     /// argmin's Nelder–Mead on the log parameters; bounds by clamping plus a quadratic penalty.
@@ -236,7 +238,7 @@ pub enum OptimizerMethod {
 }
 
 /// The optimiser.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OptimizerConfig {
     /// "nelder_mead" (default) or "particle_swarm".
@@ -286,7 +288,7 @@ impl Default for OptimizerConfig {
 }
 
 /// The forward simulation (every evaluation).
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ForwardConfig {
     /// Overrides simulation.max_steps of the model. Default: the model's.
@@ -331,7 +333,7 @@ impl Default for ForwardConfig {
 }
 
 /// The profile of the objective along each fitted parameter after the optimum.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ProfileConfig {
     /// Points on each side of the optimum per parameter (0: no profile). Default 3.

@@ -34,7 +34,7 @@ pub use optimise::{BOUND_PENALTY, BudgetSpent, Evaluator, OptimiserOutcome, opti
 pub use plot::{plot_landscape, plot_objective};
 pub use profile::{Slice, profile, ratio_parts};
 pub use result::{FitResult, ParameterResult, RatioResult};
-pub use run::{FitOptions, load_observation, run_fit};
+pub use run::{FitOptions, load_observation, run_fit, run_fit_observed};
 pub use space::{FittedParameter, PARAMETER_NAMES, ParameterSpace};
 pub use trace::{read_trace, write_trace};
 

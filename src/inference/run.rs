@@ -77,6 +77,17 @@ fn best_of(trace: &[Evaluation]) -> Option<&Evaluation> {
 
 /// Runs a whole fit and writes its outputs into `out` (created if needed).
 pub fn run_fit(config: &FitConfig, out: &Path, options: &FitOptions) -> Result<FitResult, InferenceError> {
+    run_fit_observed(config, None, out, options)
+}
+
+/// [`run_fit`] with the observation already loaded (e.g. a pipeline's mesh stage output, so the
+/// labels are not meshed again); `None` loads it from `config.observed` ([`load_observation`]).
+pub fn run_fit_observed(
+    config: &FitConfig,
+    observation: Option<Observation>,
+    out: &Path,
+    options: &FitOptions,
+) -> Result<FitResult, InferenceError> {
     let started = Instant::now();
     let output_err = |p: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", p.display()));
     let space = ParameterSpace::from_config(&config.parameters)?;
@@ -93,7 +104,10 @@ pub fn run_fit(config: &FitConfig, out: &Path, options: &FitOptions) -> Result<F
         Vec::new()
     };
     let base = config.base_parameters()?;
-    let observation = load_observation(config)?;
+    let observation = match observation {
+        Some(o) => o,
+        None => load_observation(config)?,
+    };
     let model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())?;
     std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
     let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;

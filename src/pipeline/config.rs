@@ -11,13 +11,14 @@ use crate::io::LengthScale;
 use crate::mechanics::Parameters;
 use crate::meshing::BorderPolicy;
 use crate::morphology::DEFAULT_EXTERIOR_FREE_FRACTION;
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// The whole pipeline. `[input]` is required; `[mesh]` and `[measure]` always run (defaults when
 /// absent); `[simulate]` and `[fit]` run when present.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PipelineConfig {
     /// The segmented tissue.
@@ -42,7 +43,7 @@ pub struct PipelineConfig {
 }
 
 /// `[input]`: a label volume (`labels`) or an already meshed tissue (`mesh`), exactly one of them.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InputSection {
     /// Label TIFF (0 = background), meshed by the mesh stage. Relative to the pipeline file.
@@ -67,7 +68,7 @@ pub struct InputSection {
 }
 
 /// `[measure]`.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeasureSection {
     /// Contact distance δ (m). Default: 0.25 × the tissue's mean edge length.
@@ -93,7 +94,7 @@ impl Default for MeasureSection {
 }
 
 /// `[simulate]`: relax the meshed tissue with `model` (+ `model_overrides`), same schema as `simulate --config`.
-#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[derive(Clone, Debug, Default, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SimulateSection {
     /// Parameter file (TOML). Default: the built-in defaults.
@@ -101,11 +102,12 @@ pub struct SimulateSection {
     pub model: Option<PathBuf>,
     /// Keys of the parameter schema given inline, applied on top of `model`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(with = "Option<BTreeMap<String, serde_json::Value>>")]
     pub model_overrides: Option<toml::Table>,
 }
 
 /// `[demo]`: the parameters a synthetic input was made with.
-#[derive(Clone, Debug, Deserialize, Serialize)]
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DemoSection {
     /// Truth by name: a fitted parameter of `result.json` (`surface_tension_lateral`, …, SI) or a
@@ -314,6 +316,14 @@ pub fn fit_config(fit: &FitConfig, input: &InputSection, mesh: &MeshingConfig) -
         }),
         ..fit.clone()
     }
+}
+
+/// Whether `path` is a pipeline file rather than a stage's own config: a TOML file with an `[input]`
+/// table (neither the model's nor the fit's schema has one). Unreadable or non-TOML files are not;
+/// their own loader reports why.
+pub fn is_pipeline_file(path: &Path) -> bool {
+    std::fs::read_to_string(path)
+        .is_ok_and(|text| toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("input")))
 }
 
 /// `input.seed` becomes `mesh.seed` and `fit.optimizer.seed` where those are not given.

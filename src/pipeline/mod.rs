@@ -13,14 +13,19 @@
 
 mod config;
 mod manifest;
+mod reference;
 mod run;
 mod stages;
 pub mod sweep;
 mod sweep_plot;
 
-pub use config::{DemoSection, InputSection, MeasureSection, PipelineConfig, SimulateSection, fit_config, nearest};
+pub use config::{
+    DemoSection, InputSection, MeasureSection, PipelineConfig, SimulateSection, fit_config, is_pipeline_file, nearest,
+};
 pub use manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file};
+pub use reference::{REFERENCE_SECTIONS, config_reference};
 pub use run::{DemoCheck, PipelineOptions, PipelineOutcome, run_pipeline};
+pub use stages::{MESH_TISSUE, run_measure, run_mesh, run_simulate};
 pub use sweep::{RunReport, Sweep, SweepOptions, collect_results, run_sweep};
 pub use sweep_plot::plot_results;
 

@@ -143,9 +143,11 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
     let mut demo = Vec::new();
     if let Some(section) = &config.fit {
         let text = toml_of(section)? + &mesh_section;
-        let key = stage_key("fit", &text, &[&input_hash, &fit_model_hash]);
+        // The fit starts from the mesh stage's tissue and measures simulations on the labels' grid.
+        let key = stage_key("fit", &text, &[&input_hash, &tissue_hash, &fit_model_hash]);
+        let mesh_dir = out.join("mesh");
         runner.stage("fit", key, |dir| {
-            let r = run_fit_stage(&config.input, &config.mesh, section, dir, options.progress)?;
+            let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, options.progress)?;
             let fitted: Vec<String> = r
                 .parameters
                 .iter()

@@ -6,7 +6,7 @@ use super::PipelineError;
 use super::config::{InputSection, MeasureSection, SimulateSection, fit_config};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
-use crate::inference::{FitConfig, FitOptions, FitResult, MeshingConfig, run_fit};
+use crate::inference::{FitConfig, FitOptions, FitResult, MeshingConfig, Observation, run_fit_observed};
 use crate::io::{
     LengthScale, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d, write_tissue,
 };
@@ -290,15 +290,71 @@ pub fn run_simulate(
     ))
 }
 
-/// The fit of `tissuefit fit` with observed = the input labels meshed like `[mesh]`.
+/// The fit of `tissuefit fit` with observed = the input labels meshed like `[mesh]`. The meshed
+/// tissue is the mesh stage's `tissue.vtp` (and its `report.json`'s l_min) in `mesh_dir`, read back
+/// bit for bit instead of meshing the labels again; the labels are still read, to measure the
+/// simulations like the data.
 pub fn run_fit_stage(
     input: &InputSection,
     mesh: &MeshingConfig,
     fit: &FitConfig,
+    mesh_dir: &Path,
     out: &Path,
     progress: bool,
 ) -> Result<FitResult, PipelineError> {
+    let err = stage_err("fit");
     let config = fit_config(fit, input, mesh);
-    run_fit(&config, out, &FitOptions { resume: false, progress, plots: true })
-        .map_err(|e| stage_err("fit")(e.to_string()))
+    let tissue = read_meshed(&mesh_dir.join(MESH_TISSUE), "fit")?;
+    let report_path = mesh_dir.join("report.json");
+    let report: serde_json::Value = std::fs::read_to_string(&report_path)
+        .map_err(|e| e.to_string())
+        .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
+        .map_err(|e| err(format!("reading {}: {e}", report_path.display())))?;
+    let observation = match &input.labels {
+        Some(path) => {
+            let read = read_label_tiff(path, &LabelReadOptions { voxel_size: input.voxel_size, ..Default::default() })
+                .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
+            let mut options = mesh.options().map_err(|e| err(e.to_string()))?;
+            // Simulations are measured like the data: the meshing's options with the l_min it used.
+            options.l_min = report["l_min"].as_f64();
+            Observation::new(tissue, Some(read.volume), Some(options))
+        }
+        // A mesh input: the observation is the tissue alone, as `tissuefit fit` with `observed.tissue`.
+        None => Observation::new(tissue, None, None),
+    }
+    .map_err(|e| err(e.to_string()))?;
+    run_fit_observed(&config, Some(observation), out, &FitOptions { resume: false, progress, plots: true })
+        .map_err(|e| err(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn demo_input() -> InputSection {
+        let labels = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/doublet.tif");
+        toml::from_str(&format!("labels = {:?}", labels.display().to_string())).unwrap()
+    }
+
+    #[test]
+    fn the_fit_stage_starts_from_the_mesh_stage_tissue_instead_of_meshing_again() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mesh_dir = tmp.path().join("mesh");
+        let input = demo_input();
+        let mesh = MeshingConfig { target_nodes: 60, ..Default::default() };
+        let fit: FitConfig = toml::from_str("[parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\n").unwrap();
+        // Without the mesh stage's outputs the fit stage has nothing to start from, and says which file.
+        let e = run_fit_stage(&input, &mesh, &fit, &mesh_dir, &tmp.path().join("fit"), false).unwrap_err();
+        assert!(e.to_string().contains(&mesh_dir.join(MESH_TISSUE).display().to_string()), "{e}");
+        // With them, its observation is that tissue: the fit's meshed labels are the mesh stage's.
+        std::fs::create_dir_all(&mesh_dir).unwrap();
+        run_mesh(&input, &mesh, &mesh_dir).unwrap();
+        let written = read_meshed(&mesh_dir.join(MESH_TISSUE), "test").unwrap();
+        let observed = crate::inference::load_observation(&fit_config(&fit, &input, &mesh)).unwrap();
+        assert_eq!(written.node_count(), observed.tissue.node_count());
+        for (a, b) in written.cells().iter().zip(observed.tissue.cells()) {
+            assert_eq!(a.id(), b.id());
+            assert_eq!(a.mesh().positions(), b.mesh().positions(), "tissue.vtp reads back bit for bit");
+        }
+    }
 }
