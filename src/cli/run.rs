@@ -36,7 +36,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
         ok = false;
     }
     if outcome.simulate_converged == Some(false) {
-        println!("simulate: the relaxation ended unconverged (see {}/simulate/summary.json)", out.display());
+        println!("simulate: the relaxation ended unconverged (see {}/simulate/simulation.json)", out.display());
     }
     if !outcome.demo.is_empty() {
         println!(

@@ -102,13 +102,15 @@ struct Summary<'a> {
     topology: crate::mechanics::TopologyStats,
 }
 
-const OUTPUTS: [&str; 9] = [
+const OUTPUTS: [&str; 11] = [
     CHECKPOINT_FILE,
     "frames.pvd",
     "stats.csv",
     "stats.csv.partial",
     "final.vtk",
+    "final.vtp",
     "summary.json",
+    "simulation.json",
     "config.toml",
     "last_good.vtk",
     "events.csv",

@@ -305,15 +305,13 @@ pub fn run_fit_stage(
     let err = stage_err("fit");
     let config = fit_config(fit, input, mesh);
     let tissue = read_meshed(&mesh_dir.join(MESH_TISSUE), "fit")?;
-    // A mesh input is observed as it is; labels are kept so simulations are measured on their grid.
+    let report_path = mesh_dir.join("report.json");
+    let report: serde_json::Value = std::fs::read_to_string(&report_path)
+        .map_err(|e| e.to_string())
+        .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
+        .map_err(|e| err(format!("reading {}: {e}", report_path.display())))?;
     let observation = match &input.labels {
-        None => Observation::new(tissue, None, None),
         Some(path) => {
-            let report_path = mesh_dir.join("report.json");
-            let report: serde_json::Value = std::fs::read_to_string(&report_path)
-                .map_err(|e| e.to_string())
-                .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
-                .map_err(|e| err(format!("reading {}: {e}", report_path.display())))?;
             let read = read_label_tiff(path, &LabelReadOptions { voxel_size: input.voxel_size, ..Default::default() })
                 .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
             let mut options = mesh.options().map_err(|e| err(e.to_string()))?;
@@ -321,6 +319,8 @@ pub fn run_fit_stage(
             options.l_min = report["l_min"].as_f64();
             Observation::new(tissue, Some(read.volume), Some(options))
         }
+        // A mesh input: the observation is the tissue alone, as `tissuefit fit` with `observed.tissue`.
+        None => Observation::new(tissue, None, None),
     }
     .map_err(|e| err(e.to_string()))?;
     run_fit_observed(&config, Some(observation), out, &FitOptions { resume: false, progress, plots: true })
