@@ -314,8 +314,8 @@ fn an_input_is_labels_or_a_mesh_not_both_nor_neither() {
     sphere_vtk(&d.join("sphere.vtk"));
     std::fs::copy(repo().join("data/demo/doublet.tif"), d.join("labels.tif")).unwrap();
     for (body, expect) in [
-        ("[input]\nlabels = \"labels.tif\"\nmesh = \"sphere.vtk\"\n", "not both"),
-        ("[input]\nseed = 1\n", "give `labels` (a label TIFF) or `mesh`"),
+        ("[input]\nlabels = \"labels.tif\"\nmesh = \"sphere.vtk\"\n", "not several"),
+        ("[input]\nseed = 1\n", "give `labels` (a label TIFF), `mesh` (a .vtp/.vtk tissue) or `generate`"),
         ("[input]\nmesh = \"sphere.vtk\"\nvoxel_size = [1e-6, 1e-6, 1e-6]\n", "input.voxel_size"),
         ("[input]\nmesh = \"labels.tif\"\n", "expected a .vtp or .vtk"),
         ("[input]\nmesh = \"gone.vtk\"\n", "input.mesh"),

@@ -11,8 +11,7 @@ use super::label_args::{LabelOutputArgs, describe_grid, parse_shape, parse_voxel
 use crate::geometry::Real;
 use crate::imaging::{LabelPattern, LabelSpec, generate_labels, generate_nuclei, write_label_tiff};
 use crate::io::{parse_lengths, write_atomically, write_tissue};
-use crate::mesh::{CellKind, sphericity};
-use crate::meshing::{Penetration, TissueGeometry, TissueKind, TissueSpec, generate_tissue};
+use crate::meshing::{GenerationSummary, TissueKind, TissueSpec, generate_tissue};
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
 
@@ -83,53 +82,13 @@ fn parse_length(s: &str) -> Result<Real, String> {
     }
 }
 
-/// Per-kind figures of the report.
-#[derive(serde::Serialize, Default)]
-struct KindCount {
-    bodies: usize,
-    nodes: usize,
-    faces: usize,
-    /// m³.
-    volume: Real,
-    /// m³ (smallest, mean, largest body volume).
-    min_volume: Real,
-    mean_volume: Real,
-    max_volume: Real,
-}
-
 #[derive(serde::Serialize)]
 struct GenerateReport<'a> {
     output: &'a Path,
     wall_seconds: f64,
     threads: usize,
-    spec: &'a TissueSpec,
-    geometry: &'a TissueGeometry,
-    cells: usize,
-    nodes: usize,
-    faces: usize,
-    /// Kind name → counts and volumes.
-    kinds: std::collections::BTreeMap<&'static str, KindCount>,
-    /// Mean volume of the epithelial and static cells (m³) and l = its cube root (m), the paper's length scale.
-    mean_cell_volume: Real,
-    length_scale: Real,
-    /// Deepest node inside another body (m), 0 when none; with the two cell ids.
-    max_penetration: Real,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    penetration: Option<Penetration>,
-    /// One row per body: id, kind, nodes, faces, volume (m³), sphericity.
-    bodies: Vec<BodyRow>,
-}
-
-#[derive(serde::Serialize)]
-struct BodyRow {
-    id: u32,
-    kind: CellKind,
-    nodes: usize,
-    faces: usize,
-    volume: Real,
-    sphericity: Real,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    host: Option<u32>,
+    #[serde(flatten)]
+    summary: GenerationSummary,
 }
 
 fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
@@ -138,13 +97,7 @@ fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
         Some("vtp" | "vtk") => {}
         _ => bail!("--out {}: use a .vtp (ParaView) or .vtk (SimuCell3D legacy) file name", args.out.display()),
     }
-    let cells = args.cells.unwrap_or(match args.kind {
-        TissueKind::Sphere | TissueKind::Cube => 1,
-        TissueKind::Vesicle => 100,
-        TissueKind::Sheet => 37,
-        TissueKind::Tube => 60,
-        TissueKind::Spheroid => 30,
-    });
+    let cells = args.cells.unwrap_or(args.kind.default_cells());
     let spec = TissueSpec {
         kind: args.kind,
         cells,
@@ -160,71 +113,26 @@ fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
     let generated = generate_tissue(&spec).with_context(|| format!("generating a {}", args.kind))?;
     let tissue = &generated.tissue;
     write_tissue(&args.out, tissue, &[]).with_context(|| format!("writing {}", args.out.display()))?;
-    let mut kinds: std::collections::BTreeMap<&'static str, KindCount> = std::collections::BTreeMap::new();
-    let mut bodies = Vec::with_capacity(tissue.len());
-    for c in tissue.cells() {
-        let (volume, area) = (c.mesh().signed_volume(), c.mesh().area());
-        let k = kinds.entry(c.kind().name()).or_default();
-        if k.bodies == 0 {
-            (k.min_volume, k.max_volume) = (volume, volume);
-        }
-        k.bodies += 1;
-        k.nodes += c.mesh().node_count();
-        k.faces += c.mesh().face_count();
-        k.volume += volume;
-        k.min_volume = k.min_volume.min(volume);
-        k.max_volume = k.max_volume.max(volume);
-        bodies.push(BodyRow {
-            id: c.id().0,
-            kind: c.kind(),
-            nodes: c.mesh().node_count(),
-            faces: c.mesh().face_count(),
-            volume,
-            sphericity: sphericity(volume, area),
-            host: generated.hosts.iter().find(|(n, _)| *n == c.id()).map(|(_, h)| h.0),
-        });
-    }
-    for k in kinds.values_mut() {
-        k.mean_volume = k.volume / k.bodies as Real;
-    }
-    let cell_volumes: Vec<Real> =
-        tissue.cells().iter().filter(|c| c.kind().is_cell()).map(|c| c.mesh().signed_volume()).collect();
-    let mean_cell_volume = cell_volumes.iter().sum::<Real>() / cell_volumes.len().max(1) as Real;
     let report_path = args.report.clone().unwrap_or_else(|| {
         let stem = args.out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "tissue".into());
         args.out.with_file_name(format!("{stem}.report.json"))
     });
     let wall_seconds = started.elapsed().as_secs_f64();
     let threads = rayon::current_num_threads();
-    let max_penetration = generated.penetration.map_or(0.0, |p| p.depth);
-    let report = GenerateReport {
-        output: &args.out,
-        wall_seconds,
-        threads,
-        spec: &spec,
-        geometry: &generated.geometry,
-        cells: tissue.len(),
-        nodes: tissue.node_count(),
-        faces: tissue.face_count(),
-        kinds,
-        mean_cell_volume,
-        length_scale: mean_cell_volume.cbrt(),
-        max_penetration,
-        penetration: generated.penetration,
-        bodies,
-    };
+    let report = GenerateReport { output: &args.out, wall_seconds, threads, summary: generated.summary() };
+    let (mean_cell_volume, max_penetration) = (report.summary.mean_cell_volume, report.summary.max_penetration);
     write_atomically(&report_path, |w| {
         serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)?;
         std::io::Write::write_all(w, b"\n")
     })
     .with_context(|| format!("writing {}", report_path.display()))?;
-    let counts: Vec<String> = report.kinds.iter().map(|(name, k)| format!("{} {name}", k.bodies)).collect();
+    let counts: Vec<String> = report.summary.kinds.iter().map(|(name, k)| format!("{} {name}", k.bodies)).collect();
     println!(
         "wrote {} ({}: {}; {} nodes) and {}",
         args.out.display(),
         args.kind,
         counts.join(", "),
-        report.nodes,
+        report.summary.nodes,
         report_path.display()
     );
     println!(
@@ -232,7 +140,7 @@ fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
          {wall_seconds:.2} s ({threads} threads)",
         spec.l_min * 1e6,
         mean_cell_volume,
-        report.length_scale * 1e6,
+        report.summary.length_scale * 1e6,
         max_penetration * 1e6,
     );
     Ok(Outcome::Success)

@@ -119,6 +119,18 @@ impl TissueKind {
         }
     }
 
+    /// The cell count when none is given: 1 for sphere and cube, 100 for a vesicle, 37 for a sheet, 60
+    /// for a tube, 30 for a spheroid.
+    pub fn default_cells(self) -> usize {
+        match self {
+            TissueKind::Sphere | TissueKind::Cube => 1,
+            TissueKind::Vesicle => 100,
+            TissueKind::Sheet => 37,
+            TissueKind::Tube => 60,
+            TissueKind::Spheroid => 30,
+        }
+    }
+
     /// Whether the kind is a single cell (no `cells` count).
     pub fn is_single_cell(self) -> bool {
         matches!(self, TissueKind::Sphere | TissueKind::Cube)
@@ -240,8 +252,111 @@ pub struct GeneratedTissue {
     pub hosts: Vec<(CellId, CellId)>,
 }
 
+/// Per-kind figures of a [`GenerationSummary`].
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct KindCount {
+    pub bodies: usize,
+    pub nodes: usize,
+    pub faces: usize,
+    /// m³.
+    pub volume: Real,
+    /// m³ (smallest, mean, largest body volume).
+    pub min_volume: Real,
+    pub mean_volume: Real,
+    pub max_volume: Real,
+}
+
+/// One body of a [`GenerationSummary`].
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BodyRow {
+    pub id: u32,
+    pub kind: CellKind,
+    pub nodes: usize,
+    pub faces: usize,
+    /// m³.
+    pub volume: Real,
+    pub sphericity: Real,
+    /// The host cell of a nucleus.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub host: Option<u32>,
+}
+
+/// What a generated tissue holds: the report of `tissuefit generate mesh` (without its file names and
+/// timing) and of a pipeline's generated input (`mesh/report.json`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GenerationSummary {
+    pub spec: TissueSpec,
+    pub geometry: TissueGeometry,
+    pub cells: usize,
+    pub nodes: usize,
+    pub faces: usize,
+    /// Kind name → counts and volumes.
+    pub kinds: std::collections::BTreeMap<&'static str, KindCount>,
+    /// Mean volume of the epithelial and static cells (m³) and l = its cube root (m), the paper's length
+    /// scale.
+    pub mean_cell_volume: Real,
+    pub length_scale: Real,
+    /// Deepest node inside another body (m), 0 when none; with the two cell ids.
+    pub max_penetration: Real,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub penetration: Option<Penetration>,
+    /// One row per body.
+    pub bodies: Vec<BodyRow>,
+}
+
+impl GeneratedTissue {
+    /// Counts, volumes and the length scale of the generated tissue.
+    pub fn summary(&self) -> GenerationSummary {
+        let tissue = &self.tissue;
+        let mut kinds: std::collections::BTreeMap<&'static str, KindCount> = std::collections::BTreeMap::new();
+        let mut bodies = Vec::with_capacity(tissue.len());
+        for c in tissue.cells() {
+            let (volume, area) = (c.mesh().signed_volume(), c.mesh().area());
+            let k = kinds.entry(c.kind().name()).or_default();
+            if k.bodies == 0 {
+                (k.min_volume, k.max_volume) = (volume, volume);
+            }
+            k.bodies += 1;
+            k.nodes += c.mesh().node_count();
+            k.faces += c.mesh().face_count();
+            k.volume += volume;
+            k.min_volume = k.min_volume.min(volume);
+            k.max_volume = k.max_volume.max(volume);
+            bodies.push(BodyRow {
+                id: c.id().0,
+                kind: c.kind(),
+                nodes: c.mesh().node_count(),
+                faces: c.mesh().face_count(),
+                volume,
+                sphericity: crate::mesh::sphericity(volume, area),
+                host: self.hosts.iter().find(|(n, _)| *n == c.id()).map(|(_, h)| h.0),
+            });
+        }
+        for k in kinds.values_mut() {
+            k.mean_volume = k.volume / k.bodies as Real;
+        }
+        let cell_volumes: Vec<Real> =
+            tissue.cells().iter().filter(|c| c.kind().is_cell()).map(|c| c.mesh().signed_volume()).collect();
+        let mean_cell_volume = cell_volumes.iter().sum::<Real>() / cell_volumes.len().max(1) as Real;
+        GenerationSummary {
+            spec: self.spec.clone(),
+            geometry: self.geometry.clone(),
+            cells: tissue.len(),
+            nodes: tissue.node_count(),
+            faces: tissue.face_count(),
+            kinds,
+            mean_cell_volume,
+            length_scale: mean_cell_volume.cbrt(),
+            max_penetration: self.penetration.map_or(0.0, |p| p.depth),
+            penetration: self.penetration,
+            bodies,
+        }
+    }
+}
+
 impl TissueSpec {
-    fn check(&self) -> Result<(), GenerateError> {
+    /// Checks the specification before anything is generated (what `generate_tissue` checks first).
+    pub fn validate(&self) -> Result<(), GenerateError> {
         let bad = |m: String| Err(GenerateError::InvalidSpec(m));
         if !(self.l_min.is_finite() && self.l_min > 0.0) {
             return bad(format!("the minimum edge length {} m must be positive", self.l_min));
@@ -298,7 +413,7 @@ impl TissueSpec {
 
 /// Generates the tissue described by `spec`; see the module documentation.
 pub fn generate_tissue(spec: &TissueSpec) -> Result<GeneratedTissue, GenerateError> {
-    spec.check()?;
+    spec.validate()?;
     if spec.kind.is_single_cell() {
         return single_cell(spec);
     }

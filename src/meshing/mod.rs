@@ -58,8 +58,8 @@ mod retriangulate;
 mod surface_nets;
 
 pub use generate::{
-    ECM_GAP_PER_L_MIN, GenerateError, GeneratedTissue, Penetration, TissueGeometry, TissueKind, TissueSpec,
-    generate_tissue, max_penetration,
+    BodyRow, ECM_GAP_PER_L_MIN, GenerateError, GeneratedTissue, GenerationSummary, KindCount, Penetration,
+    TissueGeometry, TissueKind, TissueSpec, generate_tissue, max_penetration,
 };
 pub use labels::{
     BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, LabelMeshing, LabelMeshingError, LabelMeshingOptions,

@@ -9,7 +9,7 @@ use crate::geometry::Real;
 use crate::inference::{FitConfig, MeshingConfig, ObservedConfig};
 use crate::io::LengthScale;
 use crate::mechanics::Parameters;
-use crate::meshing::BorderPolicy;
+use crate::meshing::{BorderPolicy, TissueKind, TissueSpec};
 use crate::morphology::DEFAULT_EXTERIOR_FREE_FRACTION;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -42,7 +42,8 @@ pub struct PipelineConfig {
     pub demo: Option<DemoSection>,
 }
 
-/// `[input]`: a label volume (`labels`) or an already meshed tissue (`mesh`), exactly one of them.
+/// `[input]`: a label volume (`labels`), an already meshed tissue (`mesh`) or a synthetic tissue
+/// (`generate`), exactly one of them.
 #[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InputSection {
@@ -53,6 +54,10 @@ pub struct InputSection {
     /// `mesh/tissue.vtp` (SI units). Relative to the pipeline file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<PathBuf>,
+    /// A synthetic tissue made by the mesh stage (the options of `tissuefit generate mesh`), e.g.
+    /// `generate = { kind = "vesicle", cells = 24, min_edge_length = 1.6e-6, aspect = 0.9, ecm_room = 2.0 }`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub generate: Option<GenerateInput>,
     /// Length unit of the `mesh` file's coordinates (as `--length-unit`: m, mm, um, nm, metres per
     /// unit). Default "m". Only with `mesh`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -65,6 +70,84 @@ pub struct InputSection {
     /// (`fit.optimizer.seed`) unless those sections set their own. Default 0.
     #[serde(default)]
     pub seed: u64,
+}
+
+/// `input.generate`: the options of `tissuefit generate mesh`, with its defaults; lengths in metres.
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GenerateInput {
+    /// sphere, cube, vesicle, sheet, tube or spheroid.
+    pub kind: String,
+    /// Number of cells. Default: 1 for sphere and cube, 100 for a vesicle, 37 for a sheet, 60 for a tube,
+    /// 30 for a spheroid (the paper's Fig. 3a vesicle has 432).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cells: Option<usize>,
+    /// Cube root of the mean cell volume, l (m). Default 8e-6.
+    #[serde(default = "default_cell_size")]
+    pub cell_size: Real,
+    /// Minimum edge length l_min of every surface (m). Default: cell_size / 8.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_edge_length: Option<Real>,
+    /// Height / width of the columnar cells of a vesicle, sheet or tube. Default 1.5.
+    #[serde(default = "default_aspect")]
+    pub aspect: Real,
+    /// Seed of the cell centres and of the surface sampling. Default: `input.seed`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// A nucleus (kind nucleus) inside every epithelial cell. Default false.
+    #[serde(default)]
+    pub nuclei: bool,
+    /// Nucleus radius as a fraction of its cell's equivalent-sphere radius. Default 0.5; only with
+    /// `nuclei = true`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nucleus_radius: Option<Real>,
+    /// Sheet only: the outer ring of cells is static. Default false.
+    #[serde(default)]
+    pub static_border: bool,
+    /// Tube only: fill the tube with a lumen. Default false.
+    #[serde(default)]
+    pub lumen: bool,
+    /// Vesicle only: room inside the ECM as a multiple of the cells' volume (2: room to double, as in
+    /// the paper's Application 1). Default 1.
+    #[serde(default = "default_ecm_room")]
+    pub ecm_room: Real,
+}
+
+fn default_cell_size() -> Real {
+    8e-6
+}
+
+fn default_aspect() -> Real {
+    1.5
+}
+
+fn default_ecm_room() -> Real {
+    1.0
+}
+
+impl GenerateInput {
+    /// The generator's specification (`seed` when the table gives none), checked like `generate mesh`
+    /// checks its options; the message names the key.
+    pub fn spec(&self, seed: u64) -> Result<TissueSpec, String> {
+        let kind: TissueKind = self.kind.parse().map_err(|e| format!("input.generate.kind: {e}"))?;
+        if self.nucleus_radius.is_some() && !self.nuclei {
+            return Err("input.generate.nucleus_radius: applies with `nuclei = true`".into());
+        }
+        let spec = TissueSpec {
+            kind,
+            cells: self.cells.unwrap_or(kind.default_cells()),
+            cell_size: self.cell_size,
+            l_min: self.min_edge_length.unwrap_or(self.cell_size / 8.0),
+            aspect: self.aspect,
+            seed: self.seed.unwrap_or(seed),
+            nucleus_radius: self.nuclei.then_some(self.nucleus_radius.unwrap_or(0.5)),
+            static_border: self.static_border,
+            lumen: self.lumen,
+            ecm_room: self.ecm_room,
+        };
+        spec.validate().map_err(|e| format!("input.generate: {e}"))?;
+        Ok(spec)
+    }
 }
 
 /// `[measure]`.
@@ -150,7 +233,7 @@ impl PipelineConfig {
             f.model.as_mut().map(fix);
         }
         let origin = path.display();
-        let mut files = vec![config.input.source()];
+        let mut files: Vec<(&str, &Path)> = config.input.source().into_iter().collect();
         if let Some(p) = config.simulate.as_ref().and_then(|s| s.model.as_ref()) {
             files.push(("simulate.model", p.as_path()));
         }
@@ -218,6 +301,11 @@ impl PipelineConfig {
                 );
             }
             fit.check_settings().map_err(|e| format!("fit.{e}"))?;
+            if self.input.generate.is_some() {
+                return Err("fit: a generated input has no observed data to fit; run the pipeline once and fit its \
+                            mesh/tissue.vtp as `input.mesh`"
+                    .into());
+            }
             if fit.objective.shape > 0.0 && self.input.mesh.is_some() {
                 return Err("fit.objective.shape: the shape term compares voxels and needs `input.labels`".into());
             }
@@ -261,14 +349,19 @@ impl SimulateSection {
 }
 
 impl InputSection {
-    /// The input file and its key: `("input.labels", labels)` or `("input.mesh", mesh)`.
-    pub fn source(&self) -> (&'static str, &Path) {
+    /// The input file and its key: `("input.labels", labels)` or `("input.mesh", mesh)`; `None` for a
+    /// generated input.
+    pub fn source(&self) -> Option<(&'static str, &Path)> {
         match (&self.labels, &self.mesh) {
-            (Some(l), _) => ("input.labels", l),
-            (None, Some(m)) => ("input.mesh", m),
-            // `check` rejects a section without either; an empty path fails every later use.
-            (None, None) => ("input.labels", Path::new("")),
+            (Some(l), _) => Some(("input.labels", l)),
+            (None, Some(m)) => Some(("input.mesh", m)),
+            (None, None) => None,
         }
+    }
+
+    /// The generator's specification of a `generate` input (checked), `None` for a file input.
+    pub fn generate_spec(&self) -> Result<Option<TissueSpec>, String> {
+        self.generate.as_ref().map(|g| g.spec(self.seed)).transpose()
     }
 
     /// The length scale of a `mesh` input (metres when `length_unit` is absent).
@@ -278,11 +371,26 @@ impl InputSection {
 
     /// Exactly one input, with only the options that apply to it; the message names the key.
     fn check(&self) -> Result<(), String> {
-        match (&self.labels, &self.mesh) {
-            (Some(_), Some(_)) => {
-                return Err("input: give `labels` (a label TIFF) or `mesh` (a .vtp/.vtk tissue), not both".into());
+        const ONE_OF: &str = "`labels` (a label TIFF), `mesh` (a .vtp/.vtk tissue) or `generate` (a synthetic tissue, \
+                              the options of `tissuefit generate mesh`)";
+        let given = [self.labels.is_some(), self.mesh.is_some(), self.generate.is_some()];
+        match given.iter().filter(|g| **g).count() {
+            0 => return Err(format!("input: give {ONE_OF}")),
+            1 => {}
+            _ => return Err(format!("input: give one of {ONE_OF}, not several")),
+        }
+        if self.generate.is_some() {
+            if self.length_unit.is_some() || self.voxel_size.is_some() {
+                return Err(
+                    "input: `length_unit` and `voxel_size` apply to file inputs; `generate` is in metres".into()
+                );
             }
-            (None, None) => return Err("input: give `labels` (a label TIFF) or `mesh` (a .vtp/.vtk tissue)".into()),
+            self.generate_spec()?;
+            return Ok(());
+        }
+        match (&self.labels, &self.mesh) {
+            // Exactly one input, checked above.
+            (Some(_), Some(_)) | (None, None) => {}
             (Some(_), None) => {
                 if self.length_unit.is_some() {
                     return Err("input.length_unit: applies to a `mesh` input; a label TIFF has a voxel size".into());

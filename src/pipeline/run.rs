@@ -75,9 +75,15 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
     write_bytes_atomically(&resolved_path, resolved.as_bytes())
         .map_err(|e| PipelineError::Io { path: resolved_path.clone(), message: e.to_string() })?;
 
-    let (_, input_path) = config.input.source();
-    let input_hash = hash_file(input_path)?;
-    let mut inputs = vec![FileHash { path: input_path.to_path_buf(), blake3: input_hash.clone() }];
+    // A generated input has no file: its key is the generator's specification (in the mesh key).
+    let (input_hash, mut inputs) = match config.input.source() {
+        Some((_, input_path)) => {
+            let h = hash_file(input_path)?;
+            (h.clone(), vec![FileHash { path: input_path.to_path_buf(), blake3: h }])
+        }
+        None => (String::new(), Vec::new()),
+    };
+    let generate = config.input.generate_spec().map_err(PipelineError::Config)?;
     let simulate_model = config.simulate.as_ref().and_then(|s| s.model.clone());
     let fit_model = config.fit.as_ref().and_then(|f| f.model.clone());
     let mut model_hash = |p: &Option<PathBuf>| -> Result<String, PipelineError> {
@@ -116,6 +122,7 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
         voxel_size: config.input.voxel_size,
         mesh_input: config.input.mesh.is_some(),
         length_unit: config.input.length_unit.as_deref(),
+        generate: generate.as_ref(),
         mesh: &config.mesh,
     })?;
     let mesh_key = stage_key("mesh", &mesh_section, &[&input_hash]);
@@ -193,6 +200,9 @@ struct MeshKey<'a> {
     mesh_input: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     length_unit: Option<&'a str>,
+    /// The generator's specification of a generated input (defaults and seed filled in).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    generate: Option<&'a crate::meshing::TissueSpec>,
     mesh: &'a crate::inference::MeshingConfig,
 }
 
