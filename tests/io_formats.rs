@@ -174,3 +174,22 @@ fn other_garbage_is_an_error() {
     let e = read_tissue(&dir.path().join("nope.vtk"), &ReadOptions::default()).unwrap_err().to_string();
     assert!(e.contains("nope.vtk") && e.contains("cannot open"), "{e}");
 }
+
+#[test]
+fn target_volumes_in_other_units_than_the_coordinates_are_warned_about() {
+    // Coordinates in µm (read with --length-unit um) but target volumes in m³: the cells would be driven
+    // towards 1e-18 of their size. The reader names each cell; consistent files get no such warning.
+    let dir = tempfile::tempdir().unwrap();
+    let um = ReadOptions { length_scale: "um".parse().unwrap(), orient: false };
+    let with_targets = |a: &str, b: &str| {
+        simucell3d_text().replace("FIELD FieldData 2", "FIELD FieldData 3")
+            + &format!("cell_target_volume 1 2 double\n{a} {b}\n")
+    };
+    let warned = |r: &tissuefit::io::ReadReport| r.warnings.iter().filter(|w| w.contains("target volume")).count();
+    let p = write(&dir, "mixed.vtk", &with_targets("1e-18", "1.6667e-19"));
+    let r = read_tissue(&p, &um).unwrap();
+    assert_eq!(warned(&r), 2, "{:?}", r.warnings);
+    assert!(r.warnings.iter().any(|w| w.starts_with("cell 7:") && w.contains("--length-unit")), "{:?}", r.warnings);
+    let p = write(&dir, "consistent.vtk", &with_targets("1.1", "0.15"));
+    assert_eq!(warned(&read_tissue(&p, &um).unwrap()), 0);
+}

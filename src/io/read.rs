@@ -69,6 +69,18 @@ pub fn read_tissue(path: &Path, options: &ReadOptions) -> Result<ReadReport, IoE
     if !options.length_scale.is_identity() {
         tissue.scale(options.length_scale.0);
     }
+    for cell in tissue.cells() {
+        let (target, volume) = (cell.target_volume(), cell.mesh().signed_volume());
+        let ratio = target / volume;
+        if volume > 0.0 && ratio.is_finite() && !(1e-3..=1e3).contains(&ratio.abs()) {
+            warnings.push(format!(
+                "cell {}: its stored target volume {target:.3e} m³ is {ratio:.1e} × its mesh volume {volume:.3e} m³, so a \
+                 simulation will drive it there; were the target volumes written in other units than the coordinates \
+                 (see --length-unit)?",
+                cell.id()
+            ));
+        }
+    }
     let all: Vec<_> = tissue.cells().iter().flat_map(|c| c.mesh().positions().iter().copied()).collect();
     if let Some((lo, hi)) = bounding_box(&all) {
         let extent = (hi - lo).max();
