@@ -13,11 +13,13 @@ use tissuefit::imaging::{
     LabelPattern, LabelSpec, LabelWriteOptions, VoxelGrid, generate_labels, voxelize, write_label_tiff,
 };
 use tissuefit::inference::{FitConfig, FitOptions, FitResult, read_trace, run_fit};
-use tissuefit::mechanics::{
-    ContactModel, Dynamics, Observer, Parameters, Polarity, RelaxMethod, Sample, Simulation, SimulationMode,
-};
-use tissuefit::mesh::{FaceType, Tissue};
+use tissuefit::mechanics::{ContactModel, Observer, Parameters, Sample, Simulation};
+use tissuefit::mesh::Tissue;
 use tissuefit::meshing::{LabelMeshingOptions, mesh_labels};
+
+#[path = "support/round_trip.rs"]
+mod round_trip;
+use round_trip::round_trip_model;
 
 struct Quiet;
 impl Observer for Quiet {
@@ -32,40 +34,9 @@ const TARGET_NODES: usize = 200;
 const STEPS: u64 = 1000;
 const TRUTH_STEPS: u64 = 4000;
 
-/// The model of the round trip: no bending, no area elasticity, no pressure cap, no growth (so the
-/// equilibrium shape is set by tensions, adhesion and K alone), polarity from contacts, FIRE.
+/// The round trip's model (see [`round_trip_model`]) with this file's spring step and step count.
 fn model(contact: ContactModel, l_min: Real, gamma: Real, gamma_lateral: Real, adhesion: Real) -> Parameters {
-    let mut p = Parameters::default();
-    p.numerics.contact_model = contact;
-    p.numerics.polarity = Polarity::Contacts;
-    p.numerics.dynamics = Dynamics::Overdamped;
-    p.numerics.damping = 3e-9;
-    p.numerics.min_edge_length = l_min;
-    p.numerics.contact_cutoff = l_min;
-    let t = &mut p.cell_types[0];
-    for ft in FaceType::ALL {
-        let f = t.faces.get_mut(ft);
-        f.surface_tension = gamma;
-        f.bending_modulus = 0.0;
-        f.adhesion = adhesion;
-        if contact == ContactModel::Spring {
-            f.repulsion = 1e11;
-        }
-    }
-    if contact == ContactModel::Spring {
-        // Stiff repulsion: the stability check asks for a shorter step than the default 1e-7 s.
-        p.numerics.time_step = 4e-8;
-    }
-    t.faces.lateral.surface_tension = gamma_lateral;
-    t.area_elasticity = 0.0;
-    t.max_pressure = Real::INFINITY;
-    t.growth_rate = 0.0;
-    p.simulation.mode = SimulationMode::Equilibrium;
-    p.simulation.method = RelaxMethod::Fire;
-    p.simulation.remesh_every_steps = 50;
-    p.simulation.max_steps = STEPS;
-    p.simulation.sample_every_steps = i64::MAX as u64;
-    p
+    round_trip_model(contact, l_min, gamma, gamma_lateral, adhesion, 4e-8, STEPS)
 }
 
 /// A meshed doublet (two half-overlapping spheres, 12 voxels across each) and its l_min.
