@@ -199,8 +199,32 @@ fn polarize_command_writes_the_face_types_it_reports() {
     }
     // The four touching demo cells have interfaces, and faces towards the medium.
     assert!(count(&written, FaceType::Lateral) > 0 && count(&written, FaceType::Basal) > 0, "{report}");
+    // Where the cells meet, two small enclosed pockets open between them: gaps, not lumens, so no
+    // face is apical; counted as lumens (threshold 0) they make the faces around them apical.
+    assert_eq!((report["gap_clusters"].as_u64(), report["lumen_clusters"].as_u64()), (Some(2), Some(0)), "{report}");
+    assert_eq!(count(&written, FaceType::Apical), 0, "{report}");
+    let o = tissuefit(&[
+        "polarize",
+        demo().to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+        "--min-lumen-fraction",
+        "0",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let pockets: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(pockets["lumen_clusters"].as_u64(), Some(2), "{pockets}");
+    assert!(count(&tissuefit::io::read_vtp(&out).unwrap(), FaceType::Apical) > 0, "{pockets}");
+    let o =
+        tissuefit(&["polarize", demo().to_str().unwrap(), "--out", out.to_str().unwrap(), "--min-lumen-fraction=-1"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--min-lumen-fraction"));
     let mut tissue = read_tissue(&demo(), &ReadOptions::default()).unwrap().tissue;
     let h = report["voxel_size"].as_f64().unwrap();
+    let out = dir.path().join("polarised.vtp");
+    let o = tissuefit(&["polarize", demo().to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0));
     polarize_by_ray_casting(&mut tissue, &RayCastSettings::new(h)).unwrap();
     for (a, b) in tissue.cells().iter().zip(written.cells()) {
         assert_eq!(a.face_types(), b.face_types(), "cell {}", a.id());

@@ -29,6 +29,11 @@ pub struct PolarizeArgs {
     /// shortest edge.
     #[arg(long, value_name = "METRES")]
     pub voxel_size: Option<f64>,
+    /// Ray casting: an enclosed cavity that is no body is a lumen when it holds at least this
+    /// fraction of the mean cell volume, else a gap between cells that rays pass through. Default:
+    /// numerics.polarity_min_lumen_fraction of --config, else 0.25.
+    #[arg(long, value_name = "FRACTION")]
+    pub min_lumen_fraction: Option<f64>,
     /// Parameter file: l_min and the voxel size (ray casting); contact cutoff and cell types
     /// (contacts; without it the cutoff is the estimated l_min).
     #[arg(long, value_name = "TOML")]
@@ -98,7 +103,16 @@ pub fn run(args: &PolarizeArgs) -> anyhow::Result<Outcome> {
             if !(voxel_size.is_finite() && voxel_size > 0.0) {
                 anyhow::bail!("--voxel-size {voxel_size}: give a voxel edge in metres > 0");
             }
-            let r = polarize_by_ray_casting(&mut tissue, &RayCastSettings::new(voxel_size))
+            let min_lumen_fraction = match (args.min_lumen_fraction, &params) {
+                (Some(f), _) => f,
+                (None, Some(p)) => p.numerics.polarity_min_lumen_fraction,
+                _ => RayCastSettings::DEFAULT_MIN_LUMEN_FRACTION,
+            };
+            if !(min_lumen_fraction.is_finite() && min_lumen_fraction >= 0.0) {
+                anyhow::bail!("--min-lumen-fraction {min_lumen_fraction}: give a fraction of a cell volume ≥ 0");
+            }
+            let settings = RayCastSettings { min_lumen_fraction, ..RayCastSettings::new(voxel_size) };
+            let r = polarize_by_ray_casting(&mut tissue, &settings)
                 .with_context(|| format!("polarising {}", args.input.display()))?;
             if !r.cells_without_cytoplasm.is_empty() {
                 tracing::warn!(
@@ -108,7 +122,7 @@ pub fn run(args: &PolarizeArgs) -> anyhow::Result<Outcome> {
                 );
             }
             let text = format!(
-                "by ray casting, voxel {:.3e} m ({}×{}×{}; clusters: {} cytoplasm, {} lumen, {} exterior, {} ECM)",
+                "by ray casting, voxel {:.3e} m ({}×{}×{}; clusters: {} cytoplasm, {} lumen, {} exterior, {} ECM, {} gap)",
                 r.voxel_size,
                 r.dims[0],
                 r.dims[1],
@@ -116,7 +130,8 @@ pub fn run(args: &PolarizeArgs) -> anyhow::Result<Outcome> {
                 r.cytoplasm_clusters,
                 r.lumen_clusters,
                 r.exterior_clusters,
-                r.ecm_clusters
+                r.ecm_clusters,
+                r.gap_clusters
             );
             if let serde_json::Value::Object(fields) = serde_json::to_value(&r)? {
                 report.extend(fields);

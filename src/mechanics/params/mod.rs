@@ -159,6 +159,10 @@ pub struct Numerics {
     /// Steps between two ray-casting polarisations (also at the start and after every division);
     /// at least 1. Default 100.
     pub polarity_interval: u64,
+    /// An enclosed cavity that is no body counts as lumen in ray casting when it holds at least this
+    /// fraction of the mean cell volume; smaller ones (gaps where cells meet) are passed through by
+    /// the rays. Default 0.25.
+    pub polarity_min_lumen_fraction: Real,
     /// Seed of every random draw (growth rates, division volumes and planes). Default 1.
     pub seed: u64,
 }
@@ -182,6 +186,7 @@ impl Numerics {
             polarity: Polarity::None,
             polarity_voxel_size: 0.0,
             polarity_interval: 100,
+            polarity_min_lumen_fraction: 0.25,
             seed: 1,
         }
     }

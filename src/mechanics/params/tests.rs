@@ -285,6 +285,7 @@ fn ray_casting_polarity_reads_with_its_keys_and_rejects_bad_values() {
     // Files without the keys (older configs, checkpoints' resolved configs) get the defaults.
     let params = load("[numerics]\npolarity = \"contacts\"\n").expect("loads");
     assert_eq!((params.numerics.polarity_voxel_size, params.numerics.polarity_interval), (0.0, 100));
+    assert_eq!(params.numerics.polarity_min_lumen_fraction, 0.25);
     let message = rejection("[numerics]\npolarity = \"rays\"\n");
     assert!(
         message.contains(
@@ -298,6 +299,8 @@ fn ray_casting_polarity_reads_with_its_keys_and_rejects_bad_values() {
     assert!(message.contains("numerics.polarity_voxel_size = -1e-6 m: must be ≥ 0 m"), "{message}");
     let message = rejection("[numerics]\npolarity_interval = -3\n");
     assert!(message.contains("numerics.polarity_interval"), "{message}");
+    let message = rejection("[numerics]\npolarity_min_lumen_fraction = -0.5\n");
+    assert!(message.contains("numerics.polarity_min_lumen_fraction = -0.5: must be ≥ 0"), "{message}");
     let message = rejection("[numerics]\npolarity_voxelsize = 1e-6\n");
     assert!(message.contains("did you mean `polarity_voxel_size`?"), "{message}");
 }

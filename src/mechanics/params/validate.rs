@@ -30,6 +30,12 @@ impl Parameters {
             numerics_defaults.polarity_voxel_size,
             Bound::NonNegative,
         );
+        report.number(
+            "numerics.polarity_min_lumen_fraction",
+            numerics.polarity_min_lumen_fraction,
+            numerics_defaults.polarity_min_lumen_fraction,
+            Bound::NonNegative,
+        );
         if numerics.polarity_interval == 0 {
             report.errors.push(
                 "numerics.polarity_interval = 0: must be at least 1 (steps between two ray-casting polarisations)"

@@ -106,6 +106,12 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         text: "Steps between two ray-casting polarisations (also at the start and after every division); at least 1.",
     },
     FieldDoc {
+        path: "numerics.polarity_min_lumen_fraction",
+        unit: "",
+        text: "Ray casting: an enclosed cavity that is no body is a lumen (its faces apical) when it holds at least this \
+               fraction of the mean cell volume; smaller cavities (gaps where cells meet) are passed through by the rays.",
+    },
+    FieldDoc {
         path: "numerics.seed",
         unit: "",
         text: "Seed of every random draw (growth rates, division volumes and planes).",

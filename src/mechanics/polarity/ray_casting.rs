@@ -17,7 +17,9 @@
 //!    faces lateral); inside a nucleus that no cell holds → passed through by rays; inside a lumen
 //!    body → *lumen*; touching an ECM surface (the interior of an ECM slab, or the gap between the
 //!    tissue and an enclosing ECM) → *ECM*; any other enclosed cluster (a cavity not meshed as a
-//!    body) → *lumen*.
+//!    body) → *lumen* when its volume is at least [`RayCastSettings::min_lumen_fraction`] of the mean
+//!    cell volume, else a *gap* (a pocket where three or more cells meet, or a contact opened a
+//!    little wider than the voxel), which rays pass through like a nucleus.
 //! 4. **Cast.** From the centre of every face of every epithelial and static cell a ray runs along
 //!    the face's outward unit normal through the voxels (Amanatides–Woo, [`VoxelWalk`]). The first
 //!    voxel that is neither boundary nor the cell's own cytoplasm (a fold of the same cell) types
@@ -75,6 +77,9 @@ pub struct RayCastSettings {
     pub voxel_size: Real,
     /// Largest number of voxels; a grid that would be larger is coarsened to fit (with a warning).
     pub max_voxels: usize,
+    /// An enclosed cavity that is no body is a lumen when its free voxels hold at least this fraction
+    /// of the mean volume of the epithelial and static cells; smaller ones are gaps between cells.
+    pub min_lumen_fraction: Real,
 }
 
 impl RayCastSettings {
@@ -82,20 +87,24 @@ impl RayCastSettings {
     pub const DEFAULT_MAX_VOXELS: usize = 1 << 24;
     /// Default voxel edge in units of l_min (see the module documentation).
     pub const DEFAULT_VOXELS_PER_MIN_EDGE: Real = 1.5;
+    /// Default [`Self::min_lumen_fraction`]: a quarter of a cell. The pockets between touching
+    /// cells hold a few voxels; a lumen that is not meshed as a body is usually cell-sized or larger.
+    pub const DEFAULT_MIN_LUMEN_FRACTION: Real = 0.25;
 
-    /// Voxel edge `voxel_size` [m] with the default cap.
+    /// Voxel edge `voxel_size` [m] with the default cap and lumen threshold.
     pub fn new(voxel_size: Real) -> Self {
-        Self { voxel_size, max_voxels: Self::DEFAULT_MAX_VOXELS }
+        Self { voxel_size, max_voxels: Self::DEFAULT_MAX_VOXELS, min_lumen_fraction: Self::DEFAULT_MIN_LUMEN_FRACTION }
     }
 
-    /// The settings of a simulation: `numerics.polarity_voxel_size`, or 1.5·l_min when it is 0.
+    /// The settings of a simulation: `numerics.polarity_voxel_size`, or 1.5·l_min when it is 0, and
+    /// `numerics.polarity_min_lumen_fraction`.
     pub fn from_numerics(numerics: &super::super::Numerics) -> Self {
         let h = if numerics.polarity_voxel_size > 0.0 {
             numerics.polarity_voxel_size
         } else {
             Self::DEFAULT_VOXELS_PER_MIN_EDGE * numerics.min_edge_length
         };
-        Self::new(h)
+        Self { min_lumen_fraction: numerics.polarity_min_lumen_fraction, ..Self::new(h) }
     }
 }
 
@@ -105,8 +114,11 @@ impl RayCastSettings {
 pub enum Region {
     /// Inside the epithelial or static cell of this tissue index (its nucleus included).
     Cytoplasm(u32),
-    /// A lumen body, or an enclosed cavity that is no body.
+    /// A lumen body, or an enclosed cavity that is no body and holds at least
+    /// [`RayCastSettings::min_lumen_fraction`] of the mean cell volume.
     Lumen,
+    /// A smaller enclosed cavity that is no body: a gap between cells; rays pass through it.
+    Gap,
     /// Connected to the border of the grid: the medium around the tissue.
     Exterior,
     /// The ECM: touching an ECM surface.
@@ -132,6 +144,8 @@ pub struct RayCastReport {
     pub exterior_clusters: usize,
     pub ecm_clusters: usize,
     pub nucleus_clusters: usize,
+    /// Enclosed cavities too small to be a lumen (gaps between cells), passed through by rays.
+    pub gap_clusters: usize,
     /// Faces of the polarised cells by type after polarisation, in [`FaceType::ALL`] order
     /// (apical, lateral, basal).
     pub faces: [usize; 3],
@@ -153,6 +167,8 @@ pub enum RayCastError {
     NonFinite { cell: CellId },
     #[error("polarity voxel size {0} m: must be a finite number > 0")]
     VoxelSize(Real),
+    #[error("polarity minimum lumen fraction {0}: must be a finite number ≥ 0")]
+    MinLumenFraction(Real),
 }
 
 /// The voxel grid: origin (corner of voxel 0) [m], edge [m], size.
@@ -190,6 +206,8 @@ struct Cluster {
     first: usize,
     touches_border: bool,
     touches_ecm: bool,
+    /// Its number of voxels.
+    voxels: usize,
 }
 
 /// Re-types the faces of every epithelial and static cell by ray casting (see the module
@@ -197,6 +215,9 @@ struct Cluster {
 pub fn polarize_by_ray_casting(tissue: &mut Tissue, settings: &RayCastSettings) -> Result<RayCastReport, RayCastError> {
     if !(settings.voxel_size.is_finite() && settings.voxel_size > 0.0) {
         return Err(RayCastError::VoxelSize(settings.voxel_size));
+    }
+    if !(settings.min_lumen_fraction.is_finite() && settings.min_lumen_fraction >= 0.0) {
+        return Err(RayCastError::MinLumenFraction(settings.min_lumen_fraction));
     }
     let cells = tissue.cells();
     let mut bounds: Option<(Vec3, Vec3)> = None;
@@ -232,7 +253,12 @@ pub fn polarize_by_ray_casting(tissue: &mut Tissue, settings: &RayCastSettings) 
     let boundary_voxels = flags.iter().filter(|&&f| f != 0).count();
     let (labels, clusters) = label_clusters(&flags, grid.dims);
     drop(flags);
-    let regions: Vec<Region> = clusters.par_iter().map(|cluster| classify(tissue, &boxes, &grid, cluster)).collect();
+    let cell_volumes: Vec<Real> =
+        cells.iter().filter(|c| c.kind().is_cell()).map(|c| c.mesh().signed_volume().abs()).collect();
+    let mean_cell_volume = cell_volumes.iter().sum::<Real>() / cell_volumes.len().max(1) as Real;
+    let min_lumen_voxels = settings.min_lumen_fraction * mean_cell_volume / grid.h.powi(3);
+    let regions: Vec<Region> =
+        clusters.par_iter().map(|cluster| classify(tissue, &boxes, &grid, cluster, min_lumen_voxels)).collect();
 
     let mut report =
         RayCastReport { voxel_size: grid.h, coarsened, dims: grid.dims, boundary_voxels, ..RayCastReport::default() };
@@ -247,6 +273,7 @@ pub fn polarize_by_ray_casting(tissue: &mut Tissue, settings: &RayCastSettings) 
             Region::Exterior => report.exterior_clusters += 1,
             Region::Ecm => report.ecm_clusters += 1,
             Region::Nucleus => report.nucleus_clusters += 1,
+            Region::Gap => report.gap_clusters += 1,
         }
     }
     report.cells_without_cytoplasm = cells
@@ -402,11 +429,12 @@ fn label_clusters(flags: &[u8], dims: [usize; 3]) -> (Vec<u32>, Vec<Cluster>) {
                 let root = find(&mut parent, labels[v]) as usize;
                 if cluster_of[root] == BOUNDARY {
                     cluster_of[root] = clusters.len() as u32;
-                    clusters.push(Cluster { first: v, touches_border: false, touches_ecm: false });
+                    clusters.push(Cluster { first: v, touches_border: false, touches_ecm: false, voxels: 0 });
                 }
                 let c = cluster_of[root];
                 labels[v] = c;
                 let cluster = &mut clusters[c as usize];
+                cluster.voxels += 1;
                 if i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1 {
                     cluster.touches_border = true;
                 } else if !cluster.touches_ecm {
@@ -438,7 +466,13 @@ fn union(parent: &mut [u32], a: u32, b: u32) -> u32 {
 }
 
 /// The region of a cluster (see the module documentation).
-fn classify(tissue: &Tissue, boxes: &[Option<(Vec3, Vec3)>], grid: &Grid, cluster: &Cluster) -> Region {
+fn classify(
+    tissue: &Tissue,
+    boxes: &[Option<(Vec3, Vec3)>],
+    grid: &Grid,
+    cluster: &Cluster,
+    min_lumen_voxels: Real,
+) -> Region {
     if cluster.touches_border {
         return Region::Exterior;
     }
@@ -457,8 +491,10 @@ fn classify(tissue: &Tissue, boxes: &[Option<(Vec3, Vec3)>], grid: &Grid, cluste
         Region::Lumen
     } else if cluster.touches_ecm {
         Region::Ecm
-    } else {
+    } else if cluster.voxels as Real >= min_lumen_voxels {
         Region::Lumen
+    } else {
+        Region::Gap
     }
 }
 
@@ -525,7 +561,7 @@ fn cast_cell(
             }
             let region = match regions[label as usize] {
                 Region::Cytoplasm(other) if other == own => None,
-                Region::Nucleus => None,
+                Region::Nucleus | Region::Gap => None,
                 Region::Cytoplasm(_) => Some(FaceType::Lateral),
                 Region::Lumen => Some(FaceType::Apical),
                 Region::Exterior | Region::Ecm => Some(FaceType::Basal),
@@ -678,6 +714,27 @@ mod tests {
     }
 
     #[test]
+    fn a_cavity_below_the_lumen_fraction_is_a_gap_that_rays_cross_to_the_opposite_cell() {
+        // The cavity holds ≈ 0.88 of a cube's volume in free voxels: below a threshold of 1.5 cells it
+        // is a gap, and the faces around it see the cube across it.
+        let (lattice, cells): (Vec<Vec3>, Vec<Cell>) = shell().into_iter().unzip();
+        let mut tissue = Tissue::from_cells(cells).unwrap();
+        let settings = RayCastSettings { min_lumen_fraction: 1.5, ..RayCastSettings::new(0.05) };
+        let report = polarize_by_ray_casting(&mut tissue, &settings).unwrap();
+        assert_eq!((report.lumen_clusters, report.gap_clusters), (0, 1));
+        assert_eq!(report.faces[0], 0, "no apical face");
+        for (cell, g) in tissue.cells().iter().zip(&lattice) {
+            for (t, n) in cell.face_types().iter().zip(cell.mesh().face_normals()) {
+                let n = n.normalize().map(|x| x.round());
+                let want = if (g + n).norm() < 1e-9 { FaceType::Lateral } else { expected(*g, n) };
+                assert_eq!(*t, want, "cell {} normal {n:?}", cell.id());
+            }
+        }
+        let settings = RayCastSettings { min_lumen_fraction: Real::NAN, ..RayCastSettings::new(0.05) };
+        assert!(matches!(polarize_by_ray_casting(&mut tissue, &settings), Err(RayCastError::MinLumenFraction(_))));
+    }
+
+    #[test]
     fn a_lumen_body_and_nuclei_do_not_change_the_shell_polarity() {
         let (lattice, mut cells): (Vec<Vec3>, Vec<Cell>) = shell().into_iter().unzip();
         cells.push(cell(100, CellKind::Lumen, icosphere(0.4, 2, Vec3::zeros())));
@@ -716,12 +773,12 @@ mod tests {
     fn a_too_fine_grid_is_coarsened_to_the_cap_and_says_so() {
         let mut tissue =
             Tissue::from_cells(vec![cell(1, CellKind::Epithelial, icosphere(1.0, 2, Vec3::zeros()))]).unwrap();
-        let settings = RayCastSettings { voxel_size: 1e-4, max_voxels: 50_000 };
+        let settings = RayCastSettings { max_voxels: 50_000, ..RayCastSettings::new(1e-4) };
         let report = polarize_by_ray_casting(&mut tissue, &settings).unwrap();
         assert!(report.coarsened && report.voxel_size > 1e-4);
         assert!(report.dims.iter().product::<usize>() <= 50_000, "{:?}", report.dims);
         // A cap below what the padding needs is raised to it instead of looping forever.
-        let settings = RayCastSettings { voxel_size: 1e-4, max_voxels: 10 };
+        let settings = RayCastSettings { max_voxels: 10, ..RayCastSettings::new(1e-4) };
         let report = polarize_by_ray_casting(&mut tissue, &settings).unwrap();
         assert_eq!(report.dims, [5, 5, 5]);
         assert_eq!(report.faces[2], tissue.cells()[0].face_types().len(), "a lone cell is basal all over");
