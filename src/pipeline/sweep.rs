@@ -13,7 +13,9 @@
 //! or, instead of `[grid]`, an explicit list `[[runs]]` of tables of dotted keys. A grid runs the
 //! Cartesian product: the keys sorted by name, the first varying slowest and the last fastest, each
 //! key's values in the order written; run `i` is always the same variant. A dotted key may index a list
-//! (`cell_types[0]`); `model_overrides.cell_types` that the overrides do not hold yet starts as the
+//! (`cell_types[0]`), and brace groups set several keys to the same value
+//! (`cell_types[0].faces.{apical,lateral,basal}.surface_tension`: one axis, three keys);
+//! `model_overrides.cell_types` that the overrides do not hold yet starts as the
 //! model file's list (or the defaults'), so one entry's value can be swept. Values that are paths
 //! (`input.labels`, `input.mesh`, `simulate.model`, `fit.model`) are relative to the sweep file; the
 //! base's own paths to the base. Every key is checked against the pipeline schema (unknown keys named,
@@ -148,8 +150,35 @@ fn seed_cell_types(root: &Table, section: &str) -> Result<Value, String> {
     }
 }
 
-/// Sets `key` to `value` in the pipeline table `root`, creating tables on the way.
+/// The keys a key with brace groups stands for: `a.{b,c}.d` → `a.b.d`, `a.c.d` (several groups
+/// expand as their product, in the order written). A key without braces stands for itself.
+fn expand_braces(key: &str) -> Result<Vec<String>, String> {
+    let Some(open) = key.find('{') else {
+        if key.contains('}') {
+            return Err(format!("`{key}`: a `}}` without its `{{`"));
+        }
+        return Ok(vec![key.to_string()]);
+    };
+    let close = key[open..].find('}').map(|c| open + c).ok_or_else(|| format!("`{key}`: a `{{` without its `}}`"))?;
+    let inner = &key[open + 1..close];
+    if inner.contains('{') {
+        return Err(format!("`{key}`: brace groups cannot nest"));
+    }
+    let choices: Vec<&str> = inner.split(',').map(str::trim).collect();
+    if choices.len() < 2 || choices.iter().any(|c| c.is_empty() || c.contains('.')) {
+        return Err(format!("`{key}`: a brace group lists two or more names without dots, e.g. {{apical,lateral}}"));
+    }
+    let rest = expand_braces(&key[close + 1..])?;
+    Ok(choices.iter().flat_map(|c| rest.iter().map(move |r| format!("{}{c}{r}", &key[..open]))).collect())
+}
+
+/// Sets `key` to `value` in the pipeline table `root`, creating tables on the way; a key with brace
+/// groups ([`expand_braces`]) sets every key it stands for to the same value.
 fn set_key(root: &mut Table, key: &str, value: Value) -> Result<(), String> {
+    let expanded = expand_braces(key)?;
+    if expanded.len() > 1 {
+        return expanded.iter().try_for_each(|k| set_key(root, k, value.clone()));
+    }
     let segments = parse_key(key)?;
     // Seeded before the walk borrows `root` mutably.
     let seed = match segments.as_slice() {
@@ -785,6 +814,19 @@ mod tests {
         let e = set_key(&mut t, "mesh.target_nodes.x", Value::Integer(1)).unwrap_err();
         assert!(e.contains("`mesh.target_nodes` is integer, not a table"), "{e}");
         assert!(parse_key("mesh..x").is_err() && parse_key("a[x]").is_err());
+        // A brace group sets every face type to one value.
+        set_key(&mut t, "simulate.model_overrides.cell_types[0].faces.{apical, basal}.adhesion", Value::Float(1e8))
+            .unwrap();
+        let faces = &t["simulate"]["model_overrides"]["cell_types"][0]["faces"];
+        assert_eq!(
+            (faces["apical"]["adhesion"].as_float(), faces["basal"]["adhesion"].as_float()),
+            (Some(1e8), Some(1e8))
+        );
+        assert!(faces.get("lateral").is_none());
+        assert_eq!(expand_braces("a.{b,c}.{d,e}").unwrap(), ["a.b.d", "a.b.e", "a.c.d", "a.c.e"]);
+        for bad in ["a.{b}.c", "a.{b,c.d}", "a.{b,c", "a.b}", "a.{{b,c}}", "a.{b,}"] {
+            assert!(expand_braces(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]
