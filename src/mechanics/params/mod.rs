@@ -356,6 +356,20 @@ pub struct FaceParams {
     pub repulsion: Real,
 }
 
+impl FaceParams {
+    /// Depth W = ωc²/4 [J/m²] of the spring model's adhesion well at cutoff c: the adhesion energy per
+    /// unit area of one side of a contact. Where W ≥ γ a contact face has no positive net tension
+    /// (complete wetting): its area grows without bound and the surface crumples.
+    pub fn adhesion_well_depth(&self, cutoff: Real) -> Real {
+        0.25 * self.adhesion * cutoff * cutoff
+    }
+
+    /// Whether [`Self::adhesion_well_depth`] reaches the surface tension (with some adhesion).
+    pub fn adhesion_outweighs_tension(&self, cutoff: Real) -> bool {
+        self.adhesion > 0.0 && self.adhesion_well_depth(cutoff) >= self.surface_tension
+    }
+}
+
 impl Default for FaceParams {
     /// Paper Table 2.
     fn default() -> Self {

@@ -118,6 +118,27 @@ impl Parameters {
                     report.time_step(&limit, numerics);
                 }
             }
+            let c = numerics.contact_cutoff;
+            for (index, cell_type) in self.cell_types.iter().enumerate() {
+                if cell_type.kind.is_immobile() || !type_valid[index] {
+                    continue;
+                }
+                for (face_type, face) in cell_type.faces.iter().filter(|(_, f)| f.adhesion_outweighs_tension(c)) {
+                    report.warnings.push(format!(
+                        "cell_types[{index}].faces.{name}.adhesion = {} Pa/m: its adhesion energy per unit area \
+                         ωc²/4 = {} J/m² (c = numerics.contact_cutoff = {} m) is not below the face's surface_tension \
+                         = {} N/m, so spring contacts give these faces a negative net tension: contact areas grow \
+                         without bound and the surfaces crumple; keep adhesion below 4γ/c² = {} Pa/m or lower \
+                         contact_cutoff",
+                        fmt_real(face.adhesion),
+                        fmt_real_short(face.adhesion_well_depth(c)),
+                        fmt_real(c),
+                        fmt_real(face.surface_tension),
+                        fmt_real_short(4.0 * face.surface_tension / (c * c)),
+                        name = face_type.name(),
+                    ));
+                }
+            }
         }
         (report.errors, report.warnings)
     }
