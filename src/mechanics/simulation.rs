@@ -702,17 +702,18 @@ impl<'p> Simulation<'p> {
         match p.faces.iter().find(|(_, f)| f.adhesion_outweighs_tension(cutoff)) {
             Some((face_type, f)) => format!(
                 "Its type {:?} has adhesion energy ωc²/4 = {:.3e} J/m² on {} faces (ω = {:e} Pa/m, \
-                 c = numerics.contact_cutoff = {:e} m), not below their surface tension γ = {:e} N/m: contact \
-                 faces have a negative net tension and crumple at any time step; lower \
-                 cell_types[{cell_type}].faces.{}.adhesion below 4γ/c² = {:.3e} Pa/m or lower numerics.contact_cutoff",
+                 c = numerics.contact_cutoff = {:e} m), {:.2} × their surface tension γ = {:e} N/m: adhesion acts \
+                 as a negative tension on contact faces, which crumple at any time step once it reaches γ; lower \
+                 cell_types[{cell_type}].faces.{}.adhesion below {:.3e} Pa/m or lower numerics.contact_cutoff",
                 p.name,
                 f.adhesion_well_depth(cutoff),
                 face_type.name(),
                 f.adhesion,
                 cutoff,
+                f.adhesion_well_depth(cutoff) / f.surface_tension,
                 f.surface_tension,
                 face_type.name(),
-                4.0 * f.surface_tension / (cutoff * cutoff)
+                f.max_adhesion(cutoff)
             ),
             None => HINT.to_owned(),
         }

@@ -19,8 +19,8 @@
 //! added to the node's γ, so summing the wells would give a node near k cells the net tension γ − kW:
 //! negative once kW > γ, and the surface then crumples without bound (measured at the paper's
 //! ω̃ = ωl/K = 1 with c = l_min = 1.6 µm, where W = γ/2). With one well the net tension stays
-//! ≥ γ − W; a configuration with W ≥ γ (complete wetting) has no equilibrium and is flagged by
-//! validation.
+//! ≥ γ − W; a configuration with W ≥ γ (complete wetting) has no equilibrium, and validation flags
+//! W ≥ 0.7γ (see `FaceParams::MAX_ADHESION_TENSION_RATIO`).
 //!
 //! **Forces** (exact: the distance's gradient is the unit separation û for p and −w_i·û for the
 //! vertices of B's closest face, w the barycentric weights): p gets −a_p σ û, the vertices of the face
