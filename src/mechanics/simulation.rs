@@ -253,7 +253,7 @@ pub enum SimulationError {
     )]
     InvalidCell { cell: CellId, defect: crate::mesh::MeshDefect },
     #[error("step {step}, cell {cell}: {what}. {hint}")]
-    Unhealthy { step: u64, cell: CellId, what: String, hint: &'static str, last_good: LastGood },
+    Unhealthy { step: u64, cell: CellId, what: String, hint: String, last_good: LastGood },
     #[error("step {step}: remeshing failed: {source}")]
     Remesh { step: u64, source: Box<RemeshError> },
     #[error("step {step}: cell {cell}: {what}")]
@@ -692,6 +692,33 @@ impl<'p> Simulation<'p> {
         "contact"
     }
 
+    /// What to change when cell `c` breaks down: its adhesion when a face type's spring-contact
+    /// adhesion energy reaches its tension (the surface then crumples whatever the step), else the
+    /// time step or damping.
+    fn hint(&self, c: usize) -> String {
+        let cutoff = self.params.numerics.contact_cutoff;
+        let cell_type = self.tissue.cells()[c].cell_type();
+        let p = self.cell_params[c];
+        match p.faces.iter().find(|(_, f)| f.adhesion_outweighs_tension(cutoff)) {
+            Some((face_type, f)) => format!(
+                "Its type {:?} has adhesion energy ωc²/4 = {:.3e} J/m² on {} faces (ω = {:e} Pa/m, \
+                 c = numerics.contact_cutoff = {:e} m), {:.2} × their surface tension γ = {:e} N/m: adhesion acts \
+                 as a negative tension on contact faces, which crumple at any time step once it reaches γ; lower \
+                 cell_types[{cell_type}].faces.{}.adhesion below {:.3e} Pa/m or lower numerics.contact_cutoff",
+                p.name,
+                f.adhesion_well_depth(cutoff),
+                face_type.name(),
+                f.adhesion,
+                cutoff,
+                f.adhesion_well_depth(cutoff) / f.surface_tension,
+                f.surface_tension,
+                face_type.name(),
+                f.max_adhesion(cutoff)
+            ),
+            None => HINT.to_owned(),
+        }
+    }
+
     fn unhealthy(&self, c: usize, what: String) -> SimulationError {
         let mut last_good = self.tissue.clone();
         // The saved positions follow divisions and removals; cells whose mesh changed since the save
@@ -705,7 +732,7 @@ impl<'p> Simulation<'p> {
             step: self.step,
             cell: self.tissue.cells()[c].id(),
             what,
-            hint: HINT,
+            hint: self.hint(c),
             last_good: LastGood(Box::new(last_good)),
         }
     }

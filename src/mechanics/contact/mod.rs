@@ -12,6 +12,16 @@
 //! 2005), so the sign flips only where p crosses B's surface, where σ = 0. Pairs deeper than −c
 //! (where Eq. 2's stress vanishes) are ignored.
 //!
+//! **Several cells within the cutoff.** Φ splits into the repulsion R(d) ≥ 0 and the adhesion well
+//! A(d) ∈ [−W, 0], W = ωc²/4. A node near several cells pays every repulsion but adheres with one
+//! well at most: its energy density is Σ_k R(d_k) − W·(1 − Π_k(1 − A(d_k)/(−W))), which is Eq. 2's Φ
+//! for a single pair (see `combine_wells`). The area term −Φ·∇a_p below acts as a surface tension Φ
+//! added to the node's γ, so summing the wells would give a node near k cells the net tension γ − kW:
+//! negative once kW > γ, and the surface then crumples without bound (measured at the paper's
+//! ω̃ = ωl/K = 1 with c = l_min = 1.6 µm, where W = γ/2). With one well the net tension stays
+//! ≥ γ − W; a configuration with W ≥ γ (complete wetting) has no equilibrium, and validation flags
+//! W ≥ 0.7γ (see `FaceParams::MAX_ADHESION_TENSION_RATIO`).
+//!
 //! **Forces** (exact: the distance's gradient is the unit separation û for p and −w_i·û for the
 //! vertices of B's closest face, w the barycentric weights): p gets −a_p σ û, the vertices of the face
 //! get +a_p σ w_i û (equal and opposite), and the faces around p get −Φ·∇a_p (the area term).
@@ -37,7 +47,10 @@ mod coupling;
 mod spring;
 
 pub use coupling::{CoupledPair, CouplingWorkspace};
-pub use spring::{contact_energy_density, contact_stress};
+pub use spring::{
+    adhesion_energy_density, adhesion_stress, contact_energy_density, contact_stress, repulsion_energy_density,
+    repulsion_stress,
+};
 
 use super::CellForces;
 use super::{CellTypeParams, ContactModel};
@@ -104,9 +117,49 @@ struct Pair {
     area: Real,
     /// Signed distance d (m).
     distance: Real,
-    /// Φ(d) (J/m²) and σ(d) = dΦ/dd (Pa).
+    /// This pair's share of the node's energy density (J/m²) and ∂Φ_p/∂d (Pa) (see [`combine_wells`]).
     phi: Real,
     sigma: Real,
+    /// The pair's own adhesion well A(d) (J/m²) and its slope dA/dd (Pa), before combining.
+    well: Real,
+    well_slope: Real,
+}
+
+/// Combines the pairs of one node (all other cells within the cutoff) into the node's energy density
+///
+///   Φ_p = Σ_k R(d_k) − W·(1 − Π_k (1 − s_k)),   s_k = A(d_k)/(−W) ∈ [0, 1],
+///
+/// W = ωc²/4 the well depth of the node's own ω. Repulsions R add up; the adhesion wells saturate at
+/// one well: a patch of membrane adheres to one surface at a time, so a node within the cutoff of
+/// several cells (near a junction, or on a coarse mesh whose cutoff spans several surfaces) gains at
+/// most the adhesion energy W per unit area. Summing the wells instead gives a node near k surfaces
+/// −k·W; with kW > γ its net surface tension γ + Φ_p is negative and the energy decreases without
+/// bound as the surface crumples (measured on the 24-cell vesicle at ωc²/4 = γ/2: the contact energy
+/// outgrew the tension energy until a surface folded at step 136). With one pair Φ_p = R + A, Eq. 2's
+/// energy. On entry `phi`, `sigma` hold R(d_k) and R'(d_k); on return, each pair's share of Φ_p (the
+/// shares sum to Φ_p) and ∂Φ_p/∂d_k = R'(d_k) + A'(d_k)·Π_{j≠k}(1 − s_j).
+fn combine_wells(pairs: &mut [Pair], depth: Real) {
+    if let [pair] = pairs {
+        pair.phi += pair.well;
+        pair.sigma += pair.well_slope;
+        return;
+    }
+    if depth <= 0.0 {
+        return;
+    }
+    let fraction = |p: &Pair| (-p.well / depth).clamp(0.0, 1.0);
+    let free: Real = pairs.iter().map(|p| 1.0 - fraction(p)).product();
+    let covered: Real = pairs.iter().map(fraction).sum();
+    let total = -depth * (1.0 - free);
+    for k in 0..pairs.len() {
+        let others: Real = pairs.iter().enumerate().filter(|&(j, _)| j != k).map(|(_, p)| 1.0 - fraction(p)).product();
+        let s = fraction(&pairs[k]);
+        let pair = &mut pairs[k];
+        pair.sigma += pair.well_slope * others;
+        if covered > 0.0 {
+            pair.phi += total * s / covered;
+        }
+    }
 }
 
 /// Reusable buffers of the contact stage.
@@ -330,6 +383,7 @@ impl ContactWorkspace {
                 if !neighbours[a].iter().any(|&b| inside(p, &cell_boxes[b])) {
                     continue;
                 }
+                let first_pair = pairs.len();
                 candidates.clear();
                 if oversized {
                     grid.for_each_at(p, |item| candidates.push(item));
@@ -419,9 +473,16 @@ impl ContactWorkspace {
                         direction,
                         area,
                         distance: d,
-                        phi: contact_energy_density(d, cutoff, omega, xi),
-                        sigma: contact_stress(d, cutoff, omega, xi),
+                        phi: repulsion_energy_density(d, cutoff, xi),
+                        sigma: repulsion_stress(d, cutoff, xi),
+                        well: adhesion_energy_density(d, cutoff, omega),
+                        well_slope: adhesion_stress(d, cutoff, omega),
                     });
+                }
+                if pairs.len() > first_pair {
+                    let faces_a = topology[a].faces_of(node as u32);
+                    let (omega, _) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
+                    combine_wells(&mut pairs[first_pair..], 0.25 * omega * cutoff * cutoff);
                 }
             }
         });

@@ -10,12 +10,23 @@
 
 use crate::geometry::Real;
 
-/// Stress σ(d) (Pa) of Eq. 2.
+/// Stress σ(d) (Pa) of Eq. 2: [`adhesion_stress`] + [`repulsion_stress`].
 pub fn contact_stress(d: Real, cutoff: Real, adhesion: Real, repulsion: Real) -> Real {
-    if d < -cutoff || d > cutoff {
+    adhesion_stress(d, cutoff, adhesion) + repulsion_stress(d, cutoff, repulsion)
+}
+
+/// Energy per unit area Φ(d) (J/m²) whose derivative is [`contact_stress`]:
+/// 0 for d ≥ c; −ω(c − d)²/2 on [c/2, c]; −ωc²/4 + ωd²/2 on [0, c/2); −ωc²/4 + ξd²/2 on [−c, 0);
+/// constant −ωc²/4 + ξc²/2 below −c. The sum of [`adhesion_energy_density`] and
+/// [`repulsion_energy_density`].
+pub fn contact_energy_density(d: Real, cutoff: Real, adhesion: Real, repulsion: Real) -> Real {
+    adhesion_energy_density(d, cutoff, adhesion) + repulsion_energy_density(d, cutoff, repulsion)
+}
+
+/// The adhesive part of Eq. 2's stress (Pa): ω·d on [0, c/2), ω·(c − d) on [c/2, c], 0 elsewhere.
+pub fn adhesion_stress(d: Real, cutoff: Real, adhesion: Real) -> Real {
+    if !(0.0..=cutoff).contains(&d) {
         0.0
-    } else if d < 0.0 {
-        repulsion * d
     } else if d < 0.5 * cutoff {
         adhesion * d
     } else {
@@ -23,21 +34,29 @@ pub fn contact_stress(d: Real, cutoff: Real, adhesion: Real, repulsion: Real) ->
     }
 }
 
-/// Energy per unit area Φ(d) (J/m²) whose derivative is [`contact_stress`]:
-/// 0 for d ≥ c; −ω(c − d)²/2 on [c/2, c]; −ωc²/4 + ωd²/2 on [0, c/2); −ωc²/4 + ξd²/2 on [−c, 0);
-/// constant −ωc²/4 + ξc²/2 below −c.
-pub fn contact_energy_density(d: Real, cutoff: Real, adhesion: Real, repulsion: Real) -> Real {
+/// The repulsive part of Eq. 2's stress (Pa): ξ·d on [−c, 0), 0 elsewhere.
+pub fn repulsion_stress(d: Real, cutoff: Real, repulsion: Real) -> Real {
+    if (-cutoff..0.0).contains(&d) { repulsion * d } else { 0.0 }
+}
+
+/// The adhesion well A(d) ≤ 0 (J/m²), dA/dd = [`adhesion_stress`]: 0 for d ≥ c, −ω(c − d)²/2 on
+/// [c/2, c], −ωc²/4 + ωd²/2 on [0, c/2), and its bottom −ωc²/4 for d < 0. Its depth ωc²/4 is the
+/// adhesion energy per unit area of one side of a contact.
+pub fn adhesion_energy_density(d: Real, cutoff: Real, adhesion: Real) -> Real {
     let c = cutoff;
-    let well = -0.25 * adhesion * c * c;
     if d >= c {
         0.0
     } else if d >= 0.5 * c {
         -0.5 * adhesion * (c - d) * (c - d)
-    } else if d >= 0.0 {
-        well + 0.5 * adhesion * d * d
     } else {
-        well + 0.5 * repulsion * d.max(-c).powi(2)
+        -0.25 * adhesion * c * c + 0.5 * adhesion * d.max(0.0) * d.max(0.0)
     }
+}
+
+/// The repulsion penalty R(d) ≥ 0 (J/m²), dR/dd = [`repulsion_stress`]: ξd²/2 on [−c, 0), ξc²/2 below,
+/// 0 for d ≥ 0.
+pub fn repulsion_energy_density(d: Real, cutoff: Real, repulsion: Real) -> Real {
+    if d >= 0.0 { 0.0 } else { 0.5 * repulsion * d.max(-cutoff).powi(2) }
 }
 
 #[cfg(test)]

@@ -361,6 +361,34 @@ pub struct FaceParams {
     pub repulsion: Real,
 }
 
+impl FaceParams {
+    /// Largest ratio W/γ of the spring model's adhesion well depth to the surface tension that
+    /// validation accepts without a warning. At W/γ = 1 a contact face has no net tension (complete
+    /// wetting): its area grows without bound and the surface crumples (measured: the 24-cell vesicle
+    /// folded at step 213 at ω̃ = 2, c = 1.6 µm, W = γ). Runs also broke down at 0.7 (a doublet whose rim
+    /// nodes were pulled deeper than the cutoff) and ran at 0.5 (the vesicle at ω̃ = 1, a 6-cell
+    /// aggregate, doublets).
+    pub const MAX_ADHESION_TENSION_RATIO: Real = 0.7;
+
+    /// Depth W = ωc²/4 [J/m²] of the spring model's adhesion well at cutoff c: the adhesion energy per
+    /// unit area of one side of a contact, which acts as a negative surface tension on contact faces.
+    pub fn adhesion_well_depth(&self, cutoff: Real) -> Real {
+        0.25 * self.adhesion * cutoff * cutoff
+    }
+
+    /// Whether [`Self::adhesion_well_depth`] reaches [`Self::MAX_ADHESION_TENSION_RATIO`] × the
+    /// surface tension (with some adhesion).
+    pub fn adhesion_outweighs_tension(&self, cutoff: Real) -> bool {
+        self.adhesion > 0.0
+            && self.adhesion_well_depth(cutoff) >= Self::MAX_ADHESION_TENSION_RATIO * self.surface_tension
+    }
+
+    /// The adhesion ω [Pa/m] below which [`Self::adhesion_outweighs_tension`] is false.
+    pub fn max_adhesion(&self, cutoff: Real) -> Real {
+        4.0 * Self::MAX_ADHESION_TENSION_RATIO * self.surface_tension / (cutoff * cutoff)
+    }
+}
+
 impl Default for FaceParams {
     /// Paper Table 2.
     fn default() -> Self {

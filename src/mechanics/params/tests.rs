@@ -246,6 +246,29 @@ fn immobile_kinds_have_no_time_step_limit() {
 }
 
 #[test]
+fn adhesion_energy_above_the_tension_is_flagged() {
+    // Table 2: W = ωc²/4 = 1e9·(2e-7)²/4 = 1e-5 J/m², a hundredth of γ = 1e-3 N/m.
+    let mut params = Parameters::default();
+    let warnings = params.validate().expect("valid");
+    assert!(!warnings.iter().any(|w| w.contains("negative tension")), "{warnings:?}");
+    params.cell_types[0].faces.lateral.surface_tension = 5e-6;
+    let warnings = params.validate().expect("valid, with a warning");
+    let warning = warnings.iter().find(|w| w.contains("negative tension")).expect("flagged");
+    assert!(warning.starts_with("cell_types[0].faces.lateral.adhesion = 1e9 Pa/m"), "{warning}");
+    assert!(warning.contains("keep adhesion below 3.50e8 Pa/m"), "{warning}");
+    // W = 0.6γ passes, 0.71γ is flagged.
+    params.cell_types[0].faces.lateral.surface_tension = 1e-5 / 0.6;
+    assert!(!params.validate().unwrap().iter().any(|w| w.contains("negative tension")));
+    params.cell_types[0].faces.lateral.surface_tension = 1e-5 / 0.71;
+    assert!(params.validate().unwrap().iter().any(|w| w.contains("negative tension")));
+    // Immobile kinds never crumple.
+    params.cell_types[0].faces.lateral.surface_tension = 1e-3;
+    params.cell_types[1].faces.basal.adhesion = 1e12;
+    let warnings = params.validate().expect("valid");
+    assert!(!warnings.iter().any(|w| w.contains("negative tension")), "{warnings:?}");
+}
+
+#[test]
 fn pressure_is_capped() {
     let mut cell_type = CellTypeParams::default();
     // Compressed to half its target volume: K ln 2 ≈ 1733 Pa, below the 2500 Pa cap.

@@ -124,6 +124,28 @@ impl Parameters {
                     report.time_step(&limit, numerics);
                 }
             }
+            let c = numerics.contact_cutoff;
+            for (index, cell_type) in self.cell_types.iter().enumerate() {
+                if cell_type.kind.is_immobile() || !type_valid[index] {
+                    continue;
+                }
+                for (face_type, face) in cell_type.faces.iter().filter(|(_, f)| f.adhesion_outweighs_tension(c)) {
+                    report.warnings.push(format!(
+                        "cell_types[{index}].faces.{name}.adhesion = {} Pa/m: its adhesion energy per unit area \
+                         ωc²/4 = {} J/m² (c = numerics.contact_cutoff = {} m) is not below {} × the face's \
+                         surface_tension = {} N/m; adhesion acts as a negative tension on contact faces, which \
+                         crumple once it reaches γ (runs broke down from 0.7γ); keep adhesion below {} Pa/m or \
+                         lower contact_cutoff",
+                        fmt_real(face.adhesion),
+                        fmt_real_short(face.adhesion_well_depth(c)),
+                        fmt_real(c),
+                        FaceParams::MAX_ADHESION_TENSION_RATIO,
+                        fmt_real(face.surface_tension),
+                        fmt_real_short(face.max_adhesion(c)),
+                        name = face_type.name(),
+                    ));
+                }
+            }
         }
         (report.errors, report.warnings)
     }
