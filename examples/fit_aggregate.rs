@@ -112,6 +112,8 @@ fn main() {
         args.drain(i..(i + 2).min(args.len()));
         list.split(',').map(|f| f.parse().expect("--probe takes comma-separated factors")).collect()
     });
+    // `--from-initial`: probes relax from the truth's initial tissue (its path) instead of the observed one.
+    let probe_from_initial = args.iter().position(|a| a == "--from-initial").map(|i| args.remove(i)).is_some();
     let shifts: usize = args.iter().position(|a| a == "--shifts").map_or(8, |i| {
         let n = args.get(i + 1).and_then(|v| v.parse().ok()).expect("--shifts takes a count");
         args.drain(i..i + 2);
@@ -219,7 +221,7 @@ span = 1.3
             ContactModel::Spring => ratio * 4.0 * GAMMA / (l_min * l_min),
         }
         .ln();
-        probe_noise(&config, truth_x, &factors);
+        probe_noise(&config, truth_x, &factors, probe_from_initial.then_some(&initial));
         return;
     }
     let result = run_fit(&config, &dir.join("out"), &FitOptions { plots: true, ..Default::default() }).expect("fit");
@@ -275,7 +277,7 @@ impl Observer for Recorder {
 
 /// Runs the forward model's passes at exp(truth_x)·factor with a recording observer and prints, per
 /// factor, the residual history, the topology counts, the direct and the like-data metrics.
-fn probe_noise(config: &FitConfig, truth_x: Real, factors: &[Real]) {
+fn probe_noise(config: &FitConfig, truth_x: Real, factors: &[Real], from: Option<&Tissue>) {
     use tissuefit::inference::{ForwardModel, ParameterSpace, load_observation};
     let observation = load_observation(config).expect("observation");
     let space = ParameterSpace::from_config(&config.parameters).expect("space");
@@ -290,7 +292,15 @@ fn probe_noise(config: &FitConfig, truth_x: Real, factors: &[Real]) {
         params.simulation.sample_every_steps = 250;
         let started = Instant::now();
         let mut rec = Recorder { delta, residuals: Vec::new(), samples: Vec::new() };
-        let (tissue, summary) = model.relax(&params, &model.observation.tissue, &mut rec).expect("relaxation");
+        let start = match from {
+            Some(initial) => {
+                let ids = |t: &Tissue| t.cells().iter().map(|c| c.id()).collect::<Vec<_>>();
+                assert_eq!(ids(initial), ids(&model.observation.tissue), "cells in the same order");
+                initial
+            }
+            None => &model.observation.tissue,
+        };
+        let (tissue, summary) = model.relax(&params, start, &mut rec).expect("relaxation");
         let like = model.measure(&tissue);
         let n = rec.residuals.len();
         let tail = &rec.residuals[n.saturating_sub(500)..];
