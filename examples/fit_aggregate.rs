@@ -16,6 +16,14 @@
 //! and optionally the cells (default 20), the nodes per cell (default 150), the evaluation budget
 //! (default 14) and an output folder (default: a temporary one). Too slow for CI (a relaxation of
 //! 20 cells × 150 nodes takes 10–40 s on 2 cores); `tests/fit.rs` runs the doublet round trips.
+//!
+//! Options: `--shifts N` sets `forward.measure_shifts` (default 8: the like-data measurement averaged
+//! over 8 sub-voxel shifts); `--probe F1,F2,…` evaluates the forward model at truth × each factor
+//! instead of fitting and prints, per factor, one JSON line (residual history, remeshing counts,
+//! metrics measured directly and like the data, the like-data metrics of the shape moved rigidly by
+//! fractions of a voxel, objective): the noise study of README "Forward-model noise of spring
+//! contacts"; `--from-initial` starts those probes from the truth's initial tissue instead of the
+//! observed one.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -29,6 +29,10 @@
 //! the same labels; so every simulation is measured with the observed tissue's δ
 //! ([`Observation::contact_distance`]), never its own.
 //!
+//! Where a relaxed tissue lies on the voxel grid changes its voxelised labels and hence the
+//! re-meshed metrics although its shape is the same; `forward.measure_shifts` averages the like-data
+//! measurement over rigid sub-voxel shifts ([`shift_offset`]) so that it measures the shape.
+//!
 //! No warm start: every evaluation starts from the observed tissue, so its result depends on its
 //! parameters only (never on which evaluations ran before), which is what makes the cache, the
 //! parallel evaluation and the resumption exact. A warm start ([`ForwardModel::evaluate_from`] the
