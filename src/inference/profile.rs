@@ -90,7 +90,8 @@ impl NoiseFloor {
     }
 }
 
-/// Relative step (in every log coordinate) between the optimum and its noise replicates.
+/// Relative step (in every log coordinate) between the optimum and its noise replicates (taken
+/// downwards in a coordinate whose upper bound is that close).
 pub const NOISE_STEP: Real = 1e-9;
 
 /// A named direction in log space: offset δ of the quantity moves the point by δ·direction.
@@ -183,8 +184,12 @@ pub fn profile(
         }
     }
     let probes = points.len();
+    // Inward from an upper bound, so that clamping does not turn a replicate into the best point.
+    let (_, upper) = space.log_bounds();
+    let reach = config.noise_replicates as Real * NOISE_STEP;
+    let sign: Vec<Real> = best.iter().zip(&upper).map(|(b, u)| if b + reach > *u { -1.0 } else { 1.0 }).collect();
     for k in 1..=config.noise_replicates {
-        points.push(best.iter().map(|b| b + k as Real * NOISE_STEP).collect());
+        points.push(best.iter().zip(&sign).map(|(b, s)| b + s * k as Real * NOISE_STEP).collect());
     }
     let evals = match evaluator.evaluate_batch(&points, false) {
         Ok(e) => e,
