@@ -16,6 +16,14 @@
 //! and optionally the cells (default 20), the nodes per cell (default 150), the evaluation budget
 //! (default 14) and an output folder (default: a temporary one). Too slow for CI (a relaxation of
 //! 20 cells × 150 nodes takes 10–40 s on 2 cores); `tests/fit.rs` runs the doublet round trips.
+//!
+//! Options: `--shifts N` sets `forward.measure_shifts` (default 8: the like-data measurement averaged
+//! over 8 sub-voxel shifts); `--probe F1,F2,…` evaluates the forward model at truth × each factor
+//! instead of fitting and prints, per factor, one JSON line (residual history, remeshing counts,
+//! metrics measured directly and like the data, the like-data metrics of the shape moved rigidly by
+//! fractions of a voxel, objective): the noise study of README "Forward-model noise of spring
+//! contacts"; `--from-initial` starts those probes from the truth's initial tissue instead of the
+//! observed one.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -104,7 +112,21 @@ fn observe(dir: &Path, truth: &Parameters, initial: &Tissue, vpd: Real) -> (Real
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    // `--probe F1,F2,…`: instead of fitting, evaluate the forward model at truth × each factor and
+    // print what each relaxation did (the noise study of README "Fitting parameters").
+    let probe: Option<Vec<Real>> = args.iter().position(|a| a == "--probe").map(|i| {
+        let list = args.get(i + 1).cloned().unwrap_or_default();
+        args.drain(i..(i + 2).min(args.len()));
+        list.split(',').map(|f| f.parse().expect("--probe takes comma-separated factors")).collect()
+    });
+    // `--from-initial`: probes relax from the truth's initial tissue (its path) instead of the observed one.
+    let probe_from_initial = args.iter().position(|a| a == "--from-initial").map(|i| args.remove(i)).is_some();
+    let shifts: usize = args.iter().position(|a| a == "--shifts").map_or(8, |i| {
+        let n = args.get(i + 1).and_then(|v| v.parse().ok()).expect("--shifts takes a count");
+        args.drain(i..i + 2);
+        n
+    });
     let usage = "usage: fit_aggregate coupling|spring RATIO VOXELS_PER_DIAMETER [CELLS [NODES [BUDGET [OUT]]]]";
     if args.len() < 3 {
         eprintln!("{usage}");
@@ -193,6 +215,7 @@ tolerance = 0.01
 [forward]
 accept_residual = 1e9
 volume_passes = 1
+measure_shifts = {shifts}
 [profile]
 points = 2
 span = 1.3
@@ -200,6 +223,15 @@ span = 1.3
     );
     std::fs::write(dir.join("fit.toml"), config).expect("fit.toml");
     let config = FitConfig::load(&dir.join("fit.toml")).expect("fit config");
+    if let Some(factors) = probe {
+        let truth_x = match contact {
+            ContactModel::Coupling => ratio * GAMMA,
+            ContactModel::Spring => ratio * 4.0 * GAMMA / (l_min * l_min),
+        }
+        .ln();
+        probe_noise(&config, truth_x, &factors, probe_from_initial.then_some(&initial));
+        return;
+    }
     let result = run_fit(&config, &dir.join("out"), &FitOptions { plots: true, ..Default::default() }).expect("fit");
     let r = &result.ratios[ratio_name];
     let error = (r.value - ratio) / ratio;
@@ -226,4 +258,96 @@ span = 1.3
         "best": result.best_metrics,
     });
     println!("{line}");
+}
+
+/// Records the residual every step and the directly measured metrics at every sample.
+struct Recorder {
+    delta: Real,
+    residuals: Vec<Real>,
+    samples: Vec<(u64, Real, Real, Real)>,
+}
+
+impl Observer for Recorder {
+    fn sample(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let (m, _) = tissuefit::inference::Metrics::measure(s.tissue, Some(self.delta))?;
+        self.samples.push((
+            s.step,
+            s.residual,
+            m.sphericity.unwrap_or(Real::NAN),
+            m.contact_fraction.unwrap_or(Real::NAN),
+        ));
+        Ok(())
+    }
+    fn progress(&mut self, _step: u64, residual: Real) {
+        self.residuals.push(residual);
+    }
+}
+
+/// Runs the forward model's passes at exp(truth_x)·factor with a recording observer and prints, per
+/// factor, the residual history, the topology counts, the direct and the like-data metrics.
+fn probe_noise(config: &FitConfig, truth_x: Real, factors: &[Real], from: Option<&Tissue>) {
+    use tissuefit::inference::{ForwardModel, ParameterSpace, load_observation};
+    let observation = load_observation(config).expect("observation");
+    let space = ParameterSpace::from_config(&config.parameters).expect("space");
+    let base = config.base_parameters().expect("model");
+    let model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())
+        .expect("forward model");
+    let delta = model.observation.contact_distance;
+    eprintln!("observed {:?}, delta {:.4} um", model.observation.metrics, delta * 1e6);
+    for &f in factors {
+        let x = vec![truth_x + f.ln()];
+        let mut params = model.space.apply(&model.base, &x);
+        params.simulation.sample_every_steps = 250;
+        let started = Instant::now();
+        let mut rec = Recorder { delta, residuals: Vec::new(), samples: Vec::new() };
+        let start = match from {
+            Some(initial) => {
+                let ids = |t: &Tissue| t.cells().iter().map(|c| c.id()).collect::<Vec<_>>();
+                assert_eq!(ids(initial), ids(&model.observation.tissue), "cells in the same order");
+                initial
+            }
+            None => &model.observation.tissue,
+        };
+        let (tissue, summary) = model.relax(&params, start, &mut rec).expect("relaxation");
+        let like = model.measure(&tissue);
+        let n = rec.residuals.len();
+        let tail = &rec.residuals[n.saturating_sub(500)..];
+        let (tmin, tmax) = tail.iter().fold((Real::INFINITY, 0.0 as Real), |(a, b), &r| (a.min(r), b.max(r)));
+        let (direct, _) = tissuefit::inference::Metrics::measure(&tissue, Some(delta)).expect("measure");
+        // The like-data measurement of the same shape rigidly shifted by fractions of a voxel.
+        let voxel = model.observation.labels.as_ref().map_or(0.0, |l| l.voxel_size()[0]);
+        let shifted: Vec<(Real, Real)> = [0.125, 0.25, 0.375, 0.5, 0.625, 0.75]
+            .iter()
+            .filter_map(|&f| {
+                let mut t = tissue.clone();
+                let offset = Vec3::new(f, 0.7 * f, 0.4 * f) * voxel;
+                for c in t.cells_mut() {
+                    for p in c.positions_mut() {
+                        *p += offset;
+                    }
+                }
+                model
+                    .measure(&t)
+                    .ok()
+                    .map(|m| (m.sphericity.unwrap_or(Real::NAN), m.contact_fraction.unwrap_or(Real::NAN)))
+            })
+            .collect();
+        let line = serde_json::json!({
+            "factor": f,
+            "x_bits": format!("{:016x}", x[0].to_bits()),
+            "converged": summary.converged,
+            "steps": summary.steps,
+            "residual": summary.residual,
+            "residual_last500_min_max": [tmin, tmax],
+            "topology_last_relaxation": summary.topology,
+            "direct": direct,
+            "like_data": like.as_ref().ok(),
+            "like_data_error": like.as_ref().err(),
+            "objective": like.as_ref().map(|m| model.score(m)).ok(),
+            "like_data_shifted_sph_phi": shifted,
+            "samples_step_residual_sph_phi": rec.samples,
+            "wall_seconds": started.elapsed().as_secs_f64(),
+        });
+        println!("{line}");
+    }
 }

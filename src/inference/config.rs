@@ -316,6 +316,17 @@ pub struct ForwardConfig {
     /// V0 = V_observed. Default 2.
     #[serde(default = "default_volume_passes")]
     pub volume_passes: usize,
+    /// With `measure_like_data`: how many rigid sub-voxel shifts of each relaxed tissue are
+    /// voxelised, meshed and measured, and their metrics averaged (1: the tissue as it lies). Where
+    /// the tissue falls on the voxel grid changes its labels and hence the re-meshed metrics (±0.007
+    /// in φ on a spring aggregate at 10 voxels per diameter); the average measures the shape. Costs
+    /// one voxelisation and meshing per shift (run in parallel). Default 1.
+    #[serde(default = "one_shift")]
+    pub measure_shifts: usize,
+}
+
+fn one_shift() -> usize {
+    1
 }
 
 fn default_volume_passes() -> usize {
@@ -347,6 +358,24 @@ pub struct ProfileConfig {
     /// scale of misfit by default). Default 1.
     #[serde(default = "one")]
     pub acceptable_increase: Real,
+    /// Extra evaluations at the optimum, each with every fitted parameter × (1 + k·1e-9), k = 1…n:
+    /// the same model up to round-off, so their spread (with the best's) is the forward model's
+    /// noise floor σ (a chaotic relaxation ends elsewhere from a one-bit change; see the README).
+    /// The profile's threshold becomes mean + `acceptable_increase` + `noise_sigmas`·σ, so a range
+    /// narrower than the noise is never reported. 0: no estimate (σ taken as 0). Default 2.
+    #[serde(default = "default_noise_replicates")]
+    pub noise_replicates: usize,
+    /// How many σ of forward-model noise widen the acceptance threshold (see `noise_replicates`).
+    /// Default 2.
+    #[serde(default = "default_noise_sigmas")]
+    pub noise_sigmas: Real,
+}
+
+fn default_noise_replicates() -> usize {
+    2
+}
+fn default_noise_sigmas() -> Real {
+    2.0
 }
 
 fn default_profile_points() -> usize {
@@ -499,11 +528,17 @@ impl FitConfig {
                 self.forward.accept_residual
             ));
         }
+        if self.forward.measure_shifts == 0 {
+            return Err("forward.measure_shifts: must be ≥ 1 (1: measure the relaxed tissue as it lies)".into());
+        }
         if !(self.profile.span > 1.0 && self.profile.span.is_finite()) {
             return Err(format!("profile.span: must be a factor > 1; got {}", self.profile.span));
         }
         if !(self.profile.acceptable_increase > 0.0 && self.profile.acceptable_increase.is_finite()) {
             return Err(format!("profile.acceptable_increase: must be > 0; got {}", self.profile.acceptable_increase));
+        }
+        if !(self.profile.noise_sigmas >= 0.0 && self.profile.noise_sigmas.is_finite()) {
+            return Err(format!("profile.noise_sigmas: must be ≥ 0 and finite; got {}", self.profile.noise_sigmas));
         }
         Ok(())
     }

@@ -29,10 +29,10 @@ pub use config::{
     FitConfig, ForwardConfig, MeshingConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod,
     ParameterConfig, ProfileConfig,
 };
-pub use forward::{Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metrics, Observation, Status};
+pub use forward::{Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metrics, Observation, Status, shift_offset};
 pub use optimise::{BOUND_PENALTY, BudgetSpent, Evaluator, OptimiserOutcome, optimise};
 pub use plot::{plot_landscape, plot_objective};
-pub use profile::{Slice, profile, ratio_parts};
+pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};
 pub use result::{FitResult, ParameterResult, RatioResult};
 pub use run::{FitOptions, load_observation, run_fit, run_fit_observed};
 pub use space::{FittedParameter, PARAMETER_NAMES, ParameterSpace};

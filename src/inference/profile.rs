@@ -7,10 +7,22 @@
 //!   acceptable along it, the absolute values are not determined, only ratios;
 //! - one direction per key ratio (γ_lateral/γ_apical, ω/γ) that changes the ratio at a fixed scale.
 //!
-//! Points lie at factors span^(±k/points), k = 1…points, from the optimum. A point is acceptable when
-//! its objective is at most best + `acceptable_increase`. The acceptable range on each side ends where
-//! the objective crosses that threshold, interpolated between the last acceptable and the first
-//! unacceptable point linearly in √(J − J_best) (exact for a quadratic bowl; interpolating J itself
+//! Points lie at factors span^(±k/points), k = 1…points, from the optimum.
+//!
+//! Noise floor: the forward model need not be a smooth function of the parameters (an adhesive
+//! spring aggregate never converges, and a one-bit change of the adhesion ends its relaxation at
+//! another shape: objectives 1.2 and 3.6). So the batch also evaluates `noise_replicates` points at
+//! the optimum moved by k·1e-9 in every log coordinate; the objectives there (with the best) give a
+//! reference J_ref (their mean) and a noise σ (their standard deviation; infinite when a replicate
+//! failed). A point is acceptable when its objective is at most
+//! threshold = J_ref + `acceptable_increase` + `noise_sigmas`·σ: a side closes only where the
+//! objective rises above the noise, so a range narrower than the noise is never reported, and a
+//! quantity whose profile stays within the noise is reported not determined. (Without the noise
+//! term the best of many noisy evaluations, a low outlier, set the threshold, and the spring fits
+//! reported ranges narrower than the scatter of repeated evaluations as determined.)
+//!
+//! The acceptable range on each side ends where the objective crosses that threshold, interpolated
+//! between the last acceptable and the first unacceptable point linearly in √(J − J_ref) (exact for a quadratic bowl; interpolating J itself
 //! put the crossing of a steep side at a tenth of its distance); a side with no crossing inside the
 //! probed span, or whose next point failed or did not converge (a penalty, not a misfit), is *open*
 //! and the range extends to the search bound. A quantity is reported determined when its range is closed on
@@ -44,6 +56,44 @@ impl Slice {
     }
 }
 
+/// The forward model's noise at the optimum (see the module doc).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct NoiseFloor {
+    /// Objectives of the best point and of its replicates (1 + k·1e-9), in that order.
+    pub objectives: Vec<Real>,
+    /// Their mean (the reference the threshold is measured from).
+    pub reference: Real,
+    /// Their standard deviation (n − 1); infinite when a replicate failed, 0 without replicates.
+    pub std: Real,
+    /// The acceptance threshold of the profile: reference + acceptable_increase + noise_sigmas·std.
+    pub threshold: Real,
+    /// Why σ is infinite (a replicate's failure), empty otherwise.
+    pub reason: String,
+}
+
+impl NoiseFloor {
+    /// The noise floor from the best objective and its replicates' (objective, usable, reason).
+    pub fn estimate(best: Real, replicates: &[(Real, bool, String)], config: &ProfileConfig) -> Self {
+        let mut objectives = vec![best];
+        objectives.extend(replicates.iter().map(|r| r.0));
+        let failed = replicates.iter().find(|r| !r.1);
+        let n = objectives.len() as Real;
+        let reference = if failed.is_some() { best } else { objectives.iter().sum::<Real>() / n };
+        let std = match failed {
+            Some(_) => Real::INFINITY,
+            None if objectives.len() < 2 => 0.0,
+            None => (objectives.iter().map(|j| (j - reference).powi(2)).sum::<Real>() / (n - 1.0)).sqrt(),
+        };
+        let threshold = reference + config.acceptable_increase + config.noise_sigmas * std;
+        let reason = failed.map(|r| r.2.clone()).unwrap_or_default();
+        Self { objectives, reference, std, threshold, reason }
+    }
+}
+
+/// Relative step (in every log coordinate) between the optimum and its noise replicates (taken
+/// downwards in a coordinate whose upper bound is that close).
+pub const NOISE_STEP: Real = 1e-9;
+
 /// A named direction in log space: offset δ of the quantity moves the point by δ·direction.
 struct Direction {
     name: String,
@@ -75,12 +125,18 @@ pub fn ratio_parts(names: &[String]) -> Vec<(&'static str, &'static str, &'stati
     out
 }
 
-/// Probes every direction through `best` and returns the slices (parameters, scale, ratios).
-pub fn profile(evaluator: &Evaluator<'_>, best: &[Real], best_objective: Real, config: &ProfileConfig) -> Vec<Slice> {
+/// Probes every direction through `best` and returns the slices (parameters, scale, ratios) and
+/// the noise floor at the optimum.
+pub fn profile(
+    evaluator: &Evaluator<'_>,
+    best: &[Real],
+    best_objective: Real,
+    config: &ProfileConfig,
+) -> (Vec<Slice>, NoiseFloor) {
     let space = &evaluator.model().space;
     let n = space.dim();
     if config.points == 0 {
-        return Vec::new();
+        return (Vec::new(), NoiseFloor::estimate(best_objective, &[], config));
     }
     let fitted: Vec<String> = space.fitted.iter().map(|p| p.name.clone()).collect();
     let mut dirs: Vec<Direction> = (0..n)
@@ -127,13 +183,25 @@ pub fn profile(evaluator: &Evaluator<'_>, best: &[Real], best_objective: Real, c
             points.push(best.iter().zip(&d.direction).map(|(b, v)| b + o * v).collect::<Vec<_>>());
         }
     }
+    let probes = points.len();
+    // Inward from an upper bound, so that clamping does not turn a replicate into the best point.
+    let (_, upper) = space.log_bounds();
+    let reach = config.noise_replicates as Real * NOISE_STEP;
+    let sign: Vec<Real> = best.iter().zip(&upper).map(|(b, u)| if b + reach > *u { -1.0 } else { 1.0 }).collect();
+    for k in 1..=config.noise_replicates {
+        points.push(best.iter().zip(&sign).map(|(b, s)| b + s * k as Real * NOISE_STEP).collect());
+    }
     let evals = match evaluator.evaluate_batch(&points, false) {
         Ok(e) => e,
         Err(_) => unreachable!("profile points are not charged to the budget"),
     };
-    let threshold = best_objective + config.acceptable_increase;
+    let replicates: Vec<(Real, bool, String)> =
+        evals[probes..].iter().map(|e| (e.objective, e.status.usable(), e.reason.clone())).collect();
+    let noise = NoiseFloor::estimate(best_objective, &replicates, config);
+    let (threshold, reference) = (noise.threshold, noise.reference);
     let per = offsets.len();
-    dirs.iter()
+    let slices = dirs
+        .iter()
         .enumerate()
         .map(|(k, d)| {
             let slice = &evals[k * per..(k + 1) * per];
@@ -145,16 +213,17 @@ pub fn profile(evaluator: &Evaluator<'_>, best: &[Real], best_objective: Real, c
             xs.insert(mid, 0.0);
             ys.insert(mid, best_objective);
             usable.insert(mid, true);
-            let upper = crossing(&xs, &ys, &usable, mid, threshold, best_objective, Box::new(mid + 1..xs.len()));
-            let lower = crossing(&xs, &ys, &usable, mid, threshold, best_objective, Box::new((0..mid).rev()));
+            let upper = crossing(&xs, &ys, &usable, mid, threshold, reference, Box::new(mid + 1..xs.len()));
+            let lower = crossing(&xs, &ys, &usable, mid, threshold, reference, Box::new((0..mid).rev()));
             let name = d.name.split('=').next().unwrap_or(&d.name).to_string();
             Slice { name, offsets: xs, objectives: ys, lower, upper }
         })
-        .collect()
+        .collect();
+    (slices, noise)
 }
 
 /// Where the objective first crosses `threshold` walking from the optimum (index `mid`) through
-/// `order`: interpolated linearly in √(J − J_best), which grows linearly with the distance from the
+/// `order`: interpolated linearly in √(J − J_ref) (J_ref: `best`, the reference level), which grows linearly with the distance from the
 /// optimum of a quadratic bowl (exact for a χ²-like objective; interpolating J itself puts the
 /// crossing far too close to the optimum when the next point is steep). `None` (open) when no
 /// point crosses, or when the walk meets a failed or unconverged run first: its objective is a
@@ -187,6 +256,41 @@ fn crossing(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The noisy spring aggregate of the README: the best point scored 1.2 and a one-bit twin 3.56.
+    /// A slice that rises to 2.5–2.6 at ±0.1 crossed best + 1 = 2.2 there and was called
+    /// determined; with the replicates' noise (σ ≈ 1.2) the threshold is 2.25 + 1 + 2σ ≈ 5.6 and
+    /// nothing within the probed span rises above it, so both sides stay open.
+    #[test]
+    fn a_range_narrower_than_the_forward_models_noise_is_not_determined() {
+        let config = ProfileConfig::default();
+        let xs = [-0.2, -0.1, 0.0, 0.1, 0.2];
+        let ys = [4.0, 2.5, 1.2, 2.6, 4.5];
+        let usable = [true; 5];
+        let closed = |threshold: Real, reference: Real| {
+            let up = crossing(&xs, &ys, &usable, 2, threshold, reference, Box::new(3..5));
+            let lo = crossing(&xs, &ys, &usable, 2, threshold, reference, Box::new((0..2).rev()));
+            (lo, up)
+        };
+        // Without replicates: best + 1, closed on both sides inside ±0.1.
+        let plain = NoiseFloor::estimate(1.2, &[], &config);
+        assert_eq!((plain.reference, plain.std, plain.threshold), (1.2, 0.0, 2.2));
+        let (lo, up) = closed(plain.threshold, plain.reference);
+        assert!(lo.is_some_and(|l| l > -0.1) && up.is_some_and(|u| u < 0.1), "{lo:?} {up:?}");
+        // With two replicates at the optimum (1.2, 3.56, 2.0): mean 2.2533, σ 1.2002.
+        let noisy = NoiseFloor::estimate(1.2, &[(3.56, true, String::new()), (2.0, true, String::new())], &config);
+        assert!((noisy.reference - 2.253_333).abs() < 1e-5, "{noisy:?}");
+        assert!((noisy.std - 1.200_222).abs() < 1e-5, "{noisy:?}");
+        assert!((noisy.threshold - (noisy.reference + 1.0 + 2.0 * noisy.std)).abs() < 1e-12);
+        assert_eq!(closed(noisy.threshold, noisy.reference), (None, None));
+        // A smooth model (replicates equal to the best) keeps the plain threshold.
+        let smooth = NoiseFloor::estimate(1.2, &[(1.2, true, String::new()), (1.2, true, String::new())], &config);
+        assert_eq!((smooth.std, smooth.threshold), (0.0, 2.2));
+        // A failed replicate: the noise is unknown, the threshold infinite, nothing closes.
+        let failed = NoiseFloor::estimate(1.2, &[(1e6, false, "simulation (pass 1): diverged".into())], &config);
+        assert!(failed.std.is_infinite() && failed.threshold.is_infinite() && failed.reason.contains("diverged"));
+        assert_eq!(closed(failed.threshold, failed.reference), (None, None));
+    }
 
     /// A quadratic bowl J = 1 + 100·x² probed at x = ±0.2 (J = 5): best + 1 is crossed at x = ±0.1
     /// exactly (linear interpolation in J would say ±0.05).

@@ -68,4 +68,7 @@ pub struct FitResult {
     pub contact_cutoff: Real,
     pub threads: usize,
     pub profile: Vec<super::profile::Slice>,
+    /// The forward model's noise at the optimum and the profile's acceptance threshold (`None`
+    /// without a usable best point).
+    pub noise: Option<super::profile::NoiseFloor>,
 }

@@ -3,7 +3,7 @@
 use super::config::FitConfig;
 use super::forward::{Evaluation, ForwardModel, Observation};
 use super::optimise::{Evaluator, optimise};
-use super::profile::{Slice, profile, ratio_parts};
+use super::profile::{NoiseFloor, Slice, profile, ratio_parts};
 use super::result::{FitResult, ParameterResult, RatioResult};
 use super::space::ParameterSpace;
 use super::trace::{read_trace, write_trace};
@@ -143,8 +143,12 @@ pub fn run_fit_observed(
     let evaluations = trace.len();
     let best = best_of(&trace).cloned().ok_or_else(|| InferenceError::Optimiser("no evaluation was made".into()))?;
     bar.set_message(format!("best objective {:.4e}; profiling", best.objective));
-    let slices =
-        if best.status.usable() { profile(&evaluator, &best.x, best.objective, &config.profile) } else { Vec::new() };
+    let (slices, noise) = if best.status.usable() {
+        let (slices, noise) = profile(&evaluator, &best.x, best.objective, &config.profile);
+        (slices, Some(noise))
+    } else {
+        (Vec::new(), None)
+    };
     bar.finish_and_clear();
     let full_trace = evaluator.trace();
     write_trace(&trace_path, &model.space, &full_trace)?;
@@ -158,6 +162,7 @@ pub fn run_fit_observed(
         evaluations,
         full_trace.len() - evaluations,
         &slices,
+        noise.as_ref(),
         &outcome,
         &evaluator,
         started,
@@ -179,6 +184,7 @@ fn assemble(
     evaluations: usize,
     profile_evaluations: usize,
     slices: &[Slice],
+    noise: Option<&NoiseFloor>,
     outcome: &super::optimise::OptimiserOutcome,
     evaluator: &Evaluator<'_>,
     started: Instant,
@@ -197,7 +203,17 @@ fn assemble(
     let scale_open = space.dim() > 1 && slice("scale").is_some_and(|s| !s.determined());
     let mut parameters = BTreeMap::new();
     let mut statements = Vec::new();
-    let increase = config.profile.acceptable_increase;
+    let increase = match noise {
+        Some(n) if n.std > 0.0 => format!(
+            "{} (+{} above the mean {:.4} of the optimum's replicates, + {}σ of forward-model noise, σ = {:.3})",
+            fmt_threshold(n.threshold),
+            config.profile.acceptable_increase,
+            n.reference,
+            config.profile.noise_sigmas,
+            n.std
+        ),
+        _ => format!("best + {}", config.profile.acceptable_increase),
+    };
     // An absolute value is pinned only relative to what was held fixed (a shape fixes ratios).
     let given = if space.fixed.is_empty() {
         String::new()
@@ -234,13 +250,13 @@ fn assemble(
             } else if scale_open {
                 format!(
                     "{name}: NOT determined by the data: scaling every fitted parameter together keeps the objective \
-                     within +{increase} of the best, so only ratios are fixed (best {v:.4e}, search bounds [{:.4e}, {:.4e}])",
+                     below the acceptance threshold {increase}, so only ratios are fixed (best {v:.4e}, search bounds [{:.4e}, {:.4e}])",
                     range[0], range[1]
                 )
             } else {
                 format!(
-                    "{name}: NOT determined by the data: the objective stays within +{increase} of the best on at least \
-                     one side of {v:.4e}; range reported [{:.4e}, {:.4e}]",
+                    "{name}: NOT determined by the data: the objective stays below the acceptance threshold {increase} on at \
+                     least one side of {v:.4e}; range reported [{:.4e}, {:.4e}]",
                     range[0], range[1]
                 )
             });
@@ -324,6 +340,23 @@ fn assemble(
          compression against K (γ̃ = γ/(K·l)), weakly, and through the spring model's cutoff c"
             .to_string(),
     );
+    if let Some(n) = noise {
+        statements.push(if n.std.is_finite() {
+            format!(
+                "forward-model noise at the optimum: objectives {:?} at the best point and at its replicates × (1 + k·1e-9), \
+                 σ = {:.3}; acceptable = objective ≤ {}",
+                n.objectives.iter().map(|j| (j * 1e4).round() / 1e4).collect::<Vec<_>>(),
+                n.std,
+                fmt_threshold(n.threshold)
+            )
+        } else {
+            format!(
+                "forward-model noise at the optimum unknown: a replicate × (1 + 1e-9) of the best point failed ({}); \
+                 nothing is reported determined",
+                n.reason
+            )
+        });
+    }
     if !best.status.usable() {
         statements.push(format!("no usable evaluation: the best run was {} ({})", best.status.name(), best.reason));
     }
@@ -347,5 +380,10 @@ fn assemble(
         contact_cutoff: model.base.numerics.contact_cutoff,
         threads: rayon::current_num_threads(),
         profile: slices.to_vec(),
+        noise: noise.cloned(),
     }
+}
+
+fn fmt_threshold(t: Real) -> String {
+    format!("{t:.4}")
 }
