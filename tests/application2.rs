@@ -261,3 +261,49 @@ fn adhesion_raises_the_contact_fraction_and_stiff_nuclei_deform_their_cells() {
     assert!(nucleus_sphericity(&stiff).unwrap() > nucleus_sphericity(&soft).unwrap() + 0.005);
     assert!(stiff.mean_chi.unwrap() > 1.5 * soft.mean_chi.unwrap(), "{stiff:?} {soft:?}");
 }
+
+/// `[simulate] chi_without_nuclei` through `tissuefit run`: a 7-cell patch, 20 steps.
+#[test]
+fn the_simulate_stage_writes_chi_against_the_relaxation_without_nuclei() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/models/patch-nuclei.toml");
+    let pipeline = |nuclei: bool| {
+        format!(
+            "[input]\ngenerate = {{ kind = \"sheet\", cells = 7, aspect = 2.5, cell_size = 8e-6, min_edge_length = 1e-6, \
+             static_border = true, nuclei = {nuclei} }}\n[simulate]\nmodel = {model:?}\nchi_without_nuclei = true\n\
+             model_overrides = {{ simulation = {{ duration = 2e-6, sampling_period = 1e-6 }} }}\n"
+        )
+    };
+    let run = |name: &str, nuclei: bool| {
+        let path = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(&path, pipeline(nuclei)).unwrap();
+        let out = tmp.path().join(name);
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+            .args(["--threads", "2", "run", path.to_str().unwrap(), "--out", out.to_str().unwrap()])
+            .output()
+            .unwrap();
+        (o, out.join("simulate"))
+    };
+    let (o, dir) = run("with", true);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.join("reference.vtp").is_file());
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("simulation.json")).unwrap()).unwrap();
+    assert_eq!(record["reference"]["steps"], 20);
+    assert_eq!(record["reference"]["nuclei_removed"], 1);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    // 20 steps move the cells little: χ is small, but measured.
+    let chi = summary["mean_chi"].as_f64().unwrap();
+    assert!((0.0..0.5).contains(&chi), "{chi}");
+    let cells = std::fs::read_to_string(dir.join("cells.csv")).unwrap();
+    let header: Vec<&str> = cells.lines().next().unwrap().split(',').collect();
+    let column = header.iter().position(|h| *h == "chi").unwrap();
+    let free = cells.lines().skip(1).find(|l| l.split(',').nth(1) == Some("epithelial")).unwrap();
+    assert_eq!(free.split(',').nth(column).unwrap().parse::<f64>().unwrap(), chi);
+    // Without nuclei there is nothing to compare with: an error naming the option.
+    let (o, _) = run("without", false);
+    assert!(!o.status.success());
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("chi_without_nuclei") && stderr.contains("no nucleus"), "{stderr}");
+}
