@@ -61,6 +61,7 @@ fn grow_vesicle(cells: usize, aspect: f64, gamma_tilde: f64, seed: u64) -> Outco
         aspect,
         seed,
         nucleus_radius: None,
+        nucleus_aspect: 1.0,
         static_border: false,
         lumen: false,
         ecm_room: 2.0,

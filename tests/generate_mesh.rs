@@ -21,6 +21,7 @@ fn spec(kind: TissueKind, cells: usize) -> TissueSpec {
         aspect: 1.5,
         seed: 3,
         nucleus_radius: None,
+        nucleus_aspect: 1.0,
         static_border: false,
         lumen: false,
         ecm_room: 1.0,

@@ -55,6 +55,10 @@ pub struct GenerateMeshArgs {
     /// inside the cell).
     #[arg(long, default_value_t = 0.5, requires = "nuclei")]
     pub nucleus_radius: Real,
+    /// Elongation of each nucleus along its cell's longest principal axis: an ellipsoid whose semi-axis
+    /// along it is this × its radius (≥ 1; 1 = a sphere).
+    #[arg(long, default_value_t = 1.0, requires = "nuclei")]
+    pub nucleus_aspect: Real,
     /// Sheet only: the outer ring of cells is static (never moves), as the imaged patch of the paper's
     /// Application 2.
     #[arg(long)]
@@ -106,6 +110,7 @@ fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
         aspect: args.aspect,
         seed: args.seed,
         nucleus_radius: args.nuclei.then_some(args.nucleus_radius),
+        nucleus_aspect: args.nucleus_aspect,
         static_border: args.static_border,
         lumen: args.lumen,
         ecm_room: args.ecm_room,

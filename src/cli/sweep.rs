@@ -85,7 +85,11 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<Outcome> {
         out.join("results.csv").display(),
         rows.len(),
         if plots.is_empty() {
-            if sweep.keys.len() > 2 { "; no plots for more than two swept keys".to_string() } else { String::new() }
+            if sweep.keys.len() > 2 {
+                "; no plots for more than two independent swept keys".to_string()
+            } else {
+                String::new()
+            }
         } else {
             format!("; {} plots in {}", plots.len(), out.join("plots").display())
         }

@@ -265,6 +265,11 @@ pub enum SimulationError {
     Interrupted { step: u64 },
     #[error("the saved state is inconsistent: {0}")]
     BadState(String),
+    #[error(
+        "cell {cell}: laplace_target_volume needs the pressure 2γ̄/R = {pressure:.4e} Pa to balance its tension, above \
+         its cell type's max_pressure = {max_pressure:e} Pa (or K = 0); raise max_pressure (inf: no cap) or lower the tension"
+    )]
+    LaplaceUnbalanced { cell: CellId, pressure: Real, max_pressure: Real },
 }
 
 const HINT: &str = "Use a smaller numerics.time_step or a larger numerics.damping (`tissuefit config check` \
@@ -289,6 +294,36 @@ fn tension_scale(tissue: &Tissue, cell_params: &[&CellTypeParams]) -> Real {
     let max =
         cell_params.iter().flat_map(|p| FaceType::ALL.map(|t| p.faces.get(t).surface_tension)).fold(0.0, Real::max);
     if max > 0.0 { max } else { 1e-3 }
+}
+
+/// Sets the target volume of every cell whose type has `laplace_target_volume` to the one that
+/// balances its tension as a free sphere of its current volume ([`CellTypeParams::laplace_volume`]).
+fn set_laplace_target_volumes(tissue: &mut Tissue, cell_params: &[&CellTypeParams]) -> Result<(), SimulationError> {
+    for (cell, p) in tissue.cells_mut().iter_mut().zip(cell_params) {
+        if !p.laplace_target_volume {
+            continue;
+        }
+        let mesh = cell.mesh();
+        let (mut area, mut weighted) = (0.0, 0.0);
+        for (f, t) in mesh.triangles().iter().enumerate() {
+            let [a, b, c] = t.map(|n| mesh.positions()[n as usize]);
+            let af = 0.5 * (b - a).cross(&(c - a)).norm();
+            area += af;
+            weighted += af * p.faces.get(cell.face_types()[f]).surface_tension;
+        }
+        let volume = mesh.signed_volume();
+        let mean_tension = if area > 0.0 { weighted / area } else { 0.0 };
+        let Some((v0, _)) = p.laplace_volume(volume, mean_tension) else {
+            let radius = (3.0 * volume / (4.0 * std::f64::consts::PI)).cbrt();
+            return Err(SimulationError::LaplaceUnbalanced {
+                cell: cell.id(),
+                pressure: 2.0 * mean_tension / radius,
+                max_pressure: p.max_pressure,
+            });
+        };
+        cell.set_target_volume(v0);
+    }
+    Ok(())
 }
 
 /// A running simulation.
@@ -339,6 +374,8 @@ impl<'p> Simulation<'p> {
         {
             return Err(SimulationError::InvalidCell { cell, defect });
         }
+        let mut tissue = tissue;
+        set_laplace_target_volumes(&mut tissue, &cell_params)?;
         let gamma = tension_scale(&tissue, &cell_params);
         let growth_rates = draw_growth_rates(&tissue, &cell_params, params.numerics.seed);
         let division_volumes = draw_division_volumes(&tissue, &cell_params, params.numerics.seed);

@@ -169,6 +169,9 @@ pub struct TissueSpec {
     pub seed: u64,
     /// With `Some(f)`: a nucleus in every epithelial cell, radius f × the cell's equivalent-sphere radius.
     pub nucleus_radius: Option<Real>,
+    /// With nuclei: each nucleus is an ellipsoid elongated by this factor (≥ 1) along its cell's longest
+    /// principal axis; 1 = a sphere.
+    pub nucleus_aspect: Real,
     /// Sheet only: the outer ring of cells is static.
     pub static_border: bool,
     /// Tube only: a lumen inside the tube.
@@ -206,6 +209,11 @@ pub enum GenerateError {
         "nucleus {nucleus}: {outside} of its nodes lie outside its host cell {host}; try a smaller --nucleus-radius"
     )]
     NucleusOutside { nucleus: CellId, host: CellId, outside: usize },
+    #[error(
+        "cell {cell}: a nucleus elongated {aspect}× comes within {clearance:e} m of the cell's surface (less than \
+         half of l_min = {l_min:e} m); use a smaller --nucleus-aspect or --nucleus-radius"
+    )]
+    NucleusTooLong { cell: CellId, aspect: Real, clearance: Real, l_min: Real },
 }
 
 /// Largest depth of a node inside another body (see [`max_penetration`]).
@@ -392,6 +400,9 @@ impl TissueSpec {
         {
             return bad(format!("the nucleus radius fraction {f} must lie in (0, 1)"));
         }
+        if !(self.nucleus_aspect.is_finite() && (1.0..=10.0).contains(&self.nucleus_aspect)) {
+            return bad(format!("the nucleus aspect {} must lie in [1, 10]", self.nucleus_aspect));
+        }
         if self.static_border && self.kind != TissueKind::Sheet {
             return bad("a static border applies to a sheet only".into());
         }
@@ -462,7 +473,7 @@ pub fn generate_tissue(spec: &TissueSpec) -> Result<GeneratedTissue, GenerateErr
         cells.push(Cell::new(c.id(), kind, kind.code(), c.mesh().clone()));
     }
     let hosts = match spec.nucleus_radius {
-        Some(f) => add_nuclei(&mut cells, f, spec.l_min)?,
+        Some(f) => add_nuclei(&mut cells, f, spec.nucleus_aspect, spec.l_min)?,
         None => Vec::new(),
     };
     let mut geometry = layout.geometry.clone();
@@ -481,9 +492,15 @@ pub fn generate_tissue(spec: &TissueSpec) -> Result<GeneratedTissue, GenerateErr
 /// Puts a nucleus in every epithelial cell of `cells` (appended after them): a sphere
 /// ([`sphere_for_min_edge`]) around the cell's volume centroid of radius `fraction` × the cell's
 /// equivalent-sphere radius, but at most the distance from the centroid to the cell's surface less
-/// [`NUCLEUS_CLEARANCE_PER_L_MIN`]·l_min. Nucleus id = its host's id + the largest id. Returns
-/// (nucleus, host) pairs.
-fn add_nuclei(cells: &mut Vec<Cell>, fraction: Real, l_min: Real) -> Result<Vec<(CellId, CellId)>, GenerateError> {
+/// [`NUCLEUS_CLEARANCE_PER_L_MIN`]·l_min. With `aspect` > 1 the sphere is stretched by that factor along
+/// the cell's longest principal axis (then remeshed to l_min) and must still stay that clear of the
+/// cell's surface. Nucleus id = its host's id + the largest id. Returns (nucleus, host) pairs.
+fn add_nuclei(
+    cells: &mut Vec<Cell>,
+    fraction: Real,
+    aspect: Real,
+    l_min: Real,
+) -> Result<Vec<(CellId, CellId)>, GenerateError> {
     let offset = cells.iter().map(|c| c.id().0).max().unwrap_or(0);
     let made: Vec<Result<Option<Cell>, GenerateError>> = cells
         .par_iter()
@@ -508,6 +525,29 @@ fn add_nuclei(cells: &mut Vec<Cell>, fraction: Real, l_min: Real) -> Result<Vec<
                 return Err(GenerateError::NucleusTooSmall { cell: host.id(), radius: r.max(0.0), l_min });
             }
             let mut nucleus = sphere_for_min_edge(r, l_min)?;
+            if aspect != 1.0 {
+                let axis = mesh.principal_axes().map_or(Vec3::z(), |a| a.axes[0]);
+                nucleus.positions_mut().iter_mut().for_each(|q| *q += (aspect - 1.0) * q.dot(&axis) * axis);
+                remesh_cell(&mut nucleus, None, None, &RemeshSettings::new(l_min))?;
+                let clearance = nucleus
+                    .positions()
+                    .iter()
+                    .map(|q| {
+                        let q = q + centre;
+                        mesh.triangles()
+                            .iter()
+                            .map(|t| {
+                                closest_point_on_triangle(&q, &p[t[0] as usize], &p[t[1] as usize], &p[t[2] as usize])
+                                    .distance
+                            })
+                            .fold(Real::INFINITY, Real::min)
+                    })
+                    .fold(Real::INFINITY, Real::min);
+                // (The in-plane radius may sit exactly at the clearance: a little rounding is allowed.)
+                if clearance < (1.0 - 1e-6) * NUCLEUS_CLEARANCE_PER_L_MIN * l_min {
+                    return Err(GenerateError::NucleusTooLong { cell: host.id(), aspect, clearance, l_min });
+                }
+            }
             nucleus.positions_mut().iter_mut().for_each(|q| *q += centre);
             let id = CellId(offset + host.id().0);
             Ok(Some(Cell::new(id, CellKind::Nucleus, CellKind::Nucleus.code(), nucleus)))
@@ -567,7 +607,7 @@ fn single_cell(spec: &TissueSpec) -> Result<GeneratedTissue, GenerateError> {
     };
     let mut cells = vec![Cell::new(CellId(1), CellKind::Epithelial, CellKind::Epithelial.code(), mesh)];
     let hosts = match spec.nucleus_radius {
-        Some(f) => add_nuclei(&mut cells, f, spec.l_min)?,
+        Some(f) => add_nuclei(&mut cells, f, spec.nucleus_aspect, spec.l_min)?,
         None => Vec::new(),
     };
     finish(spec, Tissue::from_cells(cells)?, geometry, Vec::new(), hosts)

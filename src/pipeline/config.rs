@@ -101,6 +101,10 @@ pub struct GenerateInput {
     /// `nuclei = true`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nucleus_radius: Option<Real>,
+    /// Elongation of each nucleus along its cell's longest principal axis (an ellipsoid of that
+    /// semi-axis = this × its radius), ≥ 1. Default 1 (a sphere); only with `nuclei = true`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nucleus_aspect: Option<Real>,
     /// Sheet only: the outer ring of cells is static. Default false.
     #[serde(default)]
     pub static_border: bool,
@@ -133,6 +137,9 @@ impl GenerateInput {
         if self.nucleus_radius.is_some() && !self.nuclei {
             return Err("input.generate.nucleus_radius: applies with `nuclei = true`".into());
         }
+        if self.nucleus_aspect.is_some() && !self.nuclei {
+            return Err("input.generate.nucleus_aspect: applies with `nuclei = true`".into());
+        }
         let spec = TissueSpec {
             kind,
             cells: self.cells.unwrap_or(kind.default_cells()),
@@ -141,6 +148,7 @@ impl GenerateInput {
             aspect: self.aspect,
             seed: self.seed.unwrap_or(seed),
             nucleus_radius: self.nuclei.then_some(self.nucleus_radius.unwrap_or(0.5)),
+            nucleus_aspect: self.nucleus_aspect.unwrap_or(1.0),
             static_border: self.static_border,
             lumen: self.lumen,
             ecm_room: self.ecm_room,
@@ -187,6 +195,17 @@ pub struct SimulateSection {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(with = "Option<BTreeMap<String, serde_json::Value>>")]
     pub model_overrides: Option<toml::Table>,
+    /// Cell deformation by the nuclei (paper Fig. 4f): when true, the stage also relaxes the same
+    /// input tissue with its nuclei removed (same model, same run settings) into `reference.vtp`, and
+    /// writes χ = 1 − IoU(cell with nucleus, the same cell without) per cell into `cells.csv`
+    /// (`iou`, `chi`) and their mean into `summary.json` (`mean_chi`), both tissues voxelised on one
+    /// grid of voxel `chi_voxel_size`. The reference's steps and convergence go into
+    /// `simulation.json` (`reference`). An input without nuclei is an error. Default false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub chi_without_nuclei: bool,
+    /// Voxel edge [m] of the χ comparison. Default: numerics.min_edge_length / 4.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chi_voxel_size: Option<Real>,
 }
 
 /// `[demo]`: the parameters a synthetic input was made with.
@@ -278,6 +297,11 @@ impl PipelineConfig {
             && !(l.is_finite() && l > 0.0)
         {
             return Err(format!("mesh.l_min: must be a length > 0 (m); got {l}"));
+        }
+        if let Some(v) = self.simulate.as_ref().and_then(|s| s.chi_voxel_size)
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(format!("simulate.chi_voxel_size: must be a length > 0 (m); got {v}"));
         }
         if let Some(v) = self.input.voxel_size
             && !v.iter().all(|s| s.is_finite() && *s > 0.0)

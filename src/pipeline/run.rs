@@ -141,7 +141,10 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
         let key = stage_key("simulate", &text, &[&tissue_hash, &simulate_model_hash]);
         let record = runner.stage("simulate", key, |dir| run_simulate(&tissue, section, &config.measure, dir))?;
         let run = read_json(&out.join("simulate").join("simulation.json"))?;
-        simulate_converged = Some(run["mode"] == "time" || run["converged"].as_bool().unwrap_or(false));
+        let time_run = run["mode"] == "time";
+        let reference_ok =
+            run["reference"].is_null() || time_run || run["reference"]["converged"].as_bool().unwrap_or(false);
+        simulate_converged = Some((time_run || run["converged"].as_bool().unwrap_or(false)) && reference_ok);
         debug_assert!(record.status.done());
     }
 

@@ -11,9 +11,9 @@ use crate::io::{
     LengthScale, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d, write_tissue,
 };
 use crate::mechanics::{Observer, RelaxMethod, Sample, Simulation, SimulationMode};
-use crate::mesh::Tissue;
+use crate::mesh::{CellKind, Tissue};
 use crate::meshing::{LabelReport, LabelStatus, generate_tissue, mesh_labels};
-use crate::morphology::{MeasureSettings, Morphology, measure_tissue};
+use crate::morphology::{MeasureSettings, Morphology, compare_tissues, measure_tissue};
 use serde::Serialize;
 use std::path::Path;
 
@@ -249,6 +249,21 @@ struct SimulationRecord<'a> {
     divisions: u64,
     removals: u64,
     topology: &'a crate::mechanics::TopologyStats,
+    /// The relaxation without nuclei of `chi_without_nuclei`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reference: Option<ReferenceRecord>,
+}
+
+/// How the nucleus-free reference relaxation of `chi_without_nuclei` went.
+#[derive(Serialize)]
+struct ReferenceRecord {
+    steps: u64,
+    converged: bool,
+    residual: Real,
+    /// Bodies removed from the input (the nuclei).
+    nuclei_removed: usize,
+    /// Voxel edge of the χ comparison (m).
+    voxel_size: Real,
 }
 
 /// The meshed tissue simulated with the section's model (an equilibrium relaxation or a time run, as
@@ -266,6 +281,21 @@ pub fn run_simulate(
     let params = section.parameters().map_err(|e| err(e.to_string()))?;
     let t = read_meshed(tissue, "simulate")?;
     let (cells, nodes) = (t.len(), t.node_count());
+    // The nucleus-free input of `chi_without_nuclei`, taken before the run consumes the tissue.
+    let without_nuclei = if section.chi_without_nuclei {
+        let kept: Vec<_> = t.cells().iter().filter(|c| c.kind() != CellKind::Nucleus).cloned().collect();
+        let removed = t.len() - kept.len();
+        if removed == 0 {
+            return Err(err(format!(
+                "simulate.chi_without_nuclei: {} has no nucleus (cell kind 3) to remove; drop the option or give a \
+                 tissue with nuclei (e.g. input.generate with nuclei = true)",
+                tissue.display()
+            )));
+        }
+        Some((Tissue::from_cells(kept).map_err(|e| err(e.to_string()))?, removed))
+    } else {
+        None
+    };
     let mut sim = Simulation::new(t, &params).map_err(|e| err(format!("{}: {e}", tissue.display())))?;
     let summary = sim.run(&mut Quiet).map_err(|e| err(format!("{}: {e}", tissue.display())))?;
     write_events(&out.join("events.csv"), sim.events()).map_err(|e| err(e.to_string()))?;
@@ -292,9 +322,31 @@ pub fn run_simulate(
         divisions: summary.topology.divisions,
         removals: summary.topology.removals,
         topology: &summary.topology,
+        reference: None,
     };
+    let mut m = measure_tissue(&final_tissue, &settings(measure)).map_err(|e| err(format!("measuring: {e}")))?;
+    let mut record = record;
+    let mut reference_converged = true;
+    if let Some((reference, nuclei_removed)) = without_nuclei {
+        let mut rsim = Simulation::new(reference, &params)
+            .map_err(|e| err(format!("{} without nuclei: {e}", tissue.display())))?;
+        let rsummary = rsim.run(&mut Quiet).map_err(|e| err(format!("{} without nuclei: {e}", tissue.display())))?;
+        let reference = rsim.into_tissue();
+        write_tissue(&out.join("reference.vtp"), &reference, &[]).map_err(|e| err(e.to_string()))?;
+        let voxel = section.chi_voxel_size.unwrap_or(params.numerics.min_edge_length / 4.0);
+        let overlaps = compare_tissues(&final_tissue, &reference, [voxel; 3])
+            .map_err(|e| err(format!("comparing with the nucleus-free reference: {e}")))?;
+        m.set_overlap(&overlaps);
+        reference_converged = s.mode == SimulationMode::Time || rsummary.converged;
+        record.reference = Some(ReferenceRecord {
+            steps: rsummary.steps,
+            converged: rsummary.converged,
+            residual: rsummary.residual,
+            nuclei_removed,
+            voxel_size: voxel,
+        });
+    }
     write_json(&out.join("simulation.json"), &record, "simulate")?;
-    let m = measure_tissue(&final_tissue, &settings(measure)).map_err(|e| err(format!("measuring: {e}")))?;
     write_morphology(out, &m, "simulate")?;
     let time_run = s.mode == SimulationMode::Time;
     let how = if time_run {
@@ -308,9 +360,22 @@ pub fn run_simulate(
         "NOT converged".to_string()
     };
     let layers = m.summary.layers.map_or(String::new(), |n| format!(", {n} layers"));
+    let chi = match (&record.reference, m.summary.mean_chi) {
+        (Some(r), Some(chi)) => format!(
+            "; without nuclei {} steps{}, mean χ {chi:.4}",
+            r.steps,
+            if reference_converged { "" } else { " (NOT converged)" }
+        ),
+        _ => String::new(),
+    };
     Ok((
-        format!("{} steps, {how}, residual {:.3e}; final {}{layers}", summary.steps, summary.residual, describe(&m)),
-        time_run || summary.converged,
+        format!(
+            "{} steps, {how}, residual {:.3e}; final {}{layers}{chi}",
+            summary.steps,
+            summary.residual,
+            describe(&m)
+        ),
+        (time_run || summary.converged) && reference_converged,
     ))
 }
 

@@ -1,5 +1,7 @@
 //! Plots of a sweep's results (plotters, the embedded font): one PNG per numeric output column in
-//! `DIR/plots/`. One swept key: the output against it (line and points). Two: every run at its two
+//! `DIR/plots/`. Keys that take the same values in every run (one value set on several face types)
+//! make one axis, and keys that never change make none. One axis: the output against it (line and
+//! points). Two: every run at its two
 //! values, coloured by the output, the value written beside it. A key whose values are all positive
 //! numbers spanning more than a decade is drawn on a log10 axis; non-numeric values (strings, booleans)
 //! are placed at their position among the distinct values. Failed or missing outputs are left out.
@@ -105,16 +107,37 @@ fn compact(x: f64) -> String {
     if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
 }
 
-/// Writes `DIR/plots/<column>.png` for every numeric output column, with one or two swept keys;
-/// returns the files written (none for three or more keys).
+/// The swept keys that make the plot axes, by index: a key that takes the same values as an earlier
+/// one in every run (linked keys, e.g. one tension set on three face types) adds no axis, nor does a key
+/// with one value in every run while another key varies.
+fn axis_keys(sweep: &Sweep) -> Vec<usize> {
+    let values =
+        |k: usize| -> Vec<Option<String>> { sweep.runs.iter().map(|r| r.values[k].as_ref().map(show_value)).collect() };
+    let varies = |v: &[Option<String>]| v.iter().any(|x| *x != v[0]);
+    let all: Vec<Vec<Option<String>>> = (0..sweep.keys.len()).map(values).collect();
+    let any_varies = all.iter().any(|v| varies(v));
+    let mut keys: Vec<usize> = Vec::new();
+    for (k, v) in all.iter().enumerate() {
+        if (any_varies && !varies(v)) || keys.iter().any(|&j| all[j] == *v) {
+            continue;
+        }
+        keys.push(k);
+    }
+    keys
+}
+
+/// Writes `DIR/plots/<column>.png` for every numeric output column, with one or two swept axes
+/// ([`axis_keys`]: linked and constant keys count once or not at all); returns the files written (none
+/// for three axes or more).
 pub fn plot_results(sweep: &Sweep, rows: &[ResultRow], out: &Path) -> Result<Vec<PathBuf>, PipelineError> {
-    if sweep.keys.is_empty() || sweep.keys.len() > 2 {
+    let keys = axis_keys(sweep);
+    if keys.is_empty() || keys.len() > 2 {
         return Ok(Vec::new());
     }
     ensure_font();
     let dir = out.join("plots");
     std::fs::create_dir_all(&dir).map_err(|e| err(&dir, e))?;
-    let axes: Vec<Axis> = (0..sweep.keys.len()).map(|k| axis(sweep, k)).collect();
+    let axes: Vec<Axis> = keys.iter().map(|&k| axis(sweep, k)).collect();
     let mut written = Vec::new();
     for (c, column) in sweep.columns.iter().enumerate() {
         let name = column.name();

@@ -38,7 +38,11 @@
 //!
 //! Nuclei lie inside their host cell (the cell containing the nucleus's centroid, found at every
 //! evaluation): for a nucleus node the distance to its host's surface is flipped the same way, so
-//! the host's membrane holds the nucleus in.
+//! the host's membrane holds the nucleus in. A nucleus's adhesion is its own: nodes of other bodies
+//! near a nucleus adhere with the nucleus type's ω (its mean over face types), not their own, as
+//! in the reference program (which takes k_adh from the face's side) and the paper's Application 2
+//! (non-adhesive nuclei, ω_n = 0); otherwise a host's membrane would stick to its nucleus with the
+//! host's ω.
 //!
 //! **Determinism.** Pairs are found in parallel per cell (read-only), then forces are applied in a
 //! fixed order (cell, node), so results do not depend on the thread count.
@@ -367,6 +371,12 @@ impl ContactWorkspace {
         let face_offsets = &self.face_offsets;
         let topology = &self.topology;
         let forces_ro: &[CellForces] = forces;
+        // Adhesion towards a nucleus is the nucleus's own (mean ω of its type): see the module doc.
+        let nucleus_adhesion: Vec<Real> = cell_params
+            .iter()
+            .map(|p| FaceType::ALL.iter().map(|&t| p.faces.get(t).adhesion).sum::<Real>() / 3.0)
+            .collect();
+        let nucleus_adhesion = &nucleus_adhesion;
         let (neighbours, cell_boxes, boxes, host) = (&neighbours, &cell_boxes, &self.boxes, &host);
         let coupling = self.model == ContactModel::Coupling;
         let prune_margin = PRUNE_MARGIN * cutoff;
@@ -462,6 +472,9 @@ impl ContactWorkspace {
                     let (mut omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
                     if coupling && cell_a.kind().is_cell() && cells[b].kind().is_cell() {
                         omega = 0.0;
+                    }
+                    if cells[b].kind() == CellKind::Nucleus {
+                        omega = nucleus_adhesion[b];
                     }
                     let area: Real =
                         faces_a.iter().map(|&g| forces_ro[a].geometry.areas[g as usize]).sum::<Real>() / 3.0;

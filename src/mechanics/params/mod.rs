@@ -241,6 +241,14 @@ pub struct CellTypeParams {
     /// Largest mean curvature H_max [1/m] at which a node may be coupled to another cell (coupling
     /// contact model). Default 5e6 1/m.
     pub max_coupling_curvature: Real,
+    /// When true, a simulation starts each cell of this type with the target volume at which a free
+    /// sphere of its initial volume V is in pressure balance with its surface tension (Laplace):
+    /// V0 = V·exp(2γ̄/(K·R)), R = (3V/4π)^(1/3), γ̄ = the area-weighted mean surface tension of its
+    /// faces (area elasticity not included). The body then keeps its initial size instead of
+    /// shrinking under its own tension: at γ̃ = γ/(K·V^(1/3)) the free sphere's equilibrium volume is
+    /// V/V0 = x with ln(1/x) = 3.22·γ̃·x^(−1/3) whatever K is (x ≈ 0.31 at the paper's nuclear
+    /// γ̃_n = 0.24). Needs K > 0 and a max_pressure above 2γ̄/R. Default false.
+    pub laplace_target_volume: bool,
     /// Membrane parameters per face type. Default: Table 2 on every face type (other kinds: the
     /// reference's tension and repulsion, no adhesion).
     pub faces: FaceTypeParams,
@@ -270,6 +278,7 @@ impl CellTypeParams {
             target_isoperimetric_ratio: 250.0,
             area_elasticity: 1e-15,
             max_coupling_curvature: 5e6,
+            laplace_target_volume: false,
             faces: FaceTypeParams::uniform(FaceParams::default()),
         };
         // (K [Pa], γ [N/m], ξ [Pa/m]) from the reference scenarios.
@@ -295,6 +304,24 @@ impl CellTypeParams {
     /// `target_volume` (both m³, > 0): the paper's pressure with its cap.
     pub fn pressure(&self, volume: Real, target_volume: Real) -> Real {
         (-self.bulk_modulus * (volume / target_volume).ln()).min(self.max_pressure)
+    }
+
+    /// The Laplace target volume of [`CellTypeParams::laplace_target_volume`] for a body of volume
+    /// `volume` (m³) whose faces have total area `area` (m²) and area-weighted mean tension
+    /// `mean_tension` (N/m): (V0, the balancing pressure p = 2γ̄/R). `None` when K = 0 or the pressure
+    /// exceeds max_pressure (no target volume can balance it).
+    pub fn laplace_volume(&self, volume: Real, mean_tension: Real) -> Option<(Real, Real)> {
+        let radius = (3.0 * volume / (4.0 * PI)).cbrt();
+        let pressure = 2.0 * mean_tension / radius;
+        if self.bulk_modulus <= 0.0
+            || pressure.is_nan()
+            || pressure > self.max_pressure
+            || !radius.is_finite()
+            || radius <= 0.0
+        {
+            return None;
+        }
+        Some((volume * (pressure / self.bulk_modulus).exp(), pressure))
     }
 }
 

@@ -322,6 +322,14 @@ impl Report {
         );
         self.number(&p("area_elasticity"), t.area_elasticity, d.area_elasticity, Bound::NonNegative);
         self.number(&p("max_coupling_curvature"), t.max_coupling_curvature, d.max_coupling_curvature, Bound::Positive);
+        if t.laplace_target_volume && (t.bulk_modulus.is_nan() || t.bulk_modulus <= 0.0) {
+            self.errors.push(format!(
+                "{} = true needs a bulk modulus K > 0 (cell_types[{index}].bulk_modulus = {}): the target volume that \
+                 balances the tension comes from the pressure −K ln(V/V0); set bulk_modulus or drop laplace_target_volume",
+                p("laplace_target_volume"),
+                fmt_real(t.bulk_modulus)
+            ));
+        }
         for (face_type, face) in t.faces.iter() {
             let default = d.faces.get(face_type);
             let p = |field: &str| format!("cell_types[{index}].faces.{}.{field}", face_type.name());

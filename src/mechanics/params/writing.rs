@@ -185,6 +185,14 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
                node-coupling contact model, numerics.contact_model = \"coupling\").",
     },
     FieldDoc {
+        path: "cell_types.laplace_target_volume",
+        unit: "",
+        text: "When true, a simulation starts each cell of this type with V0 = V·exp(2γ̄/(K·R)) (R = (3V/4π)^(1/3), γ̄ = \
+               its area-weighted mean surface tension): a free sphere of its initial volume is then in pressure \
+               balance, so the body keeps its size instead of shrinking under its tension (for nuclei: at γ̃_n = 0.24 a \
+               free nucleus would shrink to ≈ 31 % of its volume, whatever K). Needs K > 0 and max_pressure above 2γ̄/R.",
+    },
+    FieldDoc {
         path: "cell_types.faces",
         unit: "",
         text: "Membrane parameters per face type (apical, lateral, basal); each face of a cell has one type.",
