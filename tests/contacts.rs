@@ -214,6 +214,7 @@ fn coarse_spheroid() -> Tissue {
         aspect: 1.0,
         seed: 0,
         nucleus_radius: None,
+        nucleus_aspect: 1.0,
         static_border: false,
         lumen: false,
         ecm_room: 1.0,
