@@ -33,7 +33,51 @@ fn temporary_name(path: &Path) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// Whether `name` is a temporary of [`write_atomically`]: `<file>.tmp-<process id>`.
+fn is_temporary(name: &str) -> bool {
+    name.rsplit_once(".tmp-")
+        .is_some_and(|(file, pid)| !file.is_empty() && !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// Removes the temporaries of [`write_atomically`] that a killed process left in `dir` (not its
+/// subfolders); returns how many. A missing `dir` has none.
+pub fn remove_stale_temporaries(dir: &Path) -> Result<usize, IoError> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(source) => return Err(IoError::Open { path: dir.to_path_buf(), source }),
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let path = entry.path();
+        if path.is_file() && entry.file_name().to_str().is_some_and(is_temporary) {
+            std::fs::remove_file(&path).map_err(|source| IoError::Write { path: path.clone(), source })?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// Convenience for writers that produce the whole file in memory.
 pub fn write_bytes_atomically(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
     write_atomically(path, |w| w.write_all(bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_temporaries_are_removed_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["frame_000002.vtp.tmp-13026", "a.tmp-1", "frame_000001.vtp", "notes.tmp-x", ".tmp-12", "b.tmp-"] {
+            std::fs::write(dir.path().join(name), b"x").unwrap();
+        }
+        assert_eq!(remove_stale_temporaries(dir.path()).unwrap(), 2);
+        let mut left: Vec<String> =
+            std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+        left.sort();
+        assert_eq!(left, [".tmp-12", "b.tmp-", "frame_000001.vtp", "notes.tmp-x"]);
+        assert_eq!(remove_stale_temporaries(&dir.path().join("missing")).unwrap(), 0);
+    }
 }

@@ -16,7 +16,7 @@ mod simulation_output;
 mod units;
 mod vtp;
 
-pub use atomic::{write_atomically, write_bytes_atomically};
+pub use atomic::{remove_stale_temporaries, write_atomically, write_bytes_atomically};
 pub use checkpoint::{
     CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, checksum, decode_checkpoint,
     read_checkpoint, write_checkpoint,

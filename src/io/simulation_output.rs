@@ -92,8 +92,11 @@ impl SimulationRecorder {
 
     /// Continues the outputs of a checkpointed run in `dir`: the series holds the saved frames, and
     /// `stats.csv.partial` is cut back to the saved length (rows a killed run wrote after the
-    /// checkpoint are dropped; the resumed run writes them again, identically).
+    /// checkpoint are dropped; the resumed run writes them again, identically), and the temporaries
+    /// of files a killed run was writing are removed.
     pub fn resume(dir: &Path, time_is_step: bool, state: &super::OutputState) -> Result<Self, IoError> {
+        super::remove_stale_temporaries(dir)?;
+        super::remove_stale_temporaries(&dir.join("frames"))?;
         let partial = dir.join("stats.csv.partial");
         let io = |source| IoError::Write { path: partial.clone(), source };
         let mut file = std::fs::OpenOptions::new()
