@@ -304,23 +304,14 @@ fn set_laplace_target_volumes(tissue: &mut Tissue, cell_params: &[&CellTypeParam
             continue;
         }
         let mesh = cell.mesh();
-        let (mut area, mut weighted) = (0.0, 0.0);
-        for (f, t) in mesh.triangles().iter().enumerate() {
-            let [a, b, c] = t.map(|n| mesh.positions()[n as usize]);
-            let af = 0.5 * (b - a).cross(&(c - a)).norm();
-            area += af;
-            weighted += af * p.faces.get(cell.face_types()[f]).surface_tension;
-        }
-        let volume = mesh.signed_volume();
+        let areas = mesh.face_areas();
+        let area: Real = areas.iter().sum();
+        let weighted: Real =
+            areas.iter().zip(cell.face_types()).map(|(a, t)| a * p.faces.get(*t).surface_tension).sum();
         let mean_tension = if area > 0.0 { weighted / area } else { 0.0 };
-        let Some((v0, _)) = p.laplace_volume(volume, mean_tension) else {
-            let radius = (3.0 * volume / (4.0 * std::f64::consts::PI)).cbrt();
-            return Err(SimulationError::LaplaceUnbalanced {
-                cell: cell.id(),
-                pressure: 2.0 * mean_tension / radius,
-                max_pressure: p.max_pressure,
-            });
-        };
+        let v0 = p.laplace_volume(mesh.signed_volume(), mean_tension).map_err(|pressure| {
+            SimulationError::LaplaceUnbalanced { cell: cell.id(), pressure, max_pressure: p.max_pressure }
+        })?;
         cell.set_target_volume(v0);
     }
     Ok(())
@@ -659,7 +650,8 @@ impl<'p> Simulation<'p> {
             Ok(report) => {
                 if !report.cells_without_cytoplasm.is_empty() && self.polarizations == 0 {
                     tracing::warn!(
-                        "polarity: cells {:?} have no interior voxel at a voxel size of {:.3e} m, so rays cross                          them; lower numerics.polarity_voxel_size",
+                        "polarity: cells {:?} have no interior voxel at a voxel size of {:.3e} m, so rays cross \
+                         them; lower numerics.polarity_voxel_size",
                         report.cells_without_cytoplasm.iter().map(|c| c.0).collect::<Vec<_>>(),
                         report.voxel_size
                     );

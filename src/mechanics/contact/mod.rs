@@ -39,10 +39,12 @@
 //! Nuclei lie inside their host cell (the cell containing the nucleus's centroid, found at every
 //! evaluation): for a nucleus node the distance to its host's surface is flipped the same way, so
 //! the host's membrane holds the nucleus in. A nucleus's adhesion is its own: nodes of other bodies
-//! near a nucleus adhere with the nucleus type's ω (its mean over face types), not their own, as
-//! in the reference program (which takes k_adh from the face's side) and the paper's Application 2
-//! (non-adhesive nuclei, ω_n = 0); otherwise a host's membrane would stick to its nucleus with the
-//! host's ω.
+//! near a nucleus adhere with the nucleus type's ω (its mean over face types) where it is below their
+//! own, as in the reference program (which takes k_adh from the face's side) and the paper's
+//! Application 2 (non-adhesive nuclei, ω_n = 0); otherwise a host's membrane would stick to its
+//! nucleus with the host's ω. Capping it at the node's own ω keeps every well within the node's own
+//! depth, which [`combine_wells`] assumes (a deeper well would be clipped there, and a node of ω = 0
+//! would adhere through one pair but not through two).
 //!
 //! **Determinism.** Pairs are found in parallel per cell (read-only), then forces are applied in a
 //! fixed order (cell, node), so results do not depend on the thread count.
@@ -371,7 +373,7 @@ impl ContactWorkspace {
         let face_offsets = &self.face_offsets;
         let topology = &self.topology;
         let forces_ro: &[CellForces] = forces;
-        // Adhesion towards a nucleus is the nucleus's own (mean ω of its type): see the module doc.
+        // Adhesion towards a nucleus: the nucleus's own (mean ω of its type), capped (module doc).
         let nucleus_adhesion: Vec<Real> = cell_params
             .iter()
             .map(|p| FaceType::ALL.iter().map(|&t| p.faces.get(t).adhesion).sum::<Real>() / 3.0)
@@ -474,7 +476,7 @@ impl ContactWorkspace {
                         omega = 0.0;
                     }
                     if cells[b].kind() == CellKind::Nucleus {
-                        omega = nucleus_adhesion[b];
+                        omega = omega.min(nucleus_adhesion[b]);
                     }
                     let area: Real =
                         faces_a.iter().map(|&g| forces_ro[a].geometry.areas[g as usize]).sum::<Real>() / 3.0;

@@ -307,10 +307,10 @@ impl CellTypeParams {
     }
 
     /// The Laplace target volume of [`CellTypeParams::laplace_target_volume`] for a body of volume
-    /// `volume` (m³) whose faces have total area `area` (m²) and area-weighted mean tension
-    /// `mean_tension` (N/m): (V0, the balancing pressure p = 2γ̄/R). `None` when K = 0 or the pressure
-    /// exceeds max_pressure (no target volume can balance it).
-    pub fn laplace_volume(&self, volume: Real, mean_tension: Real) -> Option<(Real, Real)> {
+    /// `volume` (m³) whose faces have the area-weighted mean tension `mean_tension` (N/m). `Err` holds
+    /// the balancing pressure p = 2γ̄/R when no target volume can balance it (K = 0, p above
+    /// max_pressure, or no finite positive radius).
+    pub fn laplace_volume(&self, volume: Real, mean_tension: Real) -> Result<Real, Real> {
         let radius = (3.0 * volume / (4.0 * PI)).cbrt();
         let pressure = 2.0 * mean_tension / radius;
         if self.bulk_modulus <= 0.0
@@ -319,9 +319,9 @@ impl CellTypeParams {
             || !radius.is_finite()
             || radius <= 0.0
         {
-            return None;
+            return Err(pressure);
         }
-        Some((volume * (pressure / self.bulk_modulus).exp(), pressure))
+        Ok(volume * (pressure / self.bulk_modulus).exp())
     }
 }
 
