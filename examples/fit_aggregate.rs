@@ -14,8 +14,9 @@
 //!
 //! Arguments: contact model (`coupling` or `spring`), the true key ratio, voxels per cell diameter,
 //! and optionally the cells (default 20), the nodes per cell (default 150), the evaluation budget
-//! (default 14) and an output folder (default: a temporary one). Too slow for CI (a relaxation of
-//! 20 cells × 150 nodes takes 10–40 s on 2 cores); `tests/fit.rs` runs the doublet round trips.
+//! (default 14) and an output folder (default: a temporary one). The model, the aggregate, the
+//! truth's relaxation (6,000 steps, the last 1,000 on a fixed mesh) and the fit config are
+//! `tests/support/round_trip.rs`; `tests/fit.rs` runs one spring round trip of this example in CI.
 //!
 //! Options: `--shifts N` sets `forward.measure_shifts` (default 8: the like-data measurement averaged
 //! over 8 sub-voxel shifts); `--probe F1,F2,…` evaluates the forward model at truth × each factor
@@ -25,91 +26,18 @@
 //! contacts"; `--from-initial` starts those probes from the truth's initial tissue instead of the
 //! observed one.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 use tissuefit::geometry::{Real, Vec3};
-use tissuefit::imaging::{
-    LabelPattern, LabelSpec, LabelWriteOptions, VoxelGrid, generate_labels, voxelize_with_stats, write_label_tiff,
-};
 use tissuefit::inference::{FitConfig, FitOptions, run_fit};
-use tissuefit::mechanics::{ContactModel, Observer, Parameters, Sample, Simulation};
+use tissuefit::mechanics::{ContactModel, Observer, Sample};
 use tissuefit::mesh::Tissue;
-use tissuefit::meshing::{LabelMeshingOptions, mesh_labels};
 
 #[path = "../tests/support/round_trip.rs"]
 mod round_trip;
-use round_trip::round_trip_model;
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
-
-/// Relaxation steps of the truth (from the generated polyhedra) and of each evaluation pass (from
-/// the observed, near-equilibrium shape): coupling contacts settle within 600 steps a pass; spring
-/// contacts in an aggregate do not converge (residual 7–100 after 3000 steps) and their shape still
-/// drifts, so each evaluation gets the truth's 3000 steps (2 passes of 1500): with 600 a pass the
-/// fits were biased (truth w/(2γ) = 0.1 → 0.063, 0.2 → 0.220).
-const TRUTH_STEPS: u64 = 3000;
-const STEPS: u64 = 600;
-const SPRING_STEPS: u64 = 1500;
-/// Apical (free-surface) tension of every truth (N/m).
-const GAMMA: Real = 1e-3;
-
-/// The round trip's model (see [`round_trip_model`]) with this example's spring step and step counts.
-fn model(contact: ContactModel, l_min: Real, gamma_lateral: Real, adhesion: Real) -> Parameters {
-    let steps = if contact == ContactModel::Spring { SPRING_STEPS } else { STEPS };
-    round_trip_model(contact, l_min, GAMMA, gamma_lateral, adhesion, 1.5e-8, steps)
-}
-
-fn initial_aggregate(cells: usize, nodes: usize) -> (Tissue, Real) {
-    let spec = LabelSpec {
-        pattern: LabelPattern::Aggregate,
-        shape: [40, 40, 40],
-        voxel_size: [0.4e-6; 3],
-        cells,
-        seed: 2,
-        lumen: false,
-    };
-    let labels = generate_labels(&spec).expect("aggregate labels");
-    let meshed = mesh_labels(&labels.volume, &LabelMeshingOptions { target_nodes: nodes, ..Default::default() })
-        .expect("meshing the aggregate");
-    assert_eq!(meshed.tissue.len(), cells, "every generated cell meshed");
-    (meshed.tissue, meshed.l_min.expect("l_min"))
-}
-
-/// Relaxes the truth, voxelises it at `vpd` voxels per mean cell diameter into DIR/observed.tif.
-fn observe(dir: &Path, truth: &Parameters, initial: &Tissue, vpd: Real) -> (Real, u64) {
-    let mut truth = truth.clone();
-    truth.simulation.max_steps = TRUTH_STEPS;
-    let mut sim = Simulation::new(initial.clone(), &truth).expect("truth simulation");
-    let summary = sim.run(&mut Quiet).expect("truth relaxation");
-    let tissue = sim.into_tissue();
-    let mean_volume = tissue.cells().iter().map(|c| c.mesh().signed_volume()).sum::<Real>() / tissue.len() as Real;
-    let diameter = 2.0 * (3.0 * mean_volume / (4.0 * std::f64::consts::PI)).cbrt();
-    let (mut lo, mut hi) = (Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY));
-    for c in tissue.cells() {
-        for p in c.mesh().positions() {
-            lo = lo.inf(p);
-            hi = hi.sup(p);
-        }
-    }
-    let voxel = diameter / vpd;
-    let grid = VoxelGrid::covering(lo, hi, [voxel; 3], 2).expect("grid");
-    let (labels, stats) = voxelize_with_stats(&tissue, &grid).expect("voxelise");
-    write_label_tiff(&dir.join("observed.tif"), &labels, &LabelWriteOptions::default()).expect("write");
-    eprintln!(
-        "truth: {} steps, residual {:.3e}, diameter {:.3} µm, voxel {:.3} µm, {} overlapping voxels",
-        summary.steps,
-        summary.residual,
-        diameter * 1e6,
-        voxel * 1e6,
-        stats.overlapping_voxels
-    );
-    (diameter, stats.overlapping_voxels)
-}
+use round_trip::{
+    AGGREGATE_GAMMA as GAMMA, aggregate_fit_config, aggregate_model, initial_aggregate, observe_aggregate,
+};
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -159,68 +87,29 @@ fn main() {
 
     let started = Instant::now();
     let (initial, l_min) = initial_aggregate(cells, nodes);
-    let (truth, parameters, ratio_name) = match contact {
-        ContactModel::Coupling => (
-            model(contact, l_min, ratio * GAMMA, 0.0),
-            "[parameters.surface_tension]\nvalue = 1e-3\n[parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\ninitial = 8e-4\n"
-                .to_string(),
-            "lateral_over_apical",
+    let (truth, ratio_name) = match contact {
+        ContactModel::Coupling => (aggregate_model(contact, l_min, ratio * GAMMA, 0.0), "lateral_over_apical"),
+        // w/(2γ) = ω·c²/(4γ), c = l_min.
+        ContactModel::Spring => (
+            aggregate_model(contact, l_min, GAMMA, ratio * 4.0 * GAMMA / (l_min * l_min)),
+            "adhesion_energy_over_tension",
         ),
-        ContactModel::Spring => {
-            // w/(2γ) = ω·c²/(4γ), c = l_min.
-            let omega = ratio * 4.0 * GAMMA / (l_min * l_min);
-            (
-                model(contact, l_min, GAMMA, omega),
-                format!(
-                    "[parameters.surface_tension]\nvalue = 1e-3\n[parameters.adhesion]\nbounds = [{:e}, {:e}]\ninitial = {:e}\n",
-                    0.05 * 4.0 * GAMMA / (l_min * l_min),
-                    0.3 * 4.0 * GAMMA / (l_min * l_min),
-                    0.25 * 4.0 * GAMMA / (l_min * l_min),
-                ),
-                "adhesion_energy_over_tension",
-            )
-        }
     };
-    let (diameter, overlapping) = observe(&dir, &truth, &initial, vpd);
-    let truth_seconds = started.elapsed().as_secs_f64();
-    let base = model(contact, l_min, GAMMA, 0.0);
-    // Spring contacts: the cutoff c (= l_min, `forward.match_mesh_length`) is the adhesion's range, a
-    // length of the model, not only of the mesh; meshing the observed voxels at the truth's l_min keeps
-    // the model the truth was made with. (Left free, a fresh meshing of 10 voxels per diameter picks
-    // l_min = 0.51 µm against the truth's 0.59 µm, and the fit runs into its upper bound.)
-    let meshing_l_min = match contact {
-        ContactModel::Spring => format!("l_min = {l_min:e}"),
-        ContactModel::Coupling => String::new(),
-    };
-    std::fs::write(dir.join("model.toml"), base.to_toml_string()).expect("model.toml");
-    let config = format!(
-        r#"model = "model.toml"
-[observed]
-labels = "observed.tif"
-[observed.meshing]
-target_nodes = {nodes}
-{meshing_l_min}
-{parameters}
-[objective]
-sphericity = 1.0
-contact_fraction = 1.0
-coordination = 0.0
-# The rim angle of re-meshed voxels hardly moves with the ratio at 10 voxels per diameter
-# (40.7° → 46.1° for γ_l/γ_a 0.8 → 0.44) against ±1–2° between neighbouring points: left out.
-contact_angle = 0.0
-[optimizer]
-method = "nelder_mead"
-max_evaluations = {budget}
-tolerance = 0.01
-[forward]
-accept_residual = 1e9
-volume_passes = 1
-measure_shifts = {shifts}
-[profile]
-points = 2
-span = 1.3
-"#
+    let observed = observe_aggregate(&dir, &truth, &initial, vpd);
+    eprintln!(
+        "truth: {} steps, residual {:.3e}, {:.0} nodes per cell, diameter {:.3} µm, voxel {:.3} µm, {} overlapping voxels",
+        observed.summary.steps,
+        observed.summary.residual,
+        observed.nodes_per_cell,
+        observed.diameter * 1e6,
+        observed.voxel * 1e6,
+        observed.overlapping_voxels
     );
+    let (diameter, overlapping) = (observed.diameter, observed.overlapping_voxels);
+    let truth_seconds = started.elapsed().as_secs_f64();
+    let base = aggregate_model(contact, l_min, GAMMA, 0.0);
+    std::fs::write(dir.join("model.toml"), base.to_toml_string()).expect("model.toml");
+    let config = aggregate_fit_config(contact, l_min, nodes, budget, shifts);
     std::fs::write(dir.join("fit.toml"), config).expect("fit.toml");
     let config = FitConfig::load(&dir.join("fit.toml")).expect("fit config");
     if let Some(factors) = probe {
@@ -346,6 +235,8 @@ fn probe_noise(config: &FitConfig, truth_x: Real, factors: &[Real], from: Option
             "objective": like.as_ref().map(|m| model.score(m)).ok(),
             "like_data_shifted_sph_phi": shifted,
             "samples_step_residual_sph_phi": rec.samples,
+            "nodes_per_cell": tissue.node_count() as Real / tissue.len() as Real,
+            "observed_nodes_per_cell": model.observation.tissue.node_count() as Real / tissue.len() as Real,
             "wall_seconds": started.elapsed().as_secs_f64(),
         });
         println!("{line}");

@@ -19,7 +19,9 @@ use tissuefit::meshing::{LabelMeshingOptions, mesh_labels};
 
 #[path = "support/round_trip.rs"]
 mod round_trip;
-use round_trip::round_trip_model;
+use round_trip::{
+    AGGREGATE_GAMMA, aggregate_fit_config, aggregate_model, initial_aggregate, observe_aggregate, round_trip_model,
+};
 
 struct Quiet;
 impl Observer for Quiet {
@@ -295,8 +297,17 @@ fn resumes_exactly(dir: &Path, out: &Path, full: &FitResult) {
     }
 }
 
+/// A spring doublet's sphericity moves so little with the adhesion that the acceptable range of the
+/// truth 0.3 spans w/(2γ) 0.12–0.38 at 12 voxels per diameter, so its fit is set by the forward
+/// model's noise: changes that should not matter moved the recovered value of the truth 0.3 between
+/// −12.8 % and +16.5 % (remeshing at the last step or not, each part of the volume treatment, normal
+/// relaxation; the code before them gave −0.4 %; see README "Fitting parameters"). What
+/// must hold is that the fit says so: it recovers the ratio within 10 % and reports it determined with
+/// a range holding the truth, or it reports it NOT determined. The acceptance test of spring
+/// contacts is the aggregate (`aggregate_round_trip_recovers_spring_adhesion_over_tension_within_10_percent`),
+/// whose ~60 contacts determine it.
 #[test]
-fn round_trip_recovers_the_spring_adhesion_over_tension_for_two_truths() {
+fn round_trip_of_a_spring_doublet_recovers_the_adhesion_or_reports_it_undetermined() {
     for w_over_2g in [0.3, 0.45] {
         let (_, l_min) = initial_doublet();
         // w/(2γ) = ω·c²/(4γ) with c = l_min.
@@ -309,7 +320,26 @@ fn round_trip_recovers_the_spring_adhesion_over_tension_for_two_truths() {
         };
         let dir = tempfile::tempdir().unwrap();
         let (result, _) = round_trip(&case, dir.path());
-        check(&case, &result);
+        let r = &result.ratios[case.ratio];
+        match r.determined {
+            Some(true) => {
+                check(&case, &result);
+                let [lo, hi] = r.range;
+                assert!(
+                    lo <= w_over_2g && w_over_2g <= hi,
+                    "determined range [{lo}, {hi}] misses the truth {w_over_2g}"
+                );
+            }
+            _ => {
+                let error = recovery_error(&case, &result);
+                eprintln!("w/(2γ) = {w_over_2g}: reported NOT determined ({:+.1} %)", 100.0 * error);
+                assert!(
+                    result.identifiability.iter().any(|line| line.contains("NOT determined")),
+                    "an undetermined ratio must be reported in plain words: {:?}",
+                    result.identifiability
+                );
+            }
+        }
     }
 }
 
@@ -643,18 +673,31 @@ fn warm_start_reaches_other_metrics_than_a_cold_start_so_evaluations_start_cold(
     );
     // A cold start is a function of the parameters alone: bit for bit.
     assert_eq!(again.objective.to_bits(), cold.objective.to_bits());
-    let (s_cold, s_warm) = (cold.metrics.sphericity.unwrap(), warm.metrics.sphericity.unwrap());
-    let scale = config.objective.sphericity_scale;
-    eprintln!("warm − cold sphericity: {:+.5} ({:+.2} scales)", s_warm - s_cold, (s_warm - s_cold) / scale);
     // Nothing saved: the coupling relaxation never meets the force tolerance (its residual hovers),
     // so every pass runs its max_steps from either start (measured 3000 = 3000 steps).
     assert_eq!(warm.steps, cold.steps);
-    // And the end state depends on the start (measured −0.0026 in sphericity, half a scale, and
-    // −5.6° in the rim angle): a warm-started fit would depend on the order of its evaluations.
+    // And the end state depends on the start. Since the first relaxation starts at the Laplace
+    // target volume (no 36 % shrinking and regrowing), the sphericity hardly does (measured −0.00029,
+    // 0.06 scales; before: −0.0026, half a scale), but the contact does (rim angle 62.9° cold vs
+    // 71.2° warm, 8.4 scales; φ 0.180 vs 0.193): a warm-started fit of contact metrics would depend
+    // on the order of its evaluations.
+    let o = &config.objective;
+    let scales = [o.sphericity_scale, o.contact_fraction_scale, o.coordination_scale, o.contact_angle_scale];
+    let apart = cold
+        .metrics
+        .values()
+        .iter()
+        .zip(warm.metrics.values())
+        .zip(scales)
+        .filter_map(|((c, w), s)| Some(((w? - (*c)?) / s).abs()))
+        .fold(0.0, Real::max);
+    eprintln!(
+        "warm − cold: up to {apart:.2} scales (sphericity {:+.5})",
+        warm.metrics.sphericity.unwrap() - cold.metrics.sphericity.unwrap()
+    );
     assert!(
-        (s_warm - s_cold).abs() > 0.1 * scale,
-        "warm and cold starts agree to {:.1e}: a warm start could be enabled",
-        (s_warm - s_cold).abs()
+        apart > 1.0,
+        "warm and cold starts agree to {apart:.2} scales in every metric: a warm start could be enabled"
     );
 }
 
@@ -801,4 +844,41 @@ fn measuring_like_the_data_averaged_over_sub_voxel_shifts_hardly_depends_on_wher
     assert!(phi_1 > 0.01, "the single measurement's scatter this test is about: {phi_1}");
     assert!(phi_8 < 0.5 * phi_1 && sph_8 < 0.5 * sph_1, "averaging over shifts must narrow the scatter");
     assert!(phi_8 < 0.01 && sph_8 < 0.0025, "averaged scatter within one φ scale and half a Ψ scale");
+}
+
+/// The acceptance round trip on an aggregate, in CI (the four spring and the coupling cases of the
+/// README are `examples/fit_aggregate.rs`): 20 spring cells relaxed with w/(2γ) = ωc²/(4γ) = 0.2
+/// (moving along their normals, settling on a fixed mesh), voxelised at 10 voxels per diameter;
+/// the fit sees only the labels (meshed, measured like the data over 8 sub-voxel shifts, 14
+/// Nelder–Mead evaluations) and must recover w/(2γ) within 10 %, report it as determined, and give
+/// a range that holds the truth. About two and a half minutes on 2 cores.
+#[test]
+fn aggregate_round_trip_recovers_spring_adhesion_over_tension_within_10_percent() {
+    let (cells, nodes, truth_ratio) = (20, 150, 0.2);
+    let dir = tempfile::tempdir().unwrap();
+    let (initial, l_min) = initial_aggregate(cells, nodes);
+    let omega = truth_ratio * 4.0 * AGGREGATE_GAMMA / (l_min * l_min);
+    let truth = aggregate_model(ContactModel::Spring, l_min, AGGREGATE_GAMMA, omega);
+    let observed = observe_aggregate(dir.path(), &truth, &initial, 10.0);
+    assert!(observed.summary.steps > 0);
+    let base = aggregate_model(ContactModel::Spring, l_min, AGGREGATE_GAMMA, 0.0);
+    std::fs::write(dir.path().join("model.toml"), base.to_toml_string()).unwrap();
+    let config = dir.path().join("fit.toml");
+    std::fs::write(&config, aggregate_fit_config(ContactModel::Spring, l_min, nodes, 14, 8)).unwrap();
+    let result = fit(&config, &dir.path().join("out"), false);
+    let r = &result.ratios["adhesion_energy_over_tension"];
+    let error = (r.value - truth_ratio) / truth_ratio;
+    eprintln!(
+        "aggregate spring round trip: w/(2γ) {truth_ratio} → {:.4} ({:+.1} %), range {:?}, determined {:?}, {} + {} evaluations",
+        r.value,
+        100.0 * error,
+        r.range,
+        r.determined,
+        result.evaluations,
+        result.profile_evaluations
+    );
+    assert!(error.abs() < 0.10, "recovered {} for the truth {truth_ratio}", r.value);
+    assert_eq!(r.determined, Some(true), "the fit must find w/(2γ) determined by the aggregate's morphology");
+    let [lo, hi] = r.range;
+    assert!(lo <= truth_ratio && truth_ratio <= hi, "range [{lo}, {hi}] excludes the truth {truth_ratio}");
 }

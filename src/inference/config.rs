@@ -260,6 +260,15 @@ pub struct OptimizerConfig {
     /// Nelder–Mead initial simplex edge, as a fraction of each parameter's log-range. Default 0.25.
     #[serde(default = "default_simplex")]
     pub initial_simplex: Real,
+    /// Nelder–Mead: when the objectives' spread has fallen below `tolerance` but the best n + 1
+    /// points still lie further apart than this fraction of a parameter's log-range (a simplex
+    /// straddling the minimum), it restarts around the best point with half that width. Default 0.02.
+    #[serde(default = "default_simplex_tolerance")]
+    pub simplex_tolerance: Real,
+}
+
+fn default_simplex_tolerance() -> Real {
+    0.02
 }
 
 fn default_method() -> OptimizerMethod {
@@ -294,6 +303,12 @@ pub struct ForwardConfig {
     /// Overrides simulation.max_steps of the model. Default: the model's.
     #[serde(default)]
     pub max_steps: Option<u64>,
+    /// Overrides simulation.settle_steps of the model: the last steps of every relaxation pass run
+    /// without remeshing, so it ends on a fixed mesh where the shape stops changing (an adhesive
+    /// spring aggregate remeshed to the end keeps creeping, and then where each evaluation
+    /// happened to stop, not its parameters, sets the metrics). Default: the model's.
+    #[serde(default)]
+    pub settle_steps: Option<u64>,
     /// An unconverged run whose final residual (max force / γ̄·l_min) is at most this is still
     /// measured and used (the coupling model's residual hovers at 0.005–0.2 while the shape has
     /// settled). Default 0: every unconverged run is penalised.
@@ -512,6 +527,9 @@ impl FitConfig {
         let opt = &self.optimizer;
         if opt.max_evaluations == 0 {
             return Err("optimizer.max_evaluations: must be at least 1".into());
+        }
+        if !(opt.simplex_tolerance.is_finite() && opt.simplex_tolerance > 0.0) {
+            return Err(format!("optimizer.simplex_tolerance: must be finite and > 0; got {}", opt.simplex_tolerance));
         }
         if !(opt.tolerance.is_finite() && opt.tolerance >= 0.0) {
             return Err(format!("optimizer.tolerance: must be finite and ≥ 0; got {}", opt.tolerance));

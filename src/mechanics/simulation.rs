@@ -333,6 +333,8 @@ pub struct Simulation<'p> {
     /// (every out-of-range edge or poor face refused) backs the cell off for [`REMESH_BACKOFF`] passes
     /// instead of rebuilding its working copy every step for nothing.
     remesh_idle: Vec<u32>,
+    /// A relaxation with `simulation.normal_relaxation`: forces are projected onto the node normals.
+    normal_only: bool,
     last_good: Vec<Vec<Vec3>>,
     events: Vec<TopologyEvent>,
     topology: TopologyStats,
@@ -382,6 +384,7 @@ impl<'p> Simulation<'p> {
             momenta,
             growth_rates,
             remesh_idle: vec![0; division_volumes.len()],
+            normal_only: false,
             division_volumes,
             last_good: Vec::new(),
             events: Vec::new(),
@@ -512,6 +515,7 @@ impl<'p> Simulation<'p> {
             growth_rates: state.growth_rates,
             division_volumes: state.division_volumes,
             remesh_idle: state.remesh_idle,
+            normal_only: false,
             last_good: state.last_good,
             events: state.events,
             topology: state.topology,
@@ -686,6 +690,9 @@ impl<'p> Simulation<'p> {
         }
         self.force_evaluations += 1;
         self.node_evaluations += self.tissue.node_count() as u64;
+        if self.normal_only {
+            self.project_forces_to_normals();
+        }
         for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.forces.cells).enumerate() {
             let problem = if let Some(n) = cell.mesh().positions().iter().position(|p| !p.iter().all(|v| v.is_finite()))
             {
@@ -706,6 +713,28 @@ impl<'p> Simulation<'p> {
             }
         }
         Ok(())
+    }
+
+    /// Keeps only the component of every nodal force along the node's normal (the sum of its faces'
+    /// area vectors; see `SimulationSettings::normal_relaxation`). A descent along these forces
+    /// still lowers the energy (dE = −|F_n|²·dt), and its fixed points are the shapes on which no
+    /// node is pushed off the surface.
+    fn project_forces_to_normals(&mut self) {
+        let cells = self.tissue.cells();
+        self.forces.cells.par_iter_mut().zip(cells.par_iter()).for_each(|(work, cell)| {
+            let mut normals = vec![Vec3::zeros(); work.forces.len()];
+            for (t, a) in cell.mesh().triangles().iter().zip(&work.geometry.area_vectors) {
+                for &n in t {
+                    normals[n as usize] += a;
+                }
+            }
+            for (f, n) in work.forces.iter_mut().zip(&normals) {
+                let norm2 = n.norm_squared();
+                if norm2 > 0.0 {
+                    *f = n * (f.dot(n) / norm2);
+                }
+            }
+        });
     }
 
     /// The first force term that is non-finite for cell `c`.
@@ -831,6 +860,7 @@ impl<'p> Simulation<'p> {
         method: RelaxMethod,
     ) -> Result<SimulationSummary, SimulationError> {
         let s = self.params.simulation.clone();
+        self.normal_only = s.normal_relaxation;
         let (mut mover, mut residual, mut previous) = match self.resume.take() {
             Some(Phase::Relax { fire, previous, residual }) => {
                 let mover = match fire {
@@ -870,7 +900,14 @@ impl<'p> Simulation<'p> {
                 mover = Mover::Integrate;
                 continue;
             }
-            if s.remesh_every_steps > 0 && self.step.is_multiple_of(s.remesh_every_steps) && self.remesh()? {
+            // The last settle_steps run on a fixed mesh (see SimulationSettings::settle_steps).
+            // (settle_steps = 0 keeps the remeshing at the last step when it falls due.)
+            let settling = s.settle_steps > 0 && self.step.saturating_add(s.settle_steps) >= s.max_steps;
+            if s.remesh_every_steps > 0
+                && !settling
+                && self.step.is_multiple_of(s.remesh_every_steps)
+                && self.remesh()?
+            {
                 // New nodes: the minimiser starts afresh on the new layout, and the convergence
                 // history restarts (energies of different meshes are not comparable step to step).
                 if let Mover::Fire { .. } = mover {

@@ -90,6 +90,7 @@ impl Parameters {
             ("simulation.max_steps", sim.max_steps),
             ("simulation.sample_every_steps", sim.sample_every_steps),
             ("simulation.remesh_every_steps", sim.remesh_every_steps),
+            ("simulation.settle_steps", sim.settle_steps),
         ] {
             if value > i64::MAX as u64 {
                 report.errors.push(format!("{key} = {value} is larger than the largest TOML integer {}", i64::MAX));

@@ -272,6 +272,18 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
                shorter than l_min, flip poor triangles); 0 = never.",
     },
     FieldDoc {
+        path: "simulation.settle_steps",
+        unit: "",
+        text: "Equilibrium mode: the last settle_steps of max_steps run without remeshing, so the minimiser ends on a fixed \
+               mesh (with remeshing to the end an adhesive relaxation keeps creeping); 0 = remesh to the end.",
+    },
+    FieldDoc {
+        path: "simulation.normal_relaxation",
+        unit: "",
+        text: "Equilibrium mode: move nodes along their normals only (forces projected onto the node normals). Adhesive \
+               spring contacts otherwise stream nodes out of every contact and the relaxation churns without settling.",
+    },
+    FieldDoc {
         path: "simulation.force_tolerance",
         unit: "",
         text: "Equilibrium when the largest nodal force is below this fraction of the typical tension force γ·l_min (γ: mean surface tension of the moving cells' faces) ...",

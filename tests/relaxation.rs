@@ -1,0 +1,104 @@
+//! Relaxation to equilibrium with remeshing: `simulation.settle_steps` (the end of a relaxation on
+//! a fixed mesh) and `simulation.normal_relaxation` (nodes move along their normals), on a small
+//! adhesive spring aggregate generated from polyhedra.
+
+use tissuefit::geometry::{Real, Vec3};
+use tissuefit::mechanics::{ContactModel, Observer, Parameters, Sample, Simulation, SimulationSummary};
+use tissuefit::mesh::Tissue;
+
+#[path = "support/round_trip.rs"]
+mod round_trip;
+use round_trip::{AGGREGATE_GAMMA, initial_aggregate, round_trip_model};
+
+struct Quiet;
+impl Observer for Quiet {
+    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
+}
+
+/// Spring contacts with w/(2γ) = ωc²/(4γ) = 0.1 (c = l_min), remeshing every 50 steps.
+fn model(l_min: Real, steps: u64) -> Parameters {
+    let omega = 0.1 * 4.0 * AGGREGATE_GAMMA / (l_min * l_min);
+    round_trip_model(ContactModel::Spring, l_min, AGGREGATE_GAMMA, AGGREGATE_GAMMA, omega, 1.5e-8, steps)
+}
+
+fn relax(tissue: &Tissue, params: &Parameters) -> (Tissue, SimulationSummary) {
+    let mut sim = Simulation::new(tissue.clone(), params).unwrap();
+    let summary = sim.run(&mut Quiet).unwrap();
+    (sim.into_tissue(), summary)
+}
+
+/// With settle_steps = N the last N steps of max_steps remesh nothing: a run of 600 steps settling
+/// the last 300 remeshes exactly as a run of 300 steps settling its last one does (bit for bit the
+/// same passes: at steps 50 … 250), and one settling all its steps never remeshes.
+#[test]
+fn settle_steps_end_a_relaxation_on_a_fixed_mesh() {
+    let (initial, l_min) = initial_aggregate(8, 100);
+    let mut short = model(l_min, 300);
+    short.simulation.settle_steps = 1;
+    let (_, first) = relax(&initial, &short);
+    assert!(first.topology.remesh_passes > 0, "the polyhedra must need remeshing for this test to mean anything");
+    let mut long = model(l_min, 600);
+    long.simulation.settle_steps = 300;
+    let (_, settled) = relax(&initial, &long);
+    assert_eq!(settled.topology, first.topology, "remeshing stopped after step 300");
+    long.simulation.settle_steps = 600;
+    let (tissue, fixed) = relax(&initial, &long);
+    assert_eq!(fixed.topology.remesh_passes, 0);
+    for (a, b) in tissue.cells().iter().zip(initial.cells()) {
+        assert_eq!(a.mesh().triangles(), b.mesh().triangles(), "cell {}: no topology change", a.id());
+    }
+}
+
+/// Remeshing operations (splits + collapses) of a relaxation continued from `start`.
+fn operations(s: &SimulationSummary) -> u64 {
+    s.topology.splits + s.topology.collapses
+}
+
+/// Moved with the full forces, an adhesive spring aggregate churns: nodes stream out of every
+/// contact (the contact energy weights each node by its area), remeshing refills it, and splits and
+/// collapses go on at the same pace long after the polyhedra have rounded up. Moved along their
+/// normals, the nodes stop: the same continuation needs a small fraction of the operations, and
+/// every force left is normal to the surface.
+#[test]
+fn normal_relaxation_stops_the_remeshing_churn_of_adhesive_contacts() {
+    let (initial, l_min) = initial_aggregate(8, 100);
+    let run = |normal: bool| {
+        let mut p = model(l_min, 2000);
+        p.simulation.normal_relaxation = normal;
+        let (rounded, _) = relax(&initial, &p);
+        let (_, later) = relax(&rounded, &p);
+        later
+    };
+    let (full, normal) = (run(false), run(true));
+    eprintln!(
+        "steps 2000–4000: full forces {} splits + collapses (residual {:.3}), normal {} (residual {:.3})",
+        operations(&full),
+        full.residual,
+        operations(&normal),
+        normal.residual
+    );
+    assert!(
+        4 * operations(&normal) < operations(&full),
+        "normal relaxation: {} operations, full forces: {}",
+        operations(&normal),
+        operations(&full)
+    );
+
+    let mut p = model(l_min, 200);
+    p.simulation.normal_relaxation = true;
+    let mut sim = Simulation::new(initial.clone(), &p).unwrap();
+    sim.run(&mut Quiet).unwrap();
+    for (cell, work) in sim.tissue().cells().iter().zip(&sim.forces().cells) {
+        let mut normals = vec![Vec3::zeros(); work.forces.len()];
+        for (t, a) in cell.mesh().triangles().iter().zip(&work.geometry.area_vectors) {
+            for &n in t {
+                normals[n as usize] += a;
+            }
+        }
+        for (f, n) in work.forces.iter().zip(&normals) {
+            assert!(f.cross(n).norm() <= 1e-9 * f.norm() * n.norm(), "cell {}: a tangential force {f:?}", cell.id());
+        }
+    }
+}
