@@ -102,3 +102,23 @@ fn normal_relaxation_stops_the_remeshing_churn_of_adhesive_contacts() {
         }
     }
 }
+
+/// Coupling contacts tie node pairs that share one force; projected onto each node's own normal the
+/// two forces would differ and the pair would drift apart between evaluations. Under normal
+/// relaxation a tied pair still gets one force (the mean of the two projections).
+#[test]
+fn normal_relaxation_keeps_one_force_per_coupled_pair() {
+    let (initial, l_min) = initial_aggregate(8, 100);
+    let mut p =
+        round_trip_model(ContactModel::Coupling, l_min, AGGREGATE_GAMMA, 0.5 * AGGREGATE_GAMMA, 0.0, 1.5e-8, 300);
+    p.simulation.normal_relaxation = true;
+    let mut sim = Simulation::new(initial, &p).unwrap();
+    sim.run(&mut Quiet).unwrap();
+    let pairs = sim.coupled_pairs();
+    assert!(!pairs.is_empty(), "the aggregate's cells must be coupled for this test to mean anything");
+    let force = |(c, n): (u32, u32)| sim.forces().cells[c as usize].forces[n as usize];
+    for pair in pairs {
+        let (fa, fb) = (force(pair.a), force(pair.b));
+        assert!((fa - fb).norm() <= 1e-12 * fa.norm().max(fb.norm()), "pair {pair:?}: {fa:?} vs {fb:?}");
+    }
+}

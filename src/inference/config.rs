@@ -324,11 +324,13 @@ pub struct ForwardConfig {
     /// contacts, rounded rims — then cancel instead of being fitted). Default true.
     #[serde(default = "yes")]
     pub measure_like_data: bool,
-    /// Corrections of the cells' target volumes V0 after the first relaxation: each pass sets
-    /// V0 ← V0·V_observed/V_simulated per cell and relaxes again from where it stopped, so the
-    /// equilibrium volumes match the observed ones (the observed volume is data, V0 is not: starting
-    /// with V0 = V_observed would shrink every cell by its Laplace pressure, exp(−p/K)). 0: keep
-    /// V0 = V_observed. Default 2.
+    /// Corrections of the cells' target volumes V0 after the first relaxation. The first relaxation
+    /// starts each moving cell at its Laplace target volume (the V0 whose pressure 2γ̄/R holds it at
+    /// its observed volume; the observed volume is data, V0 is not: starting with V0 = V_observed
+    /// would shrink every cell by exp(−p/K)); each pass then sets V0 from the pressure the cell has,
+    /// p = K·ln(V0/V), scaled like a Laplace pressure to the wanted volume, and relaxes again from
+    /// where it stopped, so the equilibrium volumes match the observed ones (measured like the data
+    /// with `measure_like_data`). 0: the Laplace start only. Default 2.
     #[serde(default = "default_volume_passes")]
     pub volume_passes: usize,
     /// With `measure_like_data`: how many rigid sub-voxel shifts of each relaxed tissue are
@@ -528,8 +530,11 @@ impl FitConfig {
         if opt.max_evaluations == 0 {
             return Err("optimizer.max_evaluations: must be at least 1".into());
         }
-        if !(opt.simplex_tolerance.is_finite() && opt.simplex_tolerance > 0.0) {
-            return Err(format!("optimizer.simplex_tolerance: must be finite and > 0; got {}", opt.simplex_tolerance));
+        if !(opt.simplex_tolerance.is_finite() && opt.simplex_tolerance >= 1e-6) {
+            return Err(format!(
+                "optimizer.simplex_tolerance: must be finite and ≥ 1e-6 (a fraction of each log-range); got {}",
+                opt.simplex_tolerance
+            ));
         }
         if !(opt.tolerance.is_finite() && opt.tolerance >= 0.0) {
             return Err(format!("optimizer.tolerance: must be finite and ≥ 0; got {}", opt.tolerance));

@@ -24,9 +24,12 @@
 //!
 //! Settling: with remeshing every few steps an adhesive (spring) relaxation never converges, and its
 //! end point depends on when it stopped. `simulation.settle_steps` (or `forward.settle_steps`)
-//! runs the last steps of every pass on a fixed mesh, where the shape stops changing. With a label-volume input and `forward.measure_like_data`, each relaxed tissue is
-//! voxelised on the observed grid and meshed again with the observed meshing options before it is
-//! measured, so simulated and observed morphology pass through the same measurement.
+//! runs the last steps of every pass on a fixed mesh, where the shape stops changing; spring
+//! relaxations should also set `simulation.normal_relaxation`.
+//!
+//! With a label-volume input and `forward.measure_like_data`, each relaxed tissue is voxelised on the
+//! observed grid and meshed again with the observed meshing options before it is measured, so
+//! simulated and observed morphology pass through the same measurement.
 //!
 //! One contact distance: faces within δ of another cell count as contact. The surfaces of two
 //! touching simulated cells do not coincide (coupled nodes are tied, the faces between them are not;
@@ -46,8 +49,8 @@
 //! parameters only (never on which evaluations ran before), which is what makes the cache, the
 //! parallel evaluation and the resumption exact. A warm start ([`ForwardModel::evaluate_from`] the
 //! equilibrium of a neighbouring point) was measured on the coupled doublet: it ends at another shape
-//! than a cold start at the same parameters (sphericity −0.0026, half a scale; rim angle −5.6°) and
-//! saves no steps (the coupling residual hovers, so every pass runs its max_steps); see
+//! than a cold start at the same parameters (with the Laplace start: sphericity −0.0003, but rim
+//! angle 71.2° vs 62.9°, 8 scales; before it: sphericity −0.0026, rim angle −5.6°) and saves no steps (the coupling residual hovers, so every pass runs its max_steps); see
 //! `tests/fit.rs`, `warm_start_reaches_other_metrics_than_a_cold_start_so_evaluations_start_cold`.
 
 use super::config::{ForwardConfig, ObjectiveConfig};
@@ -402,8 +405,10 @@ impl ForwardModel {
     }
 
     /// The volume of each cell of a relaxed tissue as the data measure it (voxelised on the observed
-    /// grid and meshed again with the observed options), in the tissue's cell order; `None` without
-    /// `forward.measure_like_data` or a label input, and for a cell the meshing dropped. The observed
+    /// grid as it lies, one placement, not averaged over `measure_shifts`, and meshed again with the
+    /// observed options), in the tissue's cell order; `None` without `forward.measure_like_data` or a
+    /// label input, and for a cell the meshing dropped (that cell's direct volume is then compared
+    /// with its observed one, and it ends about the measurement's bias too small). The observed
     /// volumes went through that measurement, which loses volume (9 % of a spring aggregate's cells
     /// at 10 voxels per diameter: the voxel boundary's samples lie inside the surface), so matching
     /// direct volumes to them would shrink every simulated cell by that bias.

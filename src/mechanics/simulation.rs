@@ -692,6 +692,10 @@ impl<'p> Simulation<'p> {
         self.node_evaluations += self.tissue.node_count() as u64;
         if self.normal_only {
             self.project_forces_to_normals();
+            if self.params.numerics.contact_model == ContactModel::Coupling {
+                // Tied nodes share one force again: the mean of the two projections.
+                self.coupling.average_forces(&self.tissue, &mut self.forces.cells);
+            }
         }
         for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.forces.cells).enumerate() {
             let problem = if let Some(n) = cell.mesh().positions().iter().position(|p| !p.iter().all(|v| v.is_finite()))

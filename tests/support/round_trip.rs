@@ -125,7 +125,8 @@ pub struct Observed {
     pub nodes_per_cell: Real,
 }
 
-/// Relaxes the truth ([`AGGREGATE_TRUTH_STEPS`], settling as above) from `initial` and voxelises it
+/// Relaxes the truth ([`AGGREGATE_TRUTH_STEPS`], settling as above, for either contact model) from
+/// `initial` and voxelises it
 /// at `vpd` voxels per mean cell diameter into DIR/observed.tif.
 pub fn observe_aggregate(dir: &Path, truth: &Parameters, initial: &Tissue, vpd: Real) -> Observed {
     let mut truth = truth.clone();

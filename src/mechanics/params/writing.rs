@@ -274,8 +274,9 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
     FieldDoc {
         path: "simulation.settle_steps",
         unit: "",
-        text: "Equilibrium mode: the last settle_steps of max_steps run without remeshing, so the minimiser ends on a fixed \
-               mesh (with remeshing to the end an adhesive relaxation keeps creeping); 0 = remesh to the end.",
+        text: "Equilibrium mode: no remeshing pass at step max_steps − settle_steps or later, so at least the last \
+               settle_steps steps run on a fixed mesh and the minimiser ends on it (with remeshing to the end an adhesive \
+               relaxation keeps creeping); 0 = remesh to the end.",
     },
     FieldDoc {
         path: "simulation.normal_relaxation",
