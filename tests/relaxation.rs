@@ -2,7 +2,7 @@
 //! a fixed mesh) and `simulation.normal_relaxation` (nodes move along their normals), on a small
 //! adhesive spring aggregate generated from polyhedra.
 
-use tissuefit::geometry::{Real, Vec3};
+use tissuefit::geometry::Real;
 use tissuefit::mechanics::{ContactModel, Observer, Parameters, Sample, Simulation, SimulationSummary};
 use tissuefit::mesh::Tissue;
 
@@ -91,12 +91,8 @@ fn normal_relaxation_stops_the_remeshing_churn_of_adhesive_contacts() {
     let mut sim = Simulation::new(initial.clone(), &p).unwrap();
     sim.run(&mut Quiet).unwrap();
     for (cell, work) in sim.tissue().cells().iter().zip(&sim.forces().cells) {
-        let mut normals = vec![Vec3::zeros(); work.forces.len()];
-        for (t, a) in cell.mesh().triangles().iter().zip(&work.geometry.area_vectors) {
-            for &n in t {
-                normals[n as usize] += a;
-            }
-        }
+        // The mesh's own area-weighted node normals (not the projection's arithmetic).
+        let (_, normals) = cell.mesh().mean_curvature_and_normals();
         for (f, n) in work.forces.iter().zip(&normals) {
             assert!(f.cross(n).norm() <= 1e-9 * f.norm() * n.norm(), "cell {}: a tangential force {f:?}", cell.id());
         }

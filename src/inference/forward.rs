@@ -506,16 +506,13 @@ impl ForwardModel {
 }
 
 /// The first target volume of a moving cell: the one whose Laplace pressure 2γ̄/R (γ̄ its
-/// area-weighted mean tension) holds it at its observed volume ([`CellTypeParams::laplace_volume`]),
+/// area-weighted mean tension, [`CellTypeParams::mean_tension`]) holds it at its observed volume
+/// ([`CellTypeParams::laplace_volume`]),
 /// so the first relaxation starts near its equilibrium volume instead of shrinking by exp(−p/K)
 /// (36 % on a spring aggregate at K = 2500 Pa) and growing back over the volume passes. `None`
 /// (keep V0) when no target volume balances it (K = 0, a capped pressure).
 fn laplace_start(cell: &crate::mesh::Cell, p: &CellTypeParams, observed: Real) -> Option<Real> {
-    let areas = cell.mesh().face_areas();
-    let area: Real = areas.iter().sum();
-    let weighted: Real = areas.iter().zip(cell.face_types()).map(|(a, t)| a * p.faces.get(*t).surface_tension).sum();
-    let mean_tension = if area > 0.0 { weighted / area } else { return None };
-    p.laplace_volume(observed, mean_tension).ok().filter(|v| v.is_finite() && *v > 0.0)
+    p.laplace_volume(observed, p.mean_tension(cell)).ok().filter(|v| v.is_finite() && *v > 0.0)
 }
 
 /// The next target volume of a moving cell after a relaxation that ended at volume `direct` (as

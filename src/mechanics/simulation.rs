@@ -303,13 +303,7 @@ fn set_laplace_target_volumes(tissue: &mut Tissue, cell_params: &[&CellTypeParam
         if !p.laplace_target_volume {
             continue;
         }
-        let mesh = cell.mesh();
-        let areas = mesh.face_areas();
-        let area: Real = areas.iter().sum();
-        let weighted: Real =
-            areas.iter().zip(cell.face_types()).map(|(a, t)| a * p.faces.get(*t).surface_tension).sum();
-        let mean_tension = if area > 0.0 { weighted / area } else { 0.0 };
-        let v0 = p.laplace_volume(mesh.signed_volume(), mean_tension).map_err(|pressure| {
+        let v0 = p.laplace_volume(cell.mesh().signed_volume(), p.mean_tension(cell)).map_err(|pressure| {
             SimulationError::LaplaceUnbalanced { cell: cell.id(), pressure, max_pressure: p.max_pressure }
         })?;
         cell.set_target_volume(v0);

@@ -306,6 +306,16 @@ impl CellTypeParams {
         (-self.bulk_modulus * (volume / target_volume).ln()).min(self.max_pressure)
     }
 
+    /// The area-weighted mean surface tension γ̄ (N/m) of a cell of this type over its faces (0 for a
+    /// cell without area).
+    pub fn mean_tension(&self, cell: &crate::mesh::Cell) -> Real {
+        let areas = cell.mesh().face_areas();
+        let area: Real = areas.iter().sum();
+        let weighted: Real =
+            areas.iter().zip(cell.face_types()).map(|(a, t)| a * self.faces.get(*t).surface_tension).sum();
+        if area > 0.0 { weighted / area } else { 0.0 }
+    }
+
     /// The Laplace target volume of [`CellTypeParams::laplace_target_volume`] for a body of volume
     /// `volume` (m³) whose faces have the area-weighted mean tension `mean_tension` (N/m). `Err` holds
     /// the balancing pressure p = 2γ̄/R when no target volume can balance it (K = 0, p above
