@@ -267,7 +267,9 @@ fn with_second_type(mut base: Parameters, kind: CellKind, gamma: Real, xi: Real)
         f.bending_modulus = 0.0;
     }
     t.max_pressure = Real::INFINITY;
-    base.cell_types.push(t);
+    // Type 1: the cells' `cell_type` index. (Pushed after the default list, it would be type 5 and
+    // type 1 the default ECM, whose kind the simulation now applies to the cell.)
+    base.cell_types[1] = t;
     for ft in FaceType::ALL {
         base.cell_types[0].faces.get_mut(ft).repulsion = xi;
     }

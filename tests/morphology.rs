@@ -158,6 +158,36 @@ fn doublet_contact_area_fraction_and_rim_angle_match_the_caps() {
     assert!((theta - 120.0).abs() < 0.3, "θ = {theta}°, expected 120°");
     assert!(c.rim_edges >= 2 * 96, "rim edges {}", c.rim_edges);
     assert_eq!(m.summary.mean_contact_angle_deg, Some(theta));
+    // Far field: spheres fitted to the free faces away from the rim and the plane of the contact
+    // faces. Face centroids sit inside the sphere by the chord sag, the same on every free face,
+    // so the fit shrinks the radius without moving the angle much: 0.5°.
+    let far = c.far_field_angle_deg.expect("two spherical caps on a flat disc");
+    assert!((far - 120.0).abs() < 0.5, "far-field θ = {far}°, expected 120°");
+    assert_eq!(m.summary.mean_far_field_angle_deg, Some(far));
+}
+
+/// Issue 20 item 6: a rim rounded over about one edge length (as meshing, remeshing or a spring
+/// contact's gap rounds it) biases the rim angle but not the far-field angle, which reads the caps
+/// away from the rim.
+#[test]
+fn a_rounded_rim_biases_the_rim_angle_but_not_the_far_field_angle() {
+    let (radius, disc) = (5e-6, 5e-6 * (PI / 3.0).sin()); // θ = 120°
+    let mut t = doublet(radius, disc, 4);
+    for cell in t.cells_mut() {
+        for p in cell.positions_mut() {
+            let r = (p.x * p.x + p.y * p.y).sqrt();
+            if p.z.abs() < 0.04 * radius && r > 0.9 * disc {
+                let pull = 1.0 - 0.04 * (1.0 - p.z.abs() / (0.04 * radius));
+                p.x *= pull;
+                p.y *= pull;
+            }
+        }
+    }
+    let m = measure(&t);
+    let c = &m.contacts[0];
+    let (rim, far) = (c.contact_angle_deg.unwrap(), c.far_field_angle_deg.unwrap());
+    assert!((rim - 120.0).abs() > 3.0, "the rounding should move the rim angle: {rim}°");
+    assert!((far - 120.0).abs() < 0.5, "far-field θ = {far}°, rim θ = {rim}°, expected 120°");
 }
 
 #[test]

@@ -308,6 +308,7 @@ fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> anyho
         area_a: 0.0,
         area_b: 0.0,
         rim_edges: 0,
+        far_field_angle_deg: None,
     };
     write_csv(&dir.join("contacts.csv"), &m.contacts, &example)?;
     let path = dir.join("summary.json");

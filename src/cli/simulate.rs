@@ -80,6 +80,18 @@ struct Summary<'a> {
     steps: u64,
     force_evaluations: u64,
     converged: bool,
+    /// Volume by which cells overlap at the end (m³ and µm³; only penetrations within the contact
+    /// cutoff are seen), and the largest overlap of one cell as a fraction of its volume.
+    overlap_volume: f64,
+    overlap_volume_um3: f64,
+    max_overlap_fraction: f64,
+    /// Why an equilibrium run did not converge (absent when it did).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stop_reason: Option<&'a str>,
+    /// The step whose state the files hold, when not the last one (a run that did not converge
+    /// ends at its lowest-residual state).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ended_at_step: Option<u64>,
     residual: f64,
     wall_seconds: f64,
     threads: usize,
@@ -474,6 +486,11 @@ fn drive(
         steps: summary.steps,
         force_evaluations: summary.force_evaluations,
         converged: summary.converged,
+        overlap_volume: summary.overlap_volume,
+        overlap_volume_um3: summary.overlap_volume * 1e18,
+        max_overlap_fraction: summary.max_overlap_fraction,
+        stop_reason: summary.stop_reason.as_deref(),
+        ended_at_step: summary.ended_at_step,
         residual: summary.residual,
         wall_seconds: wall,
         threads: rayon::current_num_threads(),
@@ -502,7 +519,7 @@ fn drive(
     let verdict = match (s.mode, summary.converged) {
         (SimulationMode::Time, _) => "done".to_string(),
         (_, true) => "converged".to_string(),
-        (_, false) => format!("NOT converged within {} steps", s.max_steps),
+        (_, false) => format!("NOT converged ({})", summary.stop_reason.as_deref().unwrap_or("no reason recorded")),
     };
     eprintln!(
         "{input}: {verdict}: {} steps, {} force evaluations, residual {:.3e} (max force / γ·l_min), {:.2} s wall, {} frames in {}",

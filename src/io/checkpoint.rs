@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 /// File name of the checkpoint inside a simulation's output folder.
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 /// Version of the payload's structure; bumped on every change to it.
-pub const CHECKPOINT_VERSION: u32 = 1;
+pub const CHECKPOINT_VERSION: u32 = 2;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;
 

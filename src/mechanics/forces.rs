@@ -14,7 +14,7 @@ use super::pressure::pressure_energy;
 use super::tension::tension_energy;
 use super::{CellTypeParams, Parameters};
 use crate::geometry::{Real, Vec3, triangle_area_gradients};
-use crate::mesh::{Cell, CellId, FaceType, Tissue};
+use crate::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -203,6 +203,39 @@ pub fn cell_parameters<'p>(
                 cell_type: c.cell_type(),
                 defined: params.cell_types.len(),
             })
+        })
+        .collect()
+}
+
+/// Gives every cell the kind its cell type declares in the parameters (`[[cell_types]] kind`), which
+/// wins over the kind a tissue file stored or its reader inferred (SimuCell3D files without
+/// `cell_kind` have their kind guessed from `cell_type_id`). One exception: a cell the file marks
+/// static (`cell_is_static`, e.g. the boundary of an imaged patch) stays static when its type is
+/// epithelial, as SimuCell3D does. Returns one line per cell type whose cells changed kind, for the
+/// caller to show. Cells whose type is undefined are left alone ([`cell_parameters`] reports them).
+pub fn apply_configured_kinds(tissue: &mut Tissue, params: &Parameters) -> Vec<String> {
+    let mut changed: Vec<(u32, CellKind, CellKind, usize)> = Vec::new();
+    for cell in tissue.cells_mut() {
+        let Some(p) = params.cell_type(cell.cell_type()) else { continue };
+        let (from, to) = (cell.kind(), p.kind);
+        if from == to || (from == CellKind::Static && to == CellKind::Epithelial) {
+            continue;
+        }
+        cell.set_kind(to);
+        match changed.iter_mut().find(|(t, f, k, _)| (*t, *f, *k) == (cell.cell_type(), from, to)) {
+            Some(entry) => entry.3 += 1,
+            None => changed.push((cell.cell_type(), from, to, 1)),
+        }
+    }
+    changed
+        .into_iter()
+        .map(|(t, from, to, n)| {
+            let name = params.cell_type(t).map_or("", |p| p.name.as_str());
+            format!(
+                "cell type {t} ({name}): {n} cell(s) read as {} run as {} as the configuration says",
+                from.name(),
+                to.name()
+            )
         })
         .collect()
 }

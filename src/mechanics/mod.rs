@@ -29,7 +29,9 @@ pub use contact::{
     ContactTimings, ContactWorkspace, CoupledPair, CouplingWorkspace, contact_energy_density, contact_stress,
 };
 pub use fire::*;
-pub use forces::{CellForces, EnergyTerms, TermSet, TissueForces, UnknownCellType, cell_parameters};
+pub use forces::{
+    CellForces, EnergyTerms, TermSet, TissueForces, UnknownCellType, apply_configured_kinds, cell_parameters,
+};
 pub use growth::{division_seed, draw_division_volume, draw_division_volumes, draw_growth_rate, draw_growth_rates};
 pub use motion::integrate_step;
 pub use params::{
@@ -42,7 +44,8 @@ pub use polarity::{
 pub use pressure::pressure_energy;
 pub use settings::{RelaxMethod, SimulationMode, SimulationSettings};
 pub use simulation::{
-    CellForcesState, CellState, CheckpointRequest, LastGood, Observer, Phase, Sample, Simulation, SimulationError,
-    SimulationState, SimulationSummary, TopologyEvent, TopologyEventKind, TopologyStats,
+    BEST_ENERGY_SLACK, BestState, CellForcesState, CellState, CheckpointRequest, LastGood, OVERLAP_WARNING, Observer,
+    Phase, REPULSION_MARGIN, Sample, Simulation, SimulationError, SimulationState, SimulationSummary, TopologyEvent,
+    TopologyEventKind, TopologyStats,
 };
 pub use tension::tension_energy;

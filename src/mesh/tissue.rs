@@ -177,6 +177,10 @@ impl Cell {
     pub fn kind(&self) -> CellKind {
         self.kind
     }
+    /// Changes what the surface represents (a config's `cell_types[i].kind` overriding a file's).
+    pub fn set_kind(&mut self, kind: CellKind) {
+        self.kind = kind;
+    }
     /// Index of this cell's parameter set.
     pub fn cell_type(&self) -> u32 {
         self.cell_type

@@ -22,4 +22,9 @@ pub struct ContactMorphology {
     pub area_b: Real,
     /// Number of rim edges that entered the contact angle (0 without a free rim).
     pub rim_edges: usize,
+    /// External angle between the two free surfaces read away from the rim (degrees): spheres fitted
+    /// to each cell's free faces meeting the plane of the interface (see
+    /// [`super::far_field`]); empty where the free surfaces are not spheres or the interface is not
+    /// flat, and for label volumes.
+    pub far_field_angle_deg: Option<Real>,
 }

@@ -121,6 +121,9 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
         }
     }
     let pair_list: Vec<((usize, usize), [Real; 2])> = pairs.into_iter().collect();
+    // Far-field angles skip the free faces within two mean edge lengths of a contact (the rim's
+    // rounding spans one or two edges).
+    let margin = 2.0 * mean_edge_length(tissue).unwrap_or(0.0);
     let mut contacts: Vec<ContactMorphology> = pair_list
         .par_iter()
         .map(|&((i, j), [area_i, area_j])| {
@@ -130,6 +133,20 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
                 None
             };
             let (ci, cj) = (&cells[i], &cells[j]);
+            let far_field = if is_cell[i] && is_cell[j] {
+                super::far_field::contact_far_field_angle(
+                    ci.mesh(),
+                    &partitions[i],
+                    i as u32,
+                    cj.mesh(),
+                    &partitions[j],
+                    j as u32,
+                    measures[i].centroid,
+                    margin,
+                )
+            } else {
+                None
+            };
             let (a, b, area_a, area_b) =
                 if ci.id() < cj.id() { (ci, cj, area_i, area_j) } else { (cj, ci, area_j, area_i) };
             ContactMorphology {
@@ -142,6 +159,7 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
                 area_a,
                 area_b,
                 rim_edges: angle.map_or(0, |(_, n)| n),
+                far_field_angle_deg: far_field.map(Real::to_degrees),
             }
         })
         .collect();

@@ -172,6 +172,7 @@ pub fn measure_labels(
             cell_b: kept[j].label,
             area: (area_i + area_j) / 2.0,
             contact_angle_deg: None,
+            far_field_angle_deg: None,
             kind_a: kinds[i],
             kind_b: kinds[j],
             area_a: area_i,

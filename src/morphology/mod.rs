@@ -25,6 +25,7 @@ mod compare;
 mod contact_morphology;
 mod distribution;
 pub mod face_contacts;
+pub mod far_field;
 mod label_surface;
 pub mod layers;
 mod measure;

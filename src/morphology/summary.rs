@@ -46,6 +46,9 @@ pub struct MorphologySummary {
     pub mean_layers: Option<Real>,
     /// Mean contact angle (degrees) over cell–cell contacts with a free rim that involve a counted cell.
     pub mean_contact_angle_deg: Option<Real>,
+    /// Mean far-field contact angle (degrees) over the same contacts, where it could be read (see
+    /// [`super::far_field`]).
+    pub mean_far_field_angle_deg: Option<Real>,
     /// Contact distance δ used (m); `null` for a label volume (contacts are voxel-face adjacency).
     pub contact_distance: Option<Real>,
     /// Mean deformation χ = 1 − IoU over the counted cells that were compared (see
@@ -94,12 +97,13 @@ impl MorphologySummary {
         let is_cell = |k: CellKind| CellMorphology::is_cell_kind(k);
         let cell_contacts: Vec<&ContactMorphology> =
             contacts.iter().filter(|c| is_cell(c.kind_a) && is_cell(c.kind_b)).collect();
-        let angles = Distribution::of(
+        let counted_contacts = || {
             cell_contacts
                 .iter()
                 .filter(|c| counted_ids.get(&c.cell_a) == Some(&true) || counted_ids.get(&c.cell_b) == Some(&true))
-                .filter_map(|c| c.contact_angle_deg),
-        );
+        };
+        let angles = Distribution::of(counted_contacts().filter_map(|c| c.contact_angle_deg));
+        let far_field = Distribution::of(counted_contacts().filter_map(|c| c.far_field_angle_deg));
 
         let mut bodies = BodyCounts { total: cells.len(), ..Default::default() };
         for c in cells {
@@ -122,6 +126,7 @@ impl MorphologySummary {
             layers: graph_cells().filter_map(|c| c.layer).max(),
             mean_layers,
             mean_contact_angle_deg: angles.mean,
+            mean_far_field_angle_deg: far_field.mean,
             contact_distance,
             mean_chi: statistics["chi"].mean,
             include_static,
@@ -134,6 +139,7 @@ impl MorphologySummary {
             cells_with_nucleus: graph_cells().filter(|c| c.nucleus.is_some()).count(),
             statistics: {
                 statistics.insert("contact_angle_deg", angles);
+                statistics.insert("far_field_angle_deg", far_field);
                 statistics
             },
         }

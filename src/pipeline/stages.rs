@@ -237,6 +237,18 @@ struct SimulationRecord<'a> {
     steps: u64,
     force_evaluations: u64,
     converged: bool,
+    /// Volume by which cells overlap at the end (m³ and µm³; only penetrations within the contact
+    /// cutoff are seen), and the largest overlap of one cell as a fraction of its volume.
+    overlap_volume: Real,
+    overlap_volume_um3: Real,
+    max_overlap_fraction: Real,
+    /// Why an equilibrium run did not converge (absent when it did).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stop_reason: Option<String>,
+    /// The step whose state the files hold, when not the last one (a run that did not converge
+    /// ends at its lowest-residual state).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ended_at_step: Option<u64>,
     residual: Real,
     simulated_time: Real,
     energy: &'a crate::mechanics::EnergyTerms,
@@ -311,6 +323,11 @@ pub fn run_simulate(
         steps: summary.steps,
         force_evaluations: summary.force_evaluations,
         converged: summary.converged,
+        overlap_volume: summary.overlap_volume,
+        overlap_volume_um3: summary.overlap_volume * 1e18,
+        max_overlap_fraction: summary.max_overlap_fraction,
+        stop_reason: summary.stop_reason.clone(),
+        ended_at_step: summary.ended_at_step,
         residual: summary.residual,
         simulated_time: summary.time,
         energy: &summary.energy,
@@ -357,7 +374,7 @@ pub fn run_simulate(
     } else if summary.converged {
         "converged".to_string()
     } else {
-        "NOT converged".to_string()
+        format!("NOT converged ({})", summary.stop_reason.as_deref().unwrap_or("no reason recorded"))
     };
     let layers = m.summary.layers.map_or(String::new(), |n| format!(", {n} layers"));
     let chi = match (&record.reference, m.summary.mean_chi) {
