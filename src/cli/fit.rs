@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct FitArgs {
-    /// Fit configuration (TOML; see the README, "Fitting parameters"), or a pipeline file (one with an
+    /// Fit configuration (TOML; see the docs book, "Fitting parameters"), or a pipeline file (one with an
     /// `[input]` table; its `[fit]` on the labels of `[input]` meshed like `[mesh]`, as `tissuefit run`).
     #[arg(long, value_name = "TOML")]
     pub config: PathBuf,

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct RunArgs {
-    /// Pipeline file (TOML; see the README, "Pipelines").
+    /// Pipeline file (TOML; see the docs book, "Pipelines and configs").
     pub pipeline: PathBuf,
     /// Run directory. Default: runs/<pipeline file stem> in the current folder.
     #[arg(long, value_name = "DIR")]

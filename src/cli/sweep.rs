@@ -9,7 +9,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct SweepArgs {
-    /// Sweep file (TOML; see the README, "Parameter sweeps").
+    /// Sweep file (TOML; see the docs book, "Parameter sweeps").
     pub sweep: PathBuf,
     /// Sweep directory: run-0000/, run-0001/, …, results.csv, plots/. Default: sweeps/<sweep file stem>.
     #[arg(long, value_name = "DIR")]

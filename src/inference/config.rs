@@ -377,7 +377,7 @@ pub struct ProfileConfig {
     pub acceptable_increase: Real,
     /// Extra evaluations at the optimum, each with every fitted parameter × (1 + k·1e-9), k = 1…n:
     /// the same model up to round-off, so their spread (with the best's) is the forward model's
-    /// noise floor σ (a chaotic relaxation ends elsewhere from a one-bit change; see the README).
+    /// noise floor σ (a chaotic relaxation ends elsewhere from a one-bit change; see the docs book, "Forward-model noise").
     /// The profile's threshold becomes mean + `acceptable_increase` + `noise_sigmas`·σ, so a range
     /// narrower than the noise is never reported. 0: no estimate (σ taken as 0). Default 2.
     #[serde(default = "default_noise_replicates")]
