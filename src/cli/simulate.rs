@@ -10,8 +10,8 @@
 
 use super::{InputArgs, Outcome};
 use crate::io::{
-    CHECKPOINT_FILE, RunInfo, SimulationRecorder, checksum, read_checkpoint, read_tissue, write_bytes_atomically,
-    write_checkpoint, write_events, write_simucell3d,
+    CHECKPOINT_FILE, OutputPolicy, RunInfo, SimulationRecorder, checksum, read_checkpoint, read_tissue,
+    write_bytes_atomically, write_checkpoint, write_events, write_simucell3d,
 };
 use crate::mechanics::{
     CheckpointRequest, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationError, SimulationMode,
@@ -268,6 +268,12 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
     let (Some(tissue), Some(out)) = (&args.tissue, &args.out) else {
         bail!("simulate needs a TISSUE and --out DIR, or --resume DIR");
     };
+    let mut written: Vec<&str> = OUTPUTS.to_vec();
+    written.extend(["reference.vtp", "cells.csv", "contacts.csv", "frames/"]);
+    OutputPolicy::new()
+        .input("TISSUE", tissue)
+        .input_opt("--config", args.config.as_deref())
+        .folder("--out", out, &written)?;
     if let Some(pipeline) = args.config.as_deref().filter(|p| is_pipeline_file(p)) {
         return run_stage(args, tissue, pipeline, out);
     }

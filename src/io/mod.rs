@@ -10,6 +10,7 @@ mod error;
 mod legacy_parse;
 mod legacy_tissue;
 mod legacy_write;
+mod output;
 mod pvd;
 mod read;
 mod simulation_output;
@@ -24,6 +25,7 @@ pub use checkpoint::{
 pub use error::IoError;
 pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;
+pub use output::{Format, OutputError, OutputGroup, OutputPolicy, check_target, replace_with};
 pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, write_tissue};
 pub use simulation_output::{SimulationRecorder, write_events};
