@@ -297,3 +297,17 @@ fn an_output_that_is_an_input_a_folder_a_fifo_or_of_the_wrong_format_is_refused_
     assert!(String::from_utf8_lossy(&out.stderr).contains("also the input INPUT"));
     assert_eq!(std::fs::read(&tissue).unwrap(), before);
 }
+
+/// Issue 23, item 8: `fit --resume` with nothing to resume started afresh, silently. Now an error
+/// naming the folder, before any work, and nothing written.
+#[test]
+fn fit_resume_without_a_trace_is_an_error_naming_the_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fit");
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/demo.toml");
+    let o = tissuefit(&["fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--resume"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("nothing to resume") && err.contains(&out.display().to_string()), "{err}");
+    assert!(!out.exists(), "{}", out.display());
+}

@@ -16,7 +16,8 @@ pub struct FitArgs {
     /// Output folder: trace.csv, result.json, objective.png, landscape.png, fit.toml, model.toml.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated).
+    /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated);
+    /// an error when DIR holds no trace.csv.
     #[arg(long)]
     pub resume: bool,
     /// Overrides optimizer.max_evaluations.

@@ -19,8 +19,8 @@ mod vtp;
 
 pub use atomic::{remove_stale_temporaries, write_atomically, write_bytes_atomically};
 pub use checkpoint::{
-    CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, checksum, decode_checkpoint,
-    read_checkpoint, write_checkpoint,
+    CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, RunSettings, checksum,
+    decode_checkpoint, read_checkpoint, write_checkpoint,
 };
 pub use error::IoError;
 pub use legacy_tissue::TissueFormat;
