@@ -572,3 +572,83 @@ fn a_second_run_into_a_busy_folder_fails_at_once_and_an_interrupted_stage_is_rec
     );
     assert_eq!(stage_status(&run, "simulate").as_deref(), Some("complete"));
 }
+
+/// The fit's temporary folder (`.fit.tmp-PID`) in a run directory, if any.
+fn fit_temporary(run: &Path) -> Option<PathBuf> {
+    std::fs::read_dir(run)
+        .ok()?
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with(".fit.tmp-")))
+}
+
+/// Issue 23, item 7: a pipeline's fit lost every evaluation to kill -9. Now the next run goes on from
+/// the trace the killed fit left (its evaluations are not simulated again) and ends with the outputs
+/// of an uninterrupted run.
+#[test]
+fn a_pipeline_fit_killed_with_sigkill_resumes_from_its_trace_to_the_uninterrupted_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let pipeline = demo_pipeline(tmp.path(), |t| {
+        t.replace("max_evaluations = 24", "max_evaluations = 14").replace("points = 2", "points = 1")
+    });
+    let p = pipeline.to_str().unwrap();
+    let reference = tmp.path().join("reference");
+    let o = tissuefit(&["--threads", "2", "run", p, "--out", reference.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+
+    let run = tmp.path().join("run");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(["--threads", "2", "run", p, "--out", run.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Killed once the trace holds two evaluations.
+    let started = std::time::Instant::now();
+    loop {
+        let rows = fit_temporary(&run)
+            .and_then(|d| std::fs::read_to_string(d.join("trace.csv")).ok())
+            .map_or(0, |t| t.lines().count());
+        if rows >= 3 {
+            break;
+        }
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before its fit had two evaluations");
+        assert!(started.elapsed().as_secs() < 300, "no fit evaluation after 5 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(stage_status(&run, "fit").as_deref(), Some("running"));
+    let killed = std::fs::read_to_string(fit_temporary(&run).unwrap().join("trace.csv")).unwrap();
+    let killed_rows: Vec<&str> = killed.lines().collect();
+
+    let o = tissuefit(&["--threads", "2", "run", p, "--out", run.to_str().unwrap()]);
+    let (stdout, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{stdout}{stderr}");
+    assert!(stdout.contains("fit: resuming the interrupted run from the"), "{stdout}");
+    assert_eq!(stage_status(&run, "fit").as_deref(), Some("complete"));
+    assert!(fit_temporary(&run).is_none(), "a temporary fit folder is left");
+    // result.json's `simulated_here` counts this process's simulations (fewer: the rest came from
+    // the trace); everything else is the uninterrupted run's.
+    let result = |dir: &Path| {
+        let mut v = read_json(&dir.join("fit/result.json"));
+        let here = v.as_object_mut().unwrap().remove("simulated_here").unwrap().as_u64().unwrap();
+        strip_wall_times(&mut v);
+        (v, here)
+    };
+    let ((resumed, here), (uninterrupted, all)) = (result(&run), result(&reference));
+    assert_eq!(resumed, uninterrupted);
+    assert!(here + (killed_rows.len() as u64 - 1) <= all, "simulated {here} of {all} again");
+    let without_result = |dir: &Path| {
+        let mut h = data_hashes(dir);
+        h.remove("fit/result.json");
+        h
+    };
+    assert_eq!(without_result(&run), without_result(&reference));
+    // The killed run's evaluations were reused, not simulated again: their rows, wall times
+    // included, open the final trace.
+    let trace = std::fs::read_to_string(run.join("fit/trace.csv")).unwrap();
+    let rows: Vec<&str> = trace.lines().collect();
+    assert!(rows.len() > killed_rows.len());
+    assert_eq!(rows[..killed_rows.len()], killed_rows[..]);
+}

@@ -216,20 +216,23 @@ fn run_locked(
         mesh: &config.mesh,
     })?;
     let mesh_key = stage_key("mesh", &mesh_section, &[&input_hash]);
-    let mesh = runner.stage("mesh", mesh_key, |dir| run_mesh(&config.input, &config.mesh, dir).map(|s| (s, true)))?;
+    let mesh = runner
+        .stage("mesh", mesh_key, false, |dir, _| run_mesh(&config.input, &config.mesh, dir).map(|s| (s, true)))?;
     let tissue_hash = mesh.outputs.get(MESH_TISSUE).cloned().unwrap_or_default();
     let tissue = out.join("mesh").join(MESH_TISSUE);
 
     // measure
     let measure_key = stage_key("measure", &toml_of(&config.measure)?, &[&tissue_hash]);
-    runner.stage("measure", measure_key, |dir| run_measure(&tissue, &config.measure, dir).map(|s| (s, true)))?;
+    runner
+        .stage("measure", measure_key, false, |dir, _| run_measure(&tissue, &config.measure, dir).map(|s| (s, true)))?;
 
     // simulate
     let mut simulate_converged = None;
     if let Some(section) = &config.simulate {
         let text = toml_of(section)? + &toml_of(&config.measure)?;
         let key = stage_key("simulate", &text, &[&tissue_hash, &simulate_model_hash]);
-        let record = runner.stage("simulate", key, |dir| run_simulate(&tissue, section, &config.measure, dir))?;
+        let record =
+            runner.stage("simulate", key, false, |dir, _| run_simulate(&tissue, section, &config.measure, dir))?;
         let run = read_json(&out.join("simulate").join("simulation.json"))?;
         let time_run = run["mode"] == "time";
         let reference_ok =
@@ -246,8 +249,8 @@ fn run_locked(
         // The fit starts from the mesh stage's tissue and measures simulations on the labels' grid.
         let key = stage_key("fit", &text, &[&input_hash, &tissue_hash, &fit_model_hash]);
         let mesh_dir = out.join("mesh");
-        runner.stage("fit", key, |dir| {
-            let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, options.progress)?;
+        runner.stage("fit", key, true, |dir, resume| {
+            let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, resume, options.progress)?;
             let fitted: Vec<String> = r
                 .parameters
                 .iter()
@@ -320,9 +323,19 @@ impl Runner<'_, '_> {
     /// unchanged (unless `--force`); otherwise runs `body` into a temporary folder and moves its
     /// files into the stage folder, replacing only the files the program owns there (see the
     /// module doc of [`crate::pipeline`]), and records it.
-    fn stage<F>(&mut self, name: &'static str, key: String, body: F) -> Result<StageRecord, PipelineError>
+    ///
+    /// A `resumable` stage (the fit) whose run with the same key was interrupted (killed, Ctrl-C, a
+    /// time limit) goes on in the temporary folder that run left, from its `trace.csv`: `body` is
+    /// called with `true` then, and the finished stage is the one an uninterrupted run makes.
+    fn stage<F>(
+        &mut self,
+        name: &'static str,
+        key: String,
+        resumable: bool,
+        body: F,
+    ) -> Result<StageRecord, PipelineError>
     where
-        F: FnOnce(&Path) -> Result<(String, bool), PipelineError>,
+        F: FnOnce(&Path, bool) -> Result<(String, bool), PipelineError>,
     {
         let dir = self.out.join(name);
         if dir.exists() && !dir.is_dir() {
@@ -376,6 +389,8 @@ impl Runner<'_, '_> {
                 ),
             });
         }
+        let interrupted =
+            prev.is_some_and(|p| matches!(p.status, StageStatus::Running | StageStatus::Interrupted) && p.key == key);
         let mut record = StageRecord {
             name: name.to_string(),
             status: StageStatus::Running,
@@ -389,20 +404,47 @@ impl Runner<'_, '_> {
         self.publish()?;
         (self.options.on_event)(&format!("{name}: running"));
         // Temporary folders of this stage left by an interrupted run (`.NAME.tmp-<process id>`) go first.
+        // (The lock proves the processes that made them have ended.) One holding the trace of an
+        // interrupted resumable stage with this key is kept to go on from.
         let prefix = format!(".{name}.tmp-");
+        let mut stale = Vec::new();
         for entry in std::fs::read_dir(self.out).map_err(io_err(self.out))?.flatten() {
             let file_name = entry.file_name().to_string_lossy().into_owned();
             let ours = file_name
                 .strip_prefix(&prefix)
                 .is_some_and(|pid| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()));
             if ours && entry.file_type().is_ok_and(|t| t.is_dir()) {
-                std::fs::remove_dir_all(entry.path()).map_err(io_err(&entry.path()))?;
+                stale.push(entry.path());
             }
         }
+        let keep = (resumable && interrupted && !self.options.force)
+            .then(|| stale.iter().position(|d| d.join("trace.csv").is_file()))
+            .flatten()
+            .map(|i| stale.swap_remove(i));
+        for d in stale {
+            std::fs::remove_dir_all(&d).map_err(io_err(&d))?;
+        }
         let tmp = self.out.join(format!("{prefix}{}", std::process::id()));
-        std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
+        let resume = match keep {
+            Some(kept) => {
+                std::fs::rename(&kept, &tmp).map_err(io_err(&tmp))?;
+                // The files the killed process was writing (`trace.csv.tmp-PID`, ...).
+                crate::io::remove_stale_temporaries(&tmp)
+                    .map_err(|e| PipelineError::Io { path: tmp.clone(), message: e.to_string() })?;
+                let rows = std::fs::read_to_string(tmp.join("trace.csv")).map_or(0, |t| t.lines().count().max(1) - 1);
+                tracing::info!("stage {name}: going on from {} ({rows} evaluations)", kept.display());
+                (self.options.on_event)(&format!(
+                    "{name}: resuming the interrupted run from the {rows} evaluations in its trace"
+                ));
+                true
+            }
+            None => {
+                std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
+                false
+            }
+        };
         let started = Instant::now();
-        let result = body(&tmp).and_then(|r| {
+        let result = body(&tmp, resume).and_then(|r| {
             let made = hash_outputs(&tmp)?;
             if let Some(clash) = made.keys().find(|f| foreign.contains(f)) {
                 return Err(PipelineError::Io {

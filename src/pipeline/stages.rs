@@ -392,13 +392,14 @@ pub fn run_simulate(
 /// The fit of `tissuefit fit` with observed = the input labels meshed like `[mesh]`. The meshed
 /// tissue is the mesh stage's `tissue.vtp` (and its `report.json`'s l_min) in `mesh_dir`, read back
 /// bit for bit instead of meshing the labels again; the labels are still read, to measure the
-/// simulations like the data.
+/// simulations like the data. `resume`: go on from `out/trace.csv` (an interrupted fit's).
 pub fn run_fit_stage(
     input: &InputSection,
     mesh: &MeshingConfig,
     fit: &FitConfig,
     mesh_dir: &Path,
     out: &Path,
+    resume: bool,
     progress: bool,
 ) -> Result<FitResult, PipelineError> {
     let err = stage_err("fit");
@@ -422,7 +423,7 @@ pub fn run_fit_stage(
         None => Observation::new(tissue, None, None),
     }
     .map_err(|e| err(e.to_string()))?;
-    run_fit_observed(&config, Some(observation), out, &FitOptions { resume: false, progress, plots: true })
+    run_fit_observed(&config, Some(observation), out, &FitOptions { resume, progress, plots: true })
         .map_err(|e| err(e.to_string()))
 }
 
@@ -443,7 +444,7 @@ mod tests {
         let mesh = MeshingConfig { target_nodes: 60, ..Default::default() };
         let fit: FitConfig = toml::from_str("[parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\n").unwrap();
         // Without the mesh stage's outputs the fit stage has nothing to start from, and says which file.
-        let e = run_fit_stage(&input, &mesh, &fit, &mesh_dir, &tmp.path().join("fit"), false).unwrap_err();
+        let e = run_fit_stage(&input, &mesh, &fit, &mesh_dir, &tmp.path().join("fit"), false, false).unwrap_err();
         assert!(e.to_string().contains(&mesh_dir.join(MESH_TISSUE).display().to_string()), "{e}");
         // With them, its observation is that tissue: the fit's meshed labels are the mesh stage's.
         std::fs::create_dir_all(&mesh_dir).unwrap();
