@@ -503,6 +503,20 @@ fn a_run_never_deletes_or_replaces_files_it_did_not_make_in_its_stage_folders() 
     assert_eq!(code, Some(2), "{out}");
     assert!(out.contains("summary.json") && out.contains("did not make the one there"), "{out}");
     assert_eq!(std::fs::read_to_string(clash.join("measure/summary.json")).unwrap(), "{\"mine\": true}\n");
+
+    // Nor a manifest.json or config.resolved.toml that no run made, in the run folder itself.
+    for (name, text) in [("manifest.json", "{\"my\": \"notes\"}\n"), ("config.resolved.toml", "mine = 1\n")] {
+        let own = tmp.path().join(format!("own-{name}"));
+        std::fs::create_dir_all(&own).unwrap();
+        std::fs::write(own.join(name), text).unwrap();
+        std::fs::copy(&doublet, own.join("labels.tif")).unwrap();
+        let p = labels_pipeline(&own, "labels.tif", "");
+        let (code, out) = run(&p, &own, true);
+        assert_eq!(code, Some(2), "{out}");
+        assert!(out.contains(name) && out.contains("move it away"), "{out}");
+        assert_eq!(std::fs::read_to_string(own.join(name)).unwrap(), text);
+        assert!(!own.join("mesh").exists());
+    }
 }
 
 fn stage_status(run: &Path, stage: &str) -> Option<String> {

@@ -98,6 +98,24 @@ impl Manifest {
         }
     }
 
+    /// Reads DIR/manifest.json for a run into DIR: `None` when there is none; an error when the file
+    /// is there but is not a tissuefit manifest (a run never replaces a file it did not make).
+    pub fn read_own(dir: &Path) -> Result<Option<Manifest>, PipelineError> {
+        let path = dir.join("manifest.json");
+        let text = match std::fs::read_to_string(&path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(PipelineError::Io { path, message: e.to_string() }),
+        };
+        serde_json::from_str(&text).map(Some).map_err(|e| PipelineError::Io {
+            path,
+            message: format!(
+                "is not a manifest of tissuefit ({e}), and a run would replace it; move it away, or choose \
+                 another --out"
+            ),
+        })
+    }
+
     /// Writes DIR/manifest.json atomically.
     pub fn write(&self, dir: &Path) -> Result<(), PipelineError> {
         let path = dir.join("manifest.json");

@@ -147,10 +147,17 @@ fn run_locked(
 ) -> Result<PipelineOutcome, PipelineError> {
     let out = &options.out;
     let _active = ActiveRun(out.clone());
-    let resolved = config.to_toml_string()?;
+    // Read with --force too: it records what the program owns in the stage folders.
+    let previous = Manifest::read_own(out)?;
     let resolved_path = out.join("config.resolved.toml");
-    write_bytes_atomically(&resolved_path, resolved.as_bytes())
-        .map_err(|e| PipelineError::Io { path: resolved_path.clone(), message: e.to_string() })?;
+    if previous.is_none() && resolved_path.exists() {
+        return Err(PipelineError::Io {
+            path: resolved_path,
+            message: "was not made by a tissuefit run (there is no manifest.json beside it), and a run would \
+                      replace it; move it away, or choose another --out"
+                .into(),
+        });
+    }
 
     // A generated input has no file: its key is the generator's specification (in the mesh key).
     let (input_hash, mut inputs) = match config.input.source() {
@@ -178,8 +185,6 @@ fn run_locked(
     let simulate_model_hash = model_hash(&simulate_model)?;
     let fit_model_hash = model_hash(&fit_model)?;
 
-    // Read with --force too: it records what the program owns in the stage folders.
-    let previous = Manifest::read(out);
     // We hold the lock, so a stage still `running` belongs to a run that has ended: killed (kill -9,
     // a time limit) before it could say so.
     let mut stages = previous.as_ref().map_or_else(Vec::new, |m| m.stages.clone());
@@ -204,6 +209,10 @@ fn run_locked(
         stages,
     };
     publish(out, &manifest)?;
+    // Written after the manifest: a config.resolved.toml without one is not the program's.
+    let resolved = config.to_toml_string()?;
+    write_bytes_atomically(&resolved_path, resolved.as_bytes())
+        .map_err(|e| PipelineError::Io { path: resolved_path.clone(), message: e.to_string() })?;
 
     let mut runner = Runner { out, previous: previous.as_ref(), manifest: &mut manifest, options };
 
