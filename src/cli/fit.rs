@@ -2,6 +2,7 @@
 
 use super::Outcome;
 use crate::inference::{FitConfig, FitOptions, run_fit};
+use crate::io::OutputPolicy;
 use crate::pipeline::PipelineConfig;
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -15,7 +16,8 @@ pub struct FitArgs {
     /// Output folder: trace.csv, result.json, objective.png, landscape.png, fit.toml, model.toml.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated).
+    /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated);
+    /// an error when DIR holds no trace.csv.
     #[arg(long)]
     pub resume: bool,
     /// Overrides optimizer.max_evaluations.
@@ -41,6 +43,16 @@ fn load_config(path: &Path) -> anyhow::Result<FitConfig> {
 
 pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
     let mut config = load_config(&args.config)?;
+    let observed = config.observed().ok();
+    OutputPolicy::new()
+        .input("--config", &args.config)
+        .input_opt("observed.tissue", observed.and_then(|o| o.tissue.as_deref()))
+        .input_opt("observed.labels", observed.and_then(|o| o.labels.as_deref()))
+        .folder(
+            "--out",
+            &args.out,
+            &["trace.csv", "result.json", "objective.png", "landscape.png", "fit.toml", "model.toml"],
+        )?;
     if let Some(n) = args.max_evaluations {
         anyhow::ensure!(n > 0, "--max-evaluations must be at least 1");
         config.optimizer.max_evaluations = n;

@@ -6,7 +6,7 @@ use super::label_args::{LabelOutputArgs, describe_grid, parse_shape, parse_voxel
 use super::{InputArgs, Outcome};
 use crate::geometry::{Real, Vec3, bounding_box};
 use crate::imaging::{LabelReadOptions, VoxelGrid, read_label_tiff, voxelize_with_stats, write_label_tiff};
-use crate::io::read_tissue;
+use crate::io::{Format, OutputPolicy, read_tissue};
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -41,6 +41,11 @@ pub struct VoxelizeArgs {
 }
 
 pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
+    OutputPolicy::new().input("TISSUE", &args.tissue).input_opt("--like", args.like.as_deref()).file(
+        "--out",
+        &args.out,
+        Format::Tiff,
+    )?;
     let t0 = Instant::now();
     let read = read_tissue(&args.tissue, &args.input.read_options())
         .with_context(|| format!("reading {}", args.tissue.display()))?;

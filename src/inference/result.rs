@@ -45,6 +45,8 @@ pub struct FitResult {
     pub evaluations: usize,
     /// Whether the optimiser met its own criterion (not only the budget).
     pub converged: bool,
+    /// Seconds of this process. A resumed fit counts its own session only (the trace's rows keep
+    /// the wall time of each earlier evaluation).
     pub wall_seconds: Real,
     /// Key ratios (γ_lateral/γ_apical, ω/γ) and whether the data determine them.
     pub ratios: BTreeMap<String, RatioResult>,

@@ -25,6 +25,7 @@ use std::time::Instant;
 pub struct FitOptions {
     /// Continue from `DIR/trace.csv`: its evaluations are reused (not re-simulated) when the
     /// optimiser asks for them again, which it does in the same order, so the result is the same.
+    /// Without a trace there is nothing to resume: an error.
     pub resume: bool,
     /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
     pub progress: bool,
@@ -100,6 +101,13 @@ pub fn run_fit_observed(
             )));
         }
         read_trace(&trace_path, &space)?
+    } else if options.resume {
+        // Starting afresh instead would hide a mistyped --out, or a fit that never began.
+        return Err(InferenceError::Resume(format!(
+            "{}: nothing to resume, there is no trace.csv (a fit writes it from its first evaluation on); check \
+             --out, or run without --resume to start the fit",
+            out.display()
+        )));
     } else {
         Vec::new()
     };

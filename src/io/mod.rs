@@ -10,6 +10,7 @@ mod error;
 mod legacy_parse;
 mod legacy_tissue;
 mod legacy_write;
+mod output;
 mod pvd;
 mod read;
 mod simulation_output;
@@ -18,12 +19,13 @@ mod vtp;
 
 pub use atomic::{remove_stale_temporaries, write_atomically, write_bytes_atomically};
 pub use checkpoint::{
-    CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, checksum, decode_checkpoint,
-    read_checkpoint, write_checkpoint,
+    CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, RunSettings, checksum,
+    decode_checkpoint, read_checkpoint, write_checkpoint,
 };
 pub use error::IoError;
 pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;
+pub use output::{Format, OutputError, OutputGroup, OutputPolicy, check_target, replace_with};
 pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, write_tissue};
 pub use simulation_output::{SimulationRecorder, write_events};
