@@ -5,6 +5,7 @@
 //! [`LengthScale`] converts them on reading.
 
 mod atomic;
+mod bounded;
 mod checkpoint;
 mod error;
 mod legacy_parse;
@@ -17,6 +18,7 @@ mod units;
 mod vtp;
 
 pub use atomic::{remove_stale_temporaries, write_atomically, write_bytes_atomically};
+pub use bounded::{MAX_CONFIG_FILE, MAX_TISSUE_FILE, UNSIZED_CAP, read_capped, read_text_capped};
 pub use checkpoint::{
     CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, checksum, decode_checkpoint,
     read_checkpoint, write_checkpoint,
