@@ -28,7 +28,9 @@ pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels, ge
 pub use limits::{DEFAULT_MEMORY_LIMIT, MEMORY_LIMIT_ENV, check_voxel_memory, format_bytes, memory_limit, parse_bytes};
 pub use metadata::VoxelSizeSource;
 pub use overlap::{LabelOverlap, label_overlap};
-pub use tiff_read::{FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff};
+pub use tiff_read::{
+    FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff, read_label_tiff_bytes,
+};
 pub use tiff_write::{LabelDtype, LabelWriteOptions, TiffCompression, write_label_tiff};
 pub use volume::{AnisotropyError, LabelInfo, LabelMask, LabelVolume, MAX_ANISOTROPY, VoxelGrid};
 pub use voxelize::{VoxelizeStats, voxelize, voxelize_with_stats};

@@ -83,8 +83,23 @@ impl std::fmt::Display for PixelType {
 pub fn read_label_tiff(path: &Path, options: &LabelReadOptions) -> Result<LabelRead, ImagingError> {
     let file = File::open(path).map_err(|source| ImagingError::Open { path: path.to_path_buf(), source })?;
     let file_size = file.metadata().map_err(|source| ImagingError::Open { path: path.to_path_buf(), source })?.len();
+    decode_label_tiff(BufReader::with_capacity(1 << 16, file), file_size, path, options)
+}
+
+/// [`read_label_tiff`] on a TIFF held in memory; `path` names it in errors.
+pub fn read_label_tiff_bytes(bytes: &[u8], path: &Path, options: &LabelReadOptions) -> Result<LabelRead, ImagingError> {
+    decode_label_tiff(std::io::Cursor::new(bytes), bytes.len() as u64, path, options)
+}
+
+/// Decodes a label TIFF of `file_size` bytes from `reader`.
+fn decode_label_tiff<R: std::io::Read + std::io::Seek>(
+    reader: R,
+    file_size: u64,
+    path: &Path,
+    options: &LabelReadOptions,
+) -> Result<LabelRead, ImagingError> {
     let corrupt = |e: tiff::TiffError| corrupt(path, e);
-    let decoder = Decoder::new(BufReader::with_capacity(1 << 16, file)).map_err(corrupt)?;
+    let decoder = Decoder::new(reader).map_err(corrupt)?;
     // No tag value or compressed chunk can be larger than the file, and no decoded buffer larger than
     // the file expanded by the largest compression ratio; each page is also checked below.
     let mut limits = Limits::default();

@@ -127,7 +127,10 @@ pub struct AnisotropyError {
 
 impl std::fmt::Display for AnisotropyError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let [z, y, x] = self.voxel_size.map(|s| format!("{:.4}", s * 1e6));
+        let [z, y, x] = self.voxel_size.map(|s| {
+            let um = s * 1e6;
+            if (1e-3..1e6).contains(&um) { format!("{um:.4}") } else { format!("{um:.4e}") }
+        });
         let ratio = if self.ratio < 1e6 { format!("{:.1}", self.ratio) } else { format!("{:.1e}", self.ratio) };
         write!(
             f,

@@ -27,7 +27,7 @@ pub use error::IoError;
 pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;
 pub use pvd::{PvdEntry, write_pvd};
-pub use read::{ReadOptions, ReadReport, read_tissue, write_tissue};
+pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue};
 pub use simulation_output::{SimulationRecorder, write_events};
 pub use units::{LengthScale, parse_lengths};
 pub use vtp::{CellField, read_vtp, write_vtp};
