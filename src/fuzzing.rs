@@ -91,8 +91,11 @@ pub fn fit_config(bytes: &[u8]) -> Result<(), String> {
     }
 }
 
+/// One entry point: the bytes in, `Err` with what is wrong out.
+pub type Target = fn(&[u8]) -> Result<(), String>;
+
 /// The targets by name (the names of `fuzz/fuzz_targets/*.rs` and `fuzz/corpus/*/`).
-pub const TARGETS: &[(&str, fn(&[u8]) -> Result<(), String>)] = &[
+pub const TARGETS: &[(&str, Target)] = &[
     ("label_tiff", label_tiff),
     ("vtk", |b| tissue(b, "vtk")),
     ("vtp", |b| tissue(b, "vtp")),

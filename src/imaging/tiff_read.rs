@@ -168,7 +168,7 @@ fn decode_label_tiff<R: std::io::Read + std::io::Seek>(
     let voxels = (pages as u64).checked_mul(width as u64).and_then(|n| n.checked_mul(height as u64));
     check_voxel_memory(
         voxels,
-        4 + options.work_bytes_per_voxel,
+        4u64.saturating_add(options.work_bytes_per_voxel),
         &format!("{}: {pages} pages of {width} × {height} voxels", path.display()),
         "crop or bin the volume (e.g. Fiji Image › Crop, Image › Scale)",
     )?;

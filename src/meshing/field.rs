@@ -291,7 +291,8 @@ fn fill_cavities(inside: &mut [bool], dims: [usize; 3]) -> usize {
 fn blur_axis(values: &mut [f32], dims: [usize; 3], axis: usize, sigma: Real) {
     let n = dims[axis];
     let steps = (3.0 * sigma).ceil();
-    if !(steps >= 1.0) || n < 2 {
+    // NaN fails the comparison: no finite positive width, no blur.
+    if steps.is_nan() || steps < 1.0 || n < 2 {
         return;
     }
     let reach = steps.min((n - 1) as Real) as isize;

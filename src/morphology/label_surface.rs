@@ -160,7 +160,7 @@ pub(crate) fn measure_label_surface(
 /// never meet a voxel; an unbounded kernel on a strongly anisotropic grid did not fit in memory).
 /// `sigma = 0` returns the field unchanged.
 fn gaussian_blur(mut field: Array3<Real>, size: [Real; 3], sigma: Real) -> Array3<Real> {
-    if !(sigma > 0.0) {
+    if sigma.is_nan() || sigma <= 0.0 {
         return field;
     }
     for (a, s) in size.iter().enumerate() {
