@@ -205,7 +205,9 @@ pub fn run(cmd: &GenerateCommand) -> anyhow::Result<Outcome> {
         seed: args.seed,
         lumen: args.lumen,
     };
-    let generated = generate_labels(&spec).context("generating labels")?;
+    let generated = generate_labels(&spec).with_context(|| {
+        format!("generating labels on --shape {:?} (z,y,x) with --voxel-size {:?} m", spec.shape, spec.voxel_size)
+    })?;
     // Both volumes are made before either is written, so an error leaves neither file.
     let nuclei = match &args.nuclei {
         Some(_) => Some(

@@ -81,6 +81,11 @@ pub struct MeasureArgs {
     pub compare_voxel_size: Option<[Real; 3]>,
 }
 
+/// Bytes per voxel that measuring a label volume needs besides the volume itself (4 bytes per voxel):
+/// the dense relabelled copy (4), label statistics and the per-label smoothed fields (~5); about 13
+/// in all. The TIFF reader checks the total against the memory limit before decoding.
+const MEASURE_WORK_BYTES_PER_VOXEL: u64 = 9;
+
 /// Whether `path` is a TIFF: by extension, else by its magic number (II*/MM* classic, II+/MM+ BigTIFF).
 fn is_tiff(path: &Path) -> bool {
     if let Some(ext) = path.extension().and_then(|e| e.to_str()) {
@@ -105,7 +110,11 @@ enum Input {
 
 fn read_input(path: &Path, args: &MeasureArgs) -> anyhow::Result<Input> {
     if is_tiff(path) {
-        let options = LabelReadOptions { voxel_size: args.voxel_size, ..Default::default() };
+        let options = LabelReadOptions {
+            voxel_size: args.voxel_size,
+            work_bytes_per_voxel: MEASURE_WORK_BYTES_PER_VOXEL,
+            ..Default::default()
+        };
         let read =
             read_label_tiff(path, &options).with_context(|| format!("reading label volume {}", path.display()))?;
         for w in &read.warnings {

@@ -68,7 +68,8 @@ pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
                 bail!("{} holds no cells to voxelise", args.tissue.display());
             };
             match args.shape {
-                None => VoxelGrid::covering(lo, hi, voxel_size, args.margin)?,
+                None => VoxelGrid::covering(lo, hi, voxel_size, args.margin)
+                    .with_context(|| format!("--voxel-size {voxel_size:?} (z,y,x) m around the tissue"))?,
                 Some(shape) => {
                     let [sz, sy, sx] = voxel_size;
                     let half = Vec3::new(
@@ -76,7 +77,8 @@ pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
                         (shape[1] - 1) as Real * sy,
                         (shape[0] - 1) as Real * sz,
                     ) / 2.0;
-                    VoxelGrid::new(shape, voxel_size, (lo + hi) / 2.0 - half)?
+                    VoxelGrid::new(shape, voxel_size, (lo + hi) / 2.0 - half)
+                        .with_context(|| format!("--shape {shape:?} with --voxel-size {voxel_size:?} (z,y,x)"))?
                 }
             }
         }
@@ -84,7 +86,11 @@ pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
     };
     let grid_seconds = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
-    let (volume, stats) = voxelize_with_stats(&tissue, &grid).context("voxelising")?;
+    let (volume, stats) = voxelize_with_stats(&tissue, &grid).with_context(|| match (&args.like, args.shape) {
+        (Some(like), _) => format!("voxelising onto the grid of --like {}", like.display()),
+        (None, Some(shape)) => format!("voxelising onto --shape {shape:?} (z,y,x)"),
+        (None, None) => format!("voxelising with --voxel-size {:?} m (z,y,x) around the tissue", grid.voxel_size),
+    })?;
     let voxelize_seconds = t2.elapsed().as_secs_f64();
     let t3 = Instant::now();
     let dtype = write_label_tiff(&args.out, &volume, &args.output.options())

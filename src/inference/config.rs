@@ -411,7 +411,7 @@ impl Default for ProfileConfig {
 impl FitConfig {
     /// Reads a config file; relative paths inside become relative to its folder.
     pub fn load(path: &Path) -> Result<Self, InferenceError> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
             .map_err(|e| InferenceError::Config(format!("reading {}: {e}", path.display())))?;
         let mut config = Self::from_toml_str(&text, &path.display().to_string())?;
         let base = path.parent().unwrap_or(Path::new("."));

@@ -228,7 +228,7 @@ impl PipelineConfig {
     /// Reads, checks and resolves a pipeline file: relative paths become relative to its folder,
     /// `input.seed` fills the seeds the sections leave out, and the inputs must exist.
     pub fn load(path: &Path) -> Result<Self, PipelineError> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
             .map_err(|e| PipelineError::Config(format!("reading {}: {e}", path.display())))?;
         Self::load_text(&text, path)
     }
@@ -454,7 +454,7 @@ pub fn fit_config(fit: &FitConfig, input: &InputSection, mesh: &MeshingConfig) -
 /// table (neither the model's nor the fit's schema has one). Unreadable or non-TOML files are not;
 /// their own loader reports why.
 pub fn is_pipeline_file(path: &Path) -> bool {
-    std::fs::read_to_string(path)
+    crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
         .is_ok_and(|text| toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("input")))
 }
 

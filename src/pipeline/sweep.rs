@@ -287,7 +287,8 @@ pub fn show_toml(v: &Value) -> String {
 impl Sweep {
     /// Reads and checks a sweep file and every run's pipeline; nothing is written.
     pub fn load(path: &Path) -> Result<Sweep, PipelineError> {
-        let text = std::fs::read_to_string(path).map_err(|e| config_err(path, format!("reading: {e}")))?;
+        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+            .map_err(|e| config_err(path, format!("reading: {e}")))?;
         let file: SweepFile = toml::from_str(&text).map_err(|e| {
             let line = e.span().map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
             let at = line.map_or(String::new(), |l| format!(":{l}"));
@@ -298,8 +299,8 @@ impl Sweep {
         if !base.is_file() {
             return Err(config_err(path, format!("base: {} does not exist", base.display())));
         }
-        let base_text =
-            std::fs::read_to_string(&base).map_err(|e| config_err(path, format!("base {}: {e}", base.display())))?;
+        let base_text = crate::io::read_text_capped(&base, crate::io::MAX_CONFIG_FILE)
+            .map_err(|e| config_err(path, format!("base {}: {e}", base.display())))?;
         // The base alone must be a valid pipeline: errors in it are reported against it.
         PipelineConfig::load_text(&base_text, &base)?;
         let mut base_table: Table = toml::from_str(&base_text).map_err(|e| config_err(&base, e.message()))?;
