@@ -1,7 +1,7 @@
 //! `tissuefit fit --config FIT.toml --out DIR`: fit surface tension and adhesion to observed morphology.
 
 use super::Outcome;
-use crate::inference::{FitConfig, FitOptions, run_fit};
+use crate::inference::{FitConfig, FitOptions, InferenceError, run_fit};
 use crate::pipeline::PipelineConfig;
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -49,7 +49,17 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         config.optimizer.seed = s;
     }
     let options = FitOptions { resume: args.resume, progress: true, plots: true };
-    let result = run_fit(&config, &args.out, &options).with_context(|| format!("fitting {}", args.config.display()))?;
+    let result = match run_fit(&config, &args.out, &options) {
+        Ok(r) => r,
+        Err(e @ InferenceError::Failed(_)) => {
+            return Err(anyhow::anyhow!(
+                "{e} (every evaluation and its reason: {}; no result.json was written)",
+                args.out.join("trace.csv").display()
+            ))
+            .with_context(|| format!("fitting {}", args.config.display()));
+        }
+        Err(e) => return Err(e).with_context(|| format!("fitting {}", args.config.display())),
+    };
     let params: Vec<String> = result
         .parameters
         .iter()

@@ -51,4 +51,8 @@ pub enum InferenceError {
     Optimiser(String),
     #[error("writing outputs: {0}")]
     Output(String),
+    /// No evaluation of the fit was usable (every one failed or ended unconverged): there is no
+    /// fitted value, only the failures' summary and what to change.
+    #[error("the fit failed: {0}")]
+    Failed(String),
 }

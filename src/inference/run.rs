@@ -1,7 +1,7 @@
 //! The fit driver: observed data → optimiser → profile → `trace.csv`, `result.json`, plots.
 
 use super::config::FitConfig;
-use super::forward::{Evaluation, ForwardModel, Observation};
+use super::forward::{Evaluation, ForwardModel, Observation, Status};
 use super::optimise::{Evaluator, optimise};
 use super::profile::{NoiseFloor, Slice, profile, ratio_parts};
 use super::result::{FitResult, ParameterResult, RatioResult};
@@ -11,8 +11,8 @@ use super::{InferenceError, plot};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
 use crate::io::{LengthScale, ReadOptions, read_tissue, write_bytes_atomically};
-use crate::mechanics::ContactModel;
-use crate::mesh::CellKind;
+use crate::mechanics::{ContactModel, Polarity};
+use crate::mesh::{CellKind, FaceType};
 use crate::meshing::mesh_labels;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::collections::BTreeMap;
@@ -109,6 +109,7 @@ pub fn run_fit_observed(
         None => load_observation(config)?,
     };
     let model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())?;
+    check_fitted_parameters_act(&model)?;
     std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
     let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;
     write_bytes_atomically(&out.join("fit.toml"), resolved.as_bytes()).map_err(|e| output_err(out, &e))?;
@@ -142,6 +143,13 @@ pub fn run_fit_observed(
     let trace = evaluator.trace();
     let evaluations = trace.len();
     let best = best_of(&trace).cloned().ok_or_else(|| InferenceError::Optimiser("no evaluation was made".into()))?;
+    if !best.status.usable() {
+        // Every evaluation was penalised: the "optimum" is a penalty, not a fit (the simplex of equal
+        // penalties even looks converged). The trace stays, with every evaluation's reason.
+        bar.finish_and_clear();
+        write_trace(&trace_path, &model.space, &trace)?;
+        return Err(InferenceError::Failed(describe_failures(&trace, config)));
+    }
     bar.set_message(format!("best objective {:.4e}; profiling", best.objective));
     let (slices, noise) = if best.status.usable() {
         let (slices, noise) = profile(&evaluator, &best.x, best.objective, &config.profile);
@@ -174,6 +182,156 @@ pub fn run_fit_observed(
         plot::plot_landscape(&out.join("landscape.png"), &model.space, &full_trace)?;
     }
     Ok(result)
+}
+
+/// Why every evaluation of a fit was penalised, summarised (each kind of reason once, with its count
+/// and an example) with what to change.
+fn describe_failures(trace: &[Evaluation], config: &FitConfig) -> String {
+    // Reasons that differ only in their numbers (steps, residuals, values) are one kind.
+    let kind = |r: &str| r.chars().map(|c| if c.is_ascii_digit() { '#' } else { c }).collect::<String>();
+    let mut kinds: Vec<(String, usize, &Evaluation)> = Vec::new();
+    for e in trace {
+        let k = format!("{}: {}", e.status.name(), kind(&e.reason));
+        match kinds.iter_mut().find(|(key, _, _)| *key == k) {
+            Some(entry) => entry.1 += 1,
+            None => kinds.push((k, 1, e)),
+        }
+    }
+    kinds.sort_by(|a, b| b.1.cmp(&a.1));
+    let shown: Vec<String> = kinds
+        .iter()
+        .take(3)
+        .map(|(_, n, e)| {
+            format!(
+                "{n} × {} ({})",
+                e.status.name(),
+                if e.reason.is_empty() { "no reason recorded" } else { &e.reason }
+            )
+        })
+        .collect();
+    let more = if kinds.len() > 3 { format!("; and {} other kind(s)", kinds.len() - 3) } else { String::new() };
+    let mut remedies = Vec::new();
+    if trace.iter().any(|e| e.status == Status::Unconverged) {
+        remedies.push(format!(
+            "unconverged runs: raise forward.max_steps{} or forward.accept_residual (now {:e}), or check the model's \
+             time step and l_min against the mesh",
+            config.forward.max_steps.map_or(String::new(), |n| format!(" (now {n})")),
+            config.forward.accept_residual
+        ));
+    }
+    if trace.iter().any(|e| e.status == Status::Failed && e.reason.starts_with("invalid parameters")) {
+        remedies.push(
+            "invalid parameters: the model rejects the points the bounds allow; check the bounds' units (tensions \
+             in N/m, e.g. 0.5e-3 for 0.5 mN/m; adhesion in Pa/m) and the model's time step"
+                .to_string(),
+        );
+    }
+    if trace.iter().any(|e| e.status == Status::Failed && !e.reason.starts_with("invalid parameters")) {
+        remedies.push(
+            "failed runs: simulate the observed tissue with the model at the start values (`tissuefit simulate`) \
+             to see why, and check the tensions are in N/m"
+                .to_string(),
+        );
+    }
+    format!(
+        "none of the {} evaluations was usable, every one scored the failure penalty {:e}, so there is no fitted \
+         value: {}{more}. What to change: {}",
+        trace.len(),
+        config.objective.failure_penalty,
+        shown.join("; "),
+        remedies.join("; ")
+    )
+}
+
+/// Refuses a fit before it starts when a fitted parameter cannot change the forward model: the
+/// fit's parameters are written into the model's epithelial cell types only, a per-face-type tension
+/// acts only on faces of that type (which, with `numerics.polarity = "none"`, are the types read
+/// from the input: a meshed label volume has apical faces only), and adhesion needs a second cell.
+fn check_fitted_parameters_act(model: &ForwardModel) -> Result<(), InferenceError> {
+    let base = &model.base;
+    let tissue = &model.observation.tissue;
+    let moving: Vec<&crate::mesh::Cell> = tissue
+        .cells()
+        .iter()
+        .filter(|c| c.kind().is_cell() && !c.kind().is_immobile())
+        .filter(|c| base.cell_type(c.cell_type()).is_some_and(|t| t.kind == CellKind::Epithelial))
+        .collect();
+    let fitted: Vec<&str> = model.space.fitted.iter().map(|p| p.name.as_str()).collect();
+    if moving.is_empty() {
+        return Err(InferenceError::Config(format!(
+            "parameters: {} cannot change the model: a fit writes them into the model's epithelial cell types \
+             (cell_types with kind = \"epithelial\"), and no moving cell of the observed tissue has one; give the \
+             observed cells an epithelial cell type",
+            fitted.join(", ")
+        )));
+    }
+    let named =
+        |n: &str| model.space.fitted.iter().any(|p| p.name == n) || model.space.fixed.iter().any(|(f, _)| f == n);
+    let per_type = [
+        ("surface_tension_apical", FaceType::Apical),
+        ("surface_tension_lateral", FaceType::Lateral),
+        ("surface_tension_basal", FaceType::Basal),
+    ];
+    let several_cells = tissue.cells().iter().filter(|c| c.kind().is_cell()).count() > 1;
+    // Which face types can exist on the moving epithelial cells during a relaxation, and why not.
+    let possible = |ft: FaceType| -> Result<(), String> {
+        match base.numerics.polarity {
+            Polarity::None => {
+                if moving.iter().any(|c| c.face_types().contains(&ft)) {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "numerics.polarity = \"none\" keeps the face types as read, and no moving epithelial cell of \
+                         the observed tissue has a {} face (a meshed label volume has apical faces only); set \
+                         numerics.polarity = \"contacts\" in the model (or model_overrides) so that faces between \
+                         cells become lateral, or fit `surface_tension`",
+                        ft.name()
+                    ))
+                }
+            }
+            Polarity::Contacts
+                if ft == FaceType::Apical && !tissue.cells().iter().any(|c| c.kind() == CellKind::Lumen) =>
+            {
+                Err("numerics.polarity = \"contacts\" types a face apical only where it touches a lumen, and the \
+                     observed tissue has no lumen; fit `surface_tension_basal` (the free surface) or `surface_tension`"
+                    .to_string())
+            }
+            _ if ft == FaceType::Lateral && !several_cells => {
+                Err("lateral faces are faces between cells, and the observed tissue has one cell".to_string())
+            }
+            _ => Ok(()),
+        }
+    };
+    for p in &model.space.fitted {
+        let why = match p.name.as_str() {
+            "surface_tension" => {
+                // It sets the face types that no per-type name overrides.
+                let open: Vec<FaceType> = per_type.iter().filter(|(n, _)| !named(n)).map(|(_, ft)| *ft).collect();
+                if open.is_empty() {
+                    Some(
+                        "surface_tension_apical, _lateral and _basal are all given, and they override it on every face"
+                            .to_string(),
+                    )
+                } else if open.iter().all(|ft| possible(*ft).is_err()) {
+                    let reasons: Vec<String> = open.iter().filter_map(|ft| possible(*ft).err()).collect();
+                    Some(format!("the face types it still sets cannot occur: {}", reasons.join("; ")))
+                } else {
+                    None
+                }
+            }
+            "adhesion" if tissue.cells().len() < 2 => {
+                Some("adhesion acts between cells, and the observed tissue has one cell".to_string())
+            }
+            name => per_type.iter().find(|(n, _)| *n == name).and_then(|(_, ft)| possible(*ft).err()),
+        };
+        if let Some(why) = why {
+            return Err(InferenceError::Config(format!(
+                "parameters.{}: fitting it cannot change the model, so the data cannot determine it: {why}",
+                p.name
+            )));
+        }
+    }
+    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]

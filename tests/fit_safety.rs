@@ -1,0 +1,119 @@
+//! A fit never says "converged" over a failure (issue 22, items 1–3): a fit whose every evaluation
+//! was penalised is an error with the reasons and what to change (`tissuefit fit`, the pipeline's fit
+//! stage); a fitted parameter that cannot change the model is refused before the fit starts.
+//!
+//! Kept cheap: the demo doublet meshed at 60 nodes per cell, relaxations of one step (which never
+//! converge, so every evaluation is penalised), two evaluations.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use tissuefit::inference::{FitConfig, FitOptions, InferenceError, run_fit};
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tissuefit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("runs the binary")
+}
+
+/// The fit part shared by the fit config and the pipeline (`prefix` "" or "fit."): the demo's
+/// truth as the model (with `numerics` TOML lines under `model_overrides.numerics`), γ_lateral
+/// fitted, relaxations of one step that never converge.
+fn fit_body(prefix: &str, numerics: &str) -> String {
+    let model = repo().join("data/demo/doublet_truth.toml");
+    format!(
+        r#"
+{prefix}model = {model:?}
+[{prefix}model_overrides.numerics]
+{numerics}
+[{prefix}parameters.surface_tension]
+value = 1e-3
+[{prefix}parameters.surface_tension_lateral]
+bounds = [2e-4, 1e-3]
+[{prefix}optimizer]
+max_evaluations = 2
+[{prefix}forward]
+max_steps = 1
+accept_residual = 0.0
+volume_passes = 0
+measure_like_data = false
+"#,
+        model = model.display().to_string()
+    )
+}
+
+fn write_fit_config(dir: &Path, numerics: &str) -> PathBuf {
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        "{}[observed]\nlabels = {:?}\n[observed.meshing]\ntarget_nodes = 60\n",
+        fit_body("", numerics),
+        labels.display().to_string()
+    );
+    let path = dir.join("fit.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn a_fit_whose_every_evaluation_fails_exits_non_zero_with_the_reasons_and_never_says_converged() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = write_fit_config(dir.path(), "");
+    let out = dir.path().join("out");
+    let o = tissuefit(&["--threads", "2", "fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_ne!(o.status.code(), Some(0), "{stderr}");
+    assert_ne!(o.status.code(), Some(1), "an error, not a finished fit whose check failed: {stderr}");
+    assert!(!stderr.contains("(converged)"), "{stderr}");
+    assert!(stderr.contains("the fit failed") && stderr.contains("none of the 2 evaluations was usable"), "{stderr}");
+    // The reasons, summarised (two unconverged runs, one kind), and the remedy naming the keys.
+    assert!(stderr.contains("2 × unconverged (not converged within 1 steps"), "{stderr}");
+    assert!(stderr.contains("forward.max_steps (now 1)") && stderr.contains("forward.accept_residual"), "{stderr}");
+    assert!(stderr.contains("trace.csv") && stderr.contains("no result.json"), "{stderr}");
+    assert!(!out.join("result.json").exists(), "no result for a fit that has none");
+    let trace = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    assert_eq!(trace.lines().count(), 3, "header and the two evaluations:\n{trace}");
+
+    // The library says the same with its own error kind.
+    let config = FitConfig::load(&config).unwrap();
+    let e = run_fit(&config, &dir.path().join("lib"), &FitOptions::default()).unwrap_err();
+    assert!(matches!(e, InferenceError::Failed(_)), "{e}");
+}
+
+#[test]
+fn a_pipeline_fit_stage_whose_every_evaluation_fails_is_marked_failed() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        "{}[input]\nlabels = {:?}\n[mesh]\ntarget_nodes = 60\n",
+        fit_body("fit.", ""),
+        labels.display().to_string()
+    );
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, text).unwrap();
+    let run = dir.path().join("run");
+    let o = tissuefit(&["--threads", "2", "run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_ne!(o.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("none of the 2 evaluations was usable"), "{stderr}");
+    assert!(!stderr.contains("(converged)"), "{stderr}");
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("manifest.json")).unwrap()).unwrap();
+    let fit = manifest["stages"].as_array().unwrap().iter().find(|s| s["name"] == "fit").unwrap();
+    assert_eq!(fit["status"].as_str(), Some("failed"), "{manifest}");
+    assert!(fit["note"].as_str().unwrap().contains("unconverged"), "{manifest}");
+    assert!(!run.join("fit").exists(), "no fit folder that looks complete");
+}
+
+#[test]
+fn fitting_a_lateral_tension_that_no_face_can_have_is_refused_before_the_fit_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    // Without polarisation a meshed label volume keeps its apical faces: no lateral face ever exists.
+    let config = write_fit_config(dir.path(), "polarity = \"none\"");
+    let config = FitConfig::load(&config).unwrap();
+    let out = dir.path().join("out");
+    let e = run_fit(&config, &out, &FitOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("parameters.surface_tension_lateral") && e.contains("cannot change the model"), "{e}");
+    assert!(e.contains("numerics.polarity = \"none\"") && e.contains("\"contacts\""), "{e}");
+    assert!(!out.exists(), "refused before anything was written or simulated");
+}
