@@ -117,3 +117,89 @@ fn fitting_a_lateral_tension_that_no_face_can_have_is_refused_before_the_fit_sta
     assert!(e.contains("numerics.polarity = \"none\"") && e.contains("\"contacts\""), "{e}");
     assert!(!out.exists(), "refused before anything was written or simulated");
 }
+
+/// The demo's fit (γ_lateral of the coupled doublet, truth 0.5e-3) with `lateral` bounds and
+/// `objective` lines; a short search and a one-point profile.
+fn write_demo_fit(dir: &Path, bounds: &str, objective: &str) -> PathBuf {
+    let model = repo().join("data/demo/doublet_truth.toml");
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        r#"model = {:?}
+[model_overrides.simulation]
+max_steps = 1000
+[observed]
+labels = {:?}
+[observed.meshing]
+target_nodes = 100
+[parameters.surface_tension]
+value = 1e-3
+[parameters.surface_tension_lateral]
+bounds = {bounds}
+[objective]
+contact_fraction = 0.0
+coordination = 0.0
+contact_angle = 0.0
+{objective}
+[optimizer]
+max_evaluations = 4
+[forward]
+accept_residual = 1e9
+[profile]
+points = 1
+span = 1.3
+"#,
+        model.display().to_string(),
+        labels.display().to_string()
+    );
+    let path = dir.join("fit.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn cli_fit(config: &Path, out: &Path) -> (Option<i32>, String, serde_json::Value) {
+    let o = tissuefit(&["--threads", "2", "fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    let json =
+        std::fs::read_to_string(out.join("result.json")).unwrap_or_else(|e| panic!("no result.json ({e}): {stderr}"));
+    (o.status.code(), stderr, serde_json::from_str(&json).unwrap())
+}
+
+#[test]
+fn a_best_value_at_a_search_bound_is_never_determined_and_a_poor_fit_is_flagged() {
+    let dir = tempfile::tempdir().unwrap();
+    // The truth (0.5e-3) lies below the bounds: the search ends at the lower bound.
+    let config = write_demo_fit(dir.path(), "[6e-4, 1e-3]", "");
+    let (code, stderr, json) = cli_fit(&config, &dir.path().join("bound"));
+    let p = &json["parameters"]["surface_tension_lateral"];
+    assert!((p["si"].as_f64().unwrap() / 6e-4 - 1.0).abs() < 1e-9, "{json}");
+    assert_eq!(p["at_bound"].as_str(), Some("lower"), "{json}");
+    assert_eq!(p["determined"].as_bool(), Some(false), "{json}");
+    let r = &json["ratios"]["lateral_over_apical"];
+    assert_eq!((r["at_bound"].as_str(), r["determined"].as_bool()), (Some("lower"), Some(false)), "{json}");
+    // The ratio's range stays within what the bounds allow (0.6 … 1.0).
+    assert!(r["range"][0].as_f64().unwrap() >= 0.6 * (1.0 - 1e-12), "{json}");
+    let says = json["identifiability"].as_array().unwrap().iter().map(|l| l.as_str().unwrap()).collect::<Vec<_>>();
+    assert!(says.iter().any(|l| l.contains("widen parameters.surface_tension_lateral.bounds")), "{says:?}");
+    assert!(
+        stderr.contains("surface_tension_lateral = 6.0000e-4") && stderr.contains("AT THE LOWER SEARCH BOUND"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("(determined)"), "{stderr}");
+    assert_eq!(json["poor_fit"].as_bool(), Some(false), "{json}");
+    assert!(!stderr.contains("POOR FIT"), "{stderr}");
+    assert!(code == Some(0) || code == Some(1), "{stderr}");
+
+    // The same misfit measured on a scale 100 times finer (objective × 10⁴, still below the failure
+    // penalty): far above the forward model's noise.
+    let config = write_demo_fit(dir.path(), "[6e-4, 1e-3]", "sphericity_scale = 5e-5");
+    let (code, stderr, json) = cli_fit(&config, &dir.path().join("poor"));
+    let objective = json["objective"].as_f64().unwrap();
+    let sigma = json["noise"]["std"].as_f64().unwrap_or(0.0);
+    eprintln!("poor fit: objective {objective}, σ {sigma}");
+    assert!(objective > tissuefit::inference::POOR_FIT_OBJECTIVE + 2.0 * sigma, "{json}");
+    assert_eq!(json["poor_fit"].as_bool(), Some(true), "{json}");
+    assert!(stderr.contains("POOR FIT"), "{stderr}");
+    let says = json["identifiability"].as_array().unwrap().iter().map(|l| l.as_str().unwrap()).collect::<Vec<_>>();
+    assert!(says.iter().any(|l| l.starts_with("POOR FIT")), "{says:?}");
+    assert_eq!(code, Some(1), "a poor fit exits 1: {stderr}");
+}

@@ -4,7 +4,7 @@ use super::config::FitConfig;
 use super::forward::{Evaluation, ForwardModel, Observation, Status};
 use super::optimise::{Evaluator, optimise};
 use super::profile::{NoiseFloor, Slice, profile, ratio_parts};
-use super::result::{FitResult, ParameterResult, RatioResult};
+use super::result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
 use super::space::ParameterSpace;
 use super::trace::{read_trace, write_trace};
 use super::{InferenceError, plot};
@@ -379,30 +379,94 @@ fn assemble(
         let fixed: Vec<&str> = space.fixed.iter().map(|(n, _)| n.as_str()).collect();
         format!(" given the fixed {}", fixed.join(", "))
     };
+    let all_names: Vec<String> = values.keys().cloned().collect();
+    // The other directions the profile probed (scale, key ratios) and how far each moves every
+    // fitted parameter's log per unit offset: a parameter's range must hold every acceptable point
+    // they found, or the parameter and ratio ranges contradict each other.
+    let mut directions: Vec<(&Slice, Vec<Real>)> = Vec::new();
+    if let Some(s) = slice("scale") {
+        directions.push((s, vec![1.0; space.dim()]));
+    }
+    for (rname, num, den) in ratio_parts(&all_names) {
+        let (i, j) = (space.fitted.iter().position(|p| p.name == num), space.fitted.iter().position(|p| p.name == den));
+        let mut d = vec![0.0; space.dim()];
+        match (i, j) {
+            (Some(i), Some(j)) => {
+                d[i] = 0.5;
+                d[j] = -0.5;
+            }
+            (Some(i), None) => d[i] = 1.0,
+            (None, Some(j)) => d[j] = -1.0,
+            (None, None) => continue,
+        }
+        if let Some(s) = slice(rname) {
+            directions.push((s, d));
+        }
+    }
     for (name, &v) in &values {
-        let fitted = space.fitted.iter().find(|p| &p.name == name);
-        let (range, determined, bounds) = match fitted {
+        let fitted = space.fitted.iter().position(|p| &p.name == name);
+        let mut at_bound = None;
+        let mut widened_by = Vec::new();
+        let (range, determined, bounds) = match fitted.map(|k| (k, &space.fitted[k])) {
             None => ([v, v], None, None),
-            Some(p) => match slice(name) {
-                None => (p.bounds, None, Some(p.bounds)),
-                Some(s) => {
-                    let determined = s.determined() && !scale_open;
-                    let range = if scale_open {
-                        p.bounds
-                    } else {
-                        [
-                            s.lower.map_or(p.bounds[0], |o| (v * o.exp()).max(p.bounds[0])),
-                            s.upper.map_or(p.bounds[1], |o| (v * o.exp()).min(p.bounds[1])),
-                        ]
-                    };
-                    (range, Some(determined), Some(p.bounds))
+            Some((k, p)) => {
+                at_bound = bound_hit(v, p.bounds);
+                match slice(name) {
+                    None => (p.bounds, None, Some(p.bounds)),
+                    Some(s) => {
+                        // Own slice first, then every other acceptable point of the profile.
+                        let mut lo = s.lower.map(|o| v * o.exp());
+                        let mut hi = s.upper.map(|o| v * o.exp());
+                        for (other, d) in &directions {
+                            if d[k] == 0.0 || other.name == s.name {
+                                continue;
+                            }
+                            for (side, sign) in [(other.lower, -1.0), (other.upper, 1.0)] {
+                                let (moved, down) = match side {
+                                    Some(o) => (Some(v * (d[k] * o).exp()), d[k] * o < 0.0),
+                                    None => (None, d[k] * sign < 0.0),
+                                };
+                                let slot = if down { &mut lo } else { &mut hi };
+                                let before = *slot;
+                                *slot = match (before, moved) {
+                                    (Some(b), Some(m)) if down => Some(b.min(m)),
+                                    (Some(b), Some(m)) => Some(b.max(m)),
+                                    _ => None,
+                                };
+                                if *slot != before && !widened_by.contains(&other.name) {
+                                    widened_by.push(other.name.clone());
+                                }
+                            }
+                        }
+                        let determined = lo.is_some() && hi.is_some() && !scale_open && at_bound.is_none();
+                        let range = if scale_open {
+                            p.bounds
+                        } else {
+                            [
+                                lo.map_or(p.bounds[0], |l| l.max(p.bounds[0])),
+                                hi.map_or(p.bounds[1], |h| h.min(p.bounds[1])),
+                            ]
+                        };
+                        (range, Some(determined), Some(p.bounds))
+                    }
                 }
-            },
+            }
         };
-        if let Some(d) = determined {
+        let other_directions = if widened_by.is_empty() {
+            String::new()
+        } else {
+            format!(" (including the acceptable points along {})", widened_by.join(", "))
+        };
+        if let (Some(side), Some(b)) = (at_bound, bounds) {
+            statements.push(format!(
+                "{name}: NOT determined: the best value {v:.4e} lies at the {side} search bound {:.4e}, so the data \
+                 may prefer a value beyond it; widen parameters.{name}.bounds and fit again",
+                if side == "lower" { b[0] } else { b[1] }
+            ));
+        } else if let Some(d) = determined {
             statements.push(if d {
                 format!(
-                    "{name}: determined by the data{given}: {v:.4e} SI, acceptable range [{:.4e}, {:.4e}]",
+                    "{name}: determined by the data{given}: {v:.4e} SI, acceptable range [{:.4e}, {:.4e}]{other_directions}",
                     range[0], range[1]
                 )
             } else if scale_open {
@@ -414,7 +478,7 @@ fn assemble(
             } else {
                 format!(
                     "{name}: NOT determined by the data: the objective stays below the acceptance threshold {increase} on at \
-                     least one side of {v:.4e}; range reported [{:.4e}, {:.4e}]",
+                     least one side of {v:.4e}{other_directions}; range reported [{:.4e}, {:.4e}]",
                     range[0], range[1]
                 )
             });
@@ -428,6 +492,7 @@ fn assemble(
                 fitted: fitted.is_some(),
                 determined,
                 bounds,
+                at_bound: at_bound.map(str::to_string),
             },
         );
     }
@@ -446,15 +511,19 @@ fn assemble(
             b(num, lo) / b(den, !lo)
         };
         let s = slice(rname);
+        // A ratio at the most extreme value the parameters' bounds allow hit those bounds.
+        let extremes = [extreme(true), extreme(false)];
+        let at_bound = if extremes[0] < extremes[1] { bound_hit(value, extremes) } else { None };
         let (range, determined) = match s {
             Some(s) => (
+                // Within what the bounds allow (a probe beyond a bound was evaluated at the bound).
                 [
-                    s.lower.map_or(extreme(true), |o| value * o.exp()),
-                    s.upper.map_or(extreme(false), |o| value * o.exp()),
+                    s.lower.map_or(extremes[0], |o| (value * o.exp()).max(extremes[0])),
+                    s.upper.map_or(extremes[1], |o| (value * o.exp()).min(extremes[1])),
                 ],
-                Some(s.determined()),
+                Some(s.determined() && at_bound.is_none()),
             ),
-            None => ([extreme(true), extreme(false)], None),
+            None => (extremes, None),
         };
         let meaning = match rname {
             "lateral_over_apical" => {
@@ -467,7 +536,13 @@ fn assemble(
                 model.base.numerics.contact_cutoff
             ),
         };
-        if let Some(d) = determined {
+        if let Some(side) = at_bound {
+            statements.push(format!(
+                "{rname} = {value:.4e}: NOT determined: it lies at the {side} end [{:.4e}, {:.4e}] of what the search \
+                 bounds of {num} and {den} allow; widen those bounds and fit again",
+                extremes[0], extremes[1]
+            ));
+        } else if let Some(d) = determined {
             statements.push(format!(
                 "{rname} = {value:.4e}: {} (acceptable range [{:.4e}, {:.4e}])",
                 if d { "determined by the data" } else { "NOT determined by the data" },
@@ -484,6 +559,7 @@ fn assemble(
                     value: value * f,
                     range: [range[0] * f, range[1] * f],
                     determined,
+                    at_bound: at_bound.map(str::to_string),
                     meaning: format!(
                         "w/(2γ) = ω·c²/(4γ), c = {:.3e} m: the spring doublet's Young–Dupré group (cos θ = 1 − w/(2γ))",
                         model.base.numerics.contact_cutoff
@@ -491,7 +567,10 @@ fn assemble(
                 },
             );
         }
-        ratios.insert(rname.to_string(), RatioResult { value, range, determined, meaning });
+        ratios.insert(
+            rname.to_string(),
+            RatioResult { value, range, determined, at_bound: at_bound.map(str::to_string), meaning },
+        );
     }
     statements.push(
         "An equilibrium shape fixes only dimensionless combinations; the absolute scale enters through volume \
@@ -518,6 +597,25 @@ fn assemble(
     if !best.status.usable() {
         statements.push(format!("no usable evaluation: the best run was {} ({})", best.status.name(), best.reason));
     }
+    // The forward model's own scatter at the optimum explains objectives up to a few σ; a best
+    // objective far beyond both that and POOR_FIT_OBJECTIVE means the model misses the data.
+    let sigma = noise.map_or(0.0, |n| if n.std.is_finite() { n.std } else { 0.0 });
+    let poor_floor = POOR_FIT_OBJECTIVE + config.profile.noise_sigmas * sigma;
+    let poor_fit = best.objective > poor_floor;
+    if poor_fit {
+        statements.push(format!(
+            "POOR FIT: the best objective {:.4e} lies far above what the forward model's noise explains ({:.4e} = \
+             {POOR_FIT_OBJECTIVE} + {}·σ, σ = {sigma:.3}): the simulated metrics miss the observed ones by about {:.1} \
+             scales each (observed {:?}, best {:?}); the model or its settings (contact model, polarity, l_min, \
+             static cells) do not describe these data, so do not trust the fitted values",
+            best.objective,
+            poor_floor,
+            config.profile.noise_sigmas,
+            best.objective.sqrt(),
+            model.observation.metrics,
+            best.metrics
+        ));
+    }
     FitResult {
         parameters,
         objective: best.objective,
@@ -539,6 +637,21 @@ fn assemble(
         threads: rayon::current_num_threads(),
         profile: slices.to_vec(),
         noise: noise.cloned(),
+        poor_fit,
+    }
+}
+
+/// `Some("lower" | "upper")` when `v` lies within [`AT_BOUND_FRACTION`] of the log-range of
+/// `bounds` from that bound.
+fn bound_hit(v: Real, bounds: [Real; 2]) -> Option<&'static str> {
+    let (lo, hi, x) = (bounds[0].ln(), bounds[1].ln(), v.ln());
+    let tolerance = AT_BOUND_FRACTION * (hi - lo);
+    if x - lo <= tolerance {
+        Some("lower")
+    } else if hi - x <= tolerance {
+        Some("upper")
+    } else {
+        None
     }
 }
 
