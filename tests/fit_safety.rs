@@ -203,3 +203,91 @@ fn a_best_value_at_a_search_bound_is_never_determined_and_a_poor_fit_is_flagged(
     assert!(says.iter().any(|l| l.starts_with("POOR FIT")), "{says:?}");
     assert_eq!(code, Some(1), "a poor fit exits 1: {stderr}");
 }
+
+#[test]
+fn a_demo_truth_that_the_fit_bounds_cannot_reach_is_refused_naming_both_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        "[input]\nlabels = {:?}\n[fit.parameters.surface_tension]\nvalue = 1e-3\n\
+         [fit.parameters.surface_tension_lateral]\nbounds = [6e-4, 1e-3]\n[demo]\ntruth = {{ lateral_over_apical = 0.5 }}\n",
+        labels.display().to_string()
+    );
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, text).unwrap();
+    let run = dir.path().join("run");
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("demo.truth.lateral_over_apical = 0.5"), "{stderr}");
+    assert!(
+        stderr.contains("fit.parameters.surface_tension_lateral.bounds")
+            && stderr.contains("fit.parameters.surface_tension.value"),
+        "{stderr}"
+    );
+    assert!(!run.exists(), "nothing run for a contradictory config");
+}
+
+#[test]
+fn lengths_and_tensions_in_the_wrong_unit_are_refused_with_a_hint() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let labels = labels.to_str().unwrap();
+    // `--voxel-size 0.235,0.15,0.15` meant µm: 0.235 m.
+    let out = dir.path().join("m.vtp");
+    let o = tissuefit(&["mesh", labels, "--voxel-size", "0.235,0.15,0.15", "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("did you mean 0.235,0.15,0.15um?"), "{stderr}");
+    let o = tissuefit(&["mesh", labels, "--l-min", "0.33", "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("did you mean 0.33um?"), "{stderr}");
+    assert!(!out.exists());
+
+    // A fit config: a voxel size in metres that was meant as µm, tension bounds typed in mN/m.
+    let fit = |body: &str| {
+        let text = format!("[observed]\nlabels = {labels:?}\n{body}");
+        FitConfig::from_toml_str(&text, "fit.toml").unwrap_err().to_string()
+    };
+    let e = fit("voxel_size = [0.31, 0.31, 0.31]\n[parameters.surface_tension]\nbounds = [1e-4, 1e-3]\n");
+    assert!(e.contains("observed.voxel_size") && e.contains("did you mean 0.31um?"), "{e}");
+    let e = fit("[parameters.surface_tension]\nbounds = [0.2, 1.0]\n");
+    assert!(e.contains("parameters.surface_tension.bounds") && e.contains("did you mean 0.2e-3 N/m?"), "{e}");
+    let e = fit("[parameters.surface_tension]\nvalue = 0.5\n[parameters.adhesion]\nbounds = [1e8, 1e9]\n");
+    assert!(e.contains("parameters.surface_tension.value") && e.contains("did you mean 0.5e-3 N/m?"), "{e}");
+
+    // A pipeline: input.voxel_size in bare metres.
+    let pipeline = dir.path().join("p.toml");
+    std::fs::write(&pipeline, format!("[input]\nlabels = {labels:?}\nvoxel_size = [0.235, 0.15, 0.15]\n")).unwrap();
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", dir.path().join("run").to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("input.voxel_size") && stderr.contains("did you mean 0.235um?"), "{stderr}");
+}
+
+#[test]
+fn voxelize_refuses_a_bare_metre_voxel_size_and_never_writes_an_empty_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    let tissue = repo().join("data/demo/cell_quartet.vtk");
+    let out = dir.path().join("labels.tif");
+    let voxelize = |size: &str| {
+        let o =
+            tissuefit(&["voxelize", tissue.to_str().unwrap(), "--voxel-size", size, "--out", out.to_str().unwrap()]);
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    // The issue's `--voxel-size 0.5`: 0.5 m.
+    let (code, stderr) = voxelize("0.5");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("did you mean 0.5um?"), "{stderr}");
+    assert!(!out.exists());
+    // A plausible voxel far coarser than the cells: no voxel centre falls inside one.
+    let (code, stderr) = voxelize("0.9mm");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("would hold no label") && stderr.contains("--voxel-size"), "{stderr}");
+    assert!(!out.exists(), "no all-background volume written");
+    // A fine voxel still works.
+    let (code, stderr) = voxelize("0.5um");
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(out.exists());
+}

@@ -27,5 +27,7 @@ pub use legacy_write::write_simucell3d;
 pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, write_tissue};
 pub use simulation_output::{SimulationRecorder, write_events};
-pub use units::{LengthScale, parse_lengths};
+pub use units::{
+    LengthScale, PLAUSIBLE_LENGTH, PLAUSIBLE_TENSION, implausible_length, implausible_tension, parse_lengths,
+};
 pub use vtp::{CellField, read_vtp, write_vtp};
