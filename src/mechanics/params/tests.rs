@@ -332,7 +332,7 @@ fn ray_casting_polarity_reads_with_its_keys_and_rejects_bad_values() {
 fn lengths_and_tensions_typed_in_the_wrong_unit_are_warned_with_a_hint() {
     // l_min typed as µm (0.3 m) and a tension typed as mN/m (0.5 N/m): valid numbers, named in warnings.
     let params = load(
-        "[numerics]\nmin_edge_length = 0.3\ncontact_cutoff = 0.3\n[[cell_types]]\nkind = \"epithelial\"\n\
+        "[numerics]\nmin_edge_length = 0.3\ncontact_cutoff = 0.3\ntime_step = 1e-17\n[[cell_types]]\nkind = \"epithelial\"\n\
          [cell_types.faces.lateral]\nsurface_tension = 0.5\n",
     )
     .expect("loads");

@@ -63,7 +63,8 @@ impl Parameters {
                 report.warnings.push(w);
             }
         }
-        for (index, cell_type) in self.cell_types.iter().enumerate() {
+        // Cells' tensions (a nucleus' envelope may be far softer by design).
+        for (index, cell_type) in self.cell_types.iter().enumerate().filter(|(_, t)| t.kind == CellKind::Epithelial) {
             for (face_type, face) in cell_type.faces.iter() {
                 let key = format!("cell_types[{index}].faces.{}.surface_tension", face_type.name());
                 if let Some(w) = crate::io::implausible_tension(&key, face.surface_tension) {
