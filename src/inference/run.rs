@@ -197,7 +197,7 @@ fn describe_failures(trace: &[Evaluation], config: &FitConfig) -> String {
             None => kinds.push((k, 1, e)),
         }
     }
-    kinds.sort_by(|a, b| b.1.cmp(&a.1));
+    kinds.sort_by_key(|k| std::cmp::Reverse(k.1));
     let shown: Vec<String> = kinds
         .iter()
         .take(3)
