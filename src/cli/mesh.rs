@@ -87,9 +87,13 @@ pub struct MeshArgs {
     pub report: Option<PathBuf>,
 }
 
+/// One length (l_min); outside 1 nm – 1 mm it is refused as a unit slip, with a hint.
 fn parse_length(s: &str) -> Result<Real, String> {
     match parse_lengths(s)?.as_slice() {
-        [l] => Ok(*l),
+        [l] => match crate::io::implausible_length("l_min", *l) {
+            Some(bad) => Err(format!("`{s}`: {bad}")),
+            None => Ok(*l),
+        },
         _ => Err(format!("`{s}`: give one length, e.g. 0.4um")),
     }
 }

@@ -92,6 +92,19 @@ pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
         (None, None) => format!("voxelising with --voxel-size {:?} m (z,y,x) around the tissue", grid.voxel_size),
     })?;
     let voxelize_seconds = t2.elapsed().as_secs_f64();
+    // An all-background volume is no label image of the tissue: refuse it rather than write it.
+    if stats.voxels.iter().all(|(_, n)| *n == 0) {
+        let [sz, sy, sx] = grid.voxel_size;
+        bail!(
+            "no voxel of the grid ({:?} voxels of {sz:e},{sy:e},{sx:e} m, z,y,x) lies inside a cell of {}, so {} would \
+             hold no label; the voxels are too coarse for the cells (or the grid misses them): give a smaller \
+             --voxel-size (a bare number is metres: 0.5 is 0.5 m, 0.5um is 0.5 µm), or --like a label volume of \
+             this tissue",
+            grid.shape,
+            args.tissue.display(),
+            args.out.display()
+        );
+    }
     let t3 = Instant::now();
     let dtype = write_label_tiff(&args.out, &volume, &args.output.options())
         .with_context(|| format!("writing {}", args.out.display()))?;

@@ -31,5 +31,7 @@ pub use output::{Format, OutputError, OutputGroup, OutputPolicy, check_target, r
 pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue};
 pub use simulation_output::{SimulationRecorder, write_events};
-pub use units::{LengthScale, parse_lengths};
+pub use units::{
+    LengthScale, PLAUSIBLE_LENGTH, PLAUSIBLE_TENSION, implausible_length, implausible_tension, parse_lengths,
+};
 pub use vtp::{CellField, read_vtp, write_vtp};
