@@ -7,6 +7,7 @@
 //! mechanics: it measures segmented tissues too).
 
 pub mod cli;
+pub mod fuzzing;
 pub mod geometry;
 pub mod imaging;
 pub mod inference;

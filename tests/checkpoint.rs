@@ -310,3 +310,73 @@ fn the_config_sets_the_checkpoint_period_and_the_command_line_overrides_it() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("simulation.checkpoint_every_seconds"));
 }
+
+/// Issue 23, item 6: `--resume` dropped `--checkpoint-every-steps` (the resumed run fell back to one
+/// checkpoint per 600 s). The checkpoint now holds the run's settings: a run killed with SIGKILL
+/// goes on checkpointing every 100 steps and still stops at its `--stop-at-step`; an option given
+/// again on the resume command line replaces the saved one, with a note; the outputs stay those of
+/// the uninterrupted run, and the wall time sums the sessions.
+#[test]
+fn a_resumed_run_keeps_its_checkpoint_period_and_stop_step_and_sums_its_wall_time() {
+    let reference = growth_reference().join("run");
+    let input = growth_reference().join("sphere.vtk");
+    let dir = tempfile::tempdir().unwrap();
+    let split = dir.path().join("run");
+    let mut args = growth_args(&input, &split);
+    args.extend_from_slice(&["--checkpoint-every-steps", "100", "--checkpoint-every-seconds", "0"]);
+    args.extend_from_slice(&["--stop-at-step", "500"]);
+    let mut child = spawn(&args);
+    wait_for(&split.join("checkpoint.bin"), &mut child);
+    let still_running = child.try_wait().unwrap().is_none();
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(still_running, "the run finished before it could be killed");
+
+    // Resumed without options: checkpoints every 100 steps, then the saved stop at step 500.
+    let out = tissuefit(&["-v", "--threads", "2", "simulate", "--resume", s(&split)]);
+    let log = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(130), "{log}");
+    for step in [200, 300, 400] {
+        assert!(log.contains(&format!("checkpoint at step {step}:")), "no checkpoint at step {step}: {log}");
+    }
+    assert!(log.contains("stops at step 500") && log.contains("stopped at step 500"), "{log}");
+
+    // An explicit period on the resume command line wins, and says so.
+    let started = Instant::now();
+    let out = tissuefit(&["-v", "--threads", "2", "simulate", "--resume", s(&split), "--checkpoint-every-steps", "30"]);
+    let last_session = started.elapsed().as_secs_f64();
+    let log = String::from_utf8_lossy(&out.stderr).into_owned();
+    ok(&out);
+    assert!(log.contains("--checkpoint-every-steps 30 replaces the run's 100"), "{log}");
+    assert!(log.contains("checkpoint at step 510:") && log.contains("checkpoint at step 540:"), "{log}");
+    assert_same_outputs(&reference, &split);
+    // 500 of the 600 steps ran in the earlier sessions: the wall time is theirs plus this one's.
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(split.join("summary.json")).unwrap()).unwrap();
+    let wall = summary["wall_seconds"].as_f64().unwrap();
+    assert!(wall > last_session, "wall_seconds {wall} s counts only the last session ({last_session} s)");
+}
+
+#[test]
+fn stop_at_step_zero_or_before_the_checkpoint_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = tissuefit(&["simulate", s(&demo()), "--out", s(&out), "--stop-at-step", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--stop-at-step 0"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!out.exists(), "a refused run wrote {}", out.display());
+    let o = tissuefit(&["simulate", s(&demo()), "--out", s(&out), "--max-steps", "40", "--stop-at-step", "20"]);
+    assert_eq!(o.status.code(), Some(130), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = tissuefit(&["simulate", "--resume", s(&out), "--stop-at-step", "20"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--stop-at-step 20") && err.contains("at step 20 already"), "{err}");
+    assert!(out.join("checkpoint.bin").exists(), "the refused resume removed the checkpoint");
+    // A later stop is honoured; the saved one (20) has happened and is not repeated.
+    let o = tissuefit(&["simulate", "--resume", s(&out), "--stop-at-step", "30"]);
+    assert_eq!(o.status.code(), Some(130), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("stopped at step 30"));
+    let o = tissuefit(&["simulate", "--resume", s(&out)]);
+    assert!(o.status.code() == Some(0) || o.status.code() == Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("summary.json").exists() && !out.join("checkpoint.bin").exists());
+}

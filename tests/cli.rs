@@ -246,3 +246,68 @@ fn bench_prints_one_json_object() {
     assert_eq!(v["nodes"].as_u64(), Some(1016));
     assert!(v["seconds_per_node_step"].as_f64().unwrap() > 0.0);
 }
+
+/// Issue 23, item 2: no output may destroy an input or replace what is not a regular file. Each
+/// refusal exits 2 with a message naming the option and the path, before any work, and leaves the
+/// file it would have replaced byte for byte (and a FIFO a FIFO).
+#[test]
+fn an_output_that_is_an_input_a_folder_a_fifo_or_of_the_wrong_format_is_refused_and_nothing_changes() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = dir.path().join("labels.tif");
+    std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/doublet.tif"), &labels).unwrap();
+    let tissue = dir.path().join("t.vtk");
+    std::fs::copy(demo(), &tissue).unwrap();
+    let original = std::fs::read(&labels).unwrap();
+    let (l, t) = (labels.to_str().unwrap(), tissue.to_str().unwrap());
+    let out_vtp = dir.path().join("t.vtp");
+    let o = out_vtp.to_str().unwrap();
+    let refused = |args: &[&str], expect: &[&str]| {
+        let out = tissuefit(args);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        for e in expect {
+            assert!(err.contains(e), "{args:?}: `{e}` not in: {err}");
+        }
+        assert_eq!(std::fs::read(&labels).unwrap(), original, "{args:?} changed the input");
+    };
+    // The reproducers of the issue.
+    refused(&["mesh", l, "--out", o, "--report", l], &["--report", "labels.tif", "extension .json"]);
+    refused(&["voxelize", t, "--like", l, "--out", l], &["--out", "also the input --like", "labels.tif"]);
+    assert!(!out_vtp.exists(), "the mesh was written although the report was refused");
+    // The input under another name (a hard link) is still the input.
+    let alias = dir.path().join("alias.tif");
+    std::fs::hard_link(&labels, &alias).unwrap();
+    refused(&["voxelize", t, "--like", l, "--out", alias.to_str().unwrap()], &["also the input --like"]);
+    // A FIFO (what `--report /dev/null` is to the program) is refused, never replaced by a file.
+    let fifo = dir.path().join("report.json");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    refused(&["mesh", l, "--out", o, "--report", fifo.to_str().unwrap()], &["--report", "FIFO", "never replaces"]);
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+    // A folder where a file is meant, and a file where a folder is meant.
+    refused(&["convert", t, dir.path().to_str().unwrap()], &["OUTPUT", "is a directory"]);
+    refused(&["measure", t, "--out", l], &["--out", "where a folder is meant"]);
+    // Wrong extensions for the format.
+    refused(&["voxelize", t, "--voxel-size", "1um", "--out", o], &["--out", "extension .tif or .tiff"]);
+    refused(&["render", t, "--out", dir.path().join("v.jpg").to_str().unwrap()], &["--out", ".png"]);
+    // The tissue given as its own conversion target.
+    let before = std::fs::read(&tissue).unwrap();
+    let out = tissuefit(&["convert", t, t]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("also the input INPUT"));
+    assert_eq!(std::fs::read(&tissue).unwrap(), before);
+}
+
+/// Issue 23, item 8: `fit --resume` with nothing to resume started afresh, silently. Now an error
+/// naming the folder, before any work, and nothing written.
+#[test]
+fn fit_resume_without_a_trace_is_an_error_naming_the_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fit");
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/demo.toml");
+    let o = tissuefit(&["fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--resume"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("nothing to resume") && err.contains(&out.display().to_string()), "{err}");
+    assert!(!out.exists(), "{}", out.display());
+}

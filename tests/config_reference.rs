@@ -1,18 +1,12 @@
-//! docs/config-reference.md is the output of `tissuefit config reference`, generated from the
-//! schemas: a key added, removed or re-documented in the code without regenerating it fails here.
+//! The docs book's configuration reference (docs/src/reference/configuration.md) is the output of
+//! `tissuefit config reference`, generated from the schemas: a key added, removed or re-documented in
+//! the code without regenerating it fails here. `TISSUEFIT_BLESS=1` regenerates it.
+
+#[path = "support/generated.rs"]
+mod generated;
 
 #[test]
 fn the_committed_config_reference_is_the_generated_one() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/config-reference.md");
-    let committed = std::fs::read_to_string(&path).unwrap_or_default();
-    let generated = tissuefit::pipeline::config_reference(None).unwrap();
-    if committed != generated {
-        let line = committed.lines().zip(generated.lines()).position(|(a, b)| a != b);
-        panic!(
-            "{} is out of date with the schemas (first difference at line {}); regenerate it with\n    \
-             cargo run --release -- config reference > docs/config-reference.md",
-            path.display(),
-            line.map_or_else(|| "the end".to_string(), |l| (l + 1).to_string())
-        );
-    }
+    let reference = tissuefit::pipeline::config_reference(None).unwrap();
+    generated::check_generated_file("docs/src/reference/configuration.md", &reference, "config_reference");
 }

@@ -268,9 +268,28 @@ fn make_tissue_seeds() -> Vec<(&'static str, Vec<u8>)> {
     let multimaterial = "# vtk DataFile Version 5.1\nlabels\nASCII\nDATASET POLYDATA\nPOINTS 5 float\n\
         0 0 0 1 0 0 0 1 0 0 0 1 1 1 1\nPOLYGONS 8 21\nOFFSETS vtktypeint64\n0 3 6 9 12 15 18 21\n\
         CONNECTIVITY vtktypeint64\n0 2 1 0 1 3 0 3 2 1 2 3 1 4 2 2 4 3 3 4 1\n\
-        CELL_DATA 7\nFIELD FieldData 1\nlabels 2 7 int\n1 0 1 0 1 0 1 2 2 0 2 0 2 0\n";
+        CELL_DATA 7\nFIELD FieldData 2\nlabel1 1 7 int\n1 1 1 1 2 2 2\nlabel2 1 7 int\n0 0 0 2 0 0 0\n";
     seeds.push(("vtk", multimaterial.as_bytes().to_vec()));
     seeds
+}
+
+/// Every seed is a file its reader accepts, so mutations start inside the parser rather than at its
+/// first check (the multi-material seed lacked its label1/label2 arrays and was refused whole).
+#[test]
+fn seeds_are_valid_files() {
+    let dir = tempfile::tempdir().unwrap();
+    for (k, (ext, bytes)) in tissue_seeds().iter().enumerate() {
+        let path = dir.path().join(format!("seed{k}.{ext}"));
+        std::fs::write(&path, bytes).unwrap();
+        read_tissue(&path, &ReadOptions::default()).unwrap_or_else(|e| panic!("tissue seed {k}: {e}"));
+    }
+    for (k, bytes) in tiff_seeds().iter().enumerate() {
+        let path = dir.path().join(format!("seed{k}.tif"));
+        std::fs::write(&path, bytes).unwrap();
+        tissuefit::imaging::read_label_tiff(&path, &LabelReadOptions::default())
+            .unwrap_or_else(|e| panic!("TIFF seed {k}: {e}"));
+    }
+    Parameters::from_toml_str(&config_seed(), "seed.toml").unwrap();
 }
 
 fn config_seed() -> String {

@@ -426,3 +426,243 @@ fn every_stage_subcommand_reports_pipeline_config_errors_with_the_file_and_key_a
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("no [fit] section"), "{err}");
 }
+
+/// `[input] labels = "labels.tif"` beside the pipeline file `p.toml` in `dir` (plus `extra`).
+fn labels_pipeline(dir: &Path, labels: &str, extra: &str) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join("p.toml");
+    std::fs::write(&path, format!("[input]\nlabels = \"{labels}\"\n{extra}")).unwrap();
+    path
+}
+
+/// Issue 23, item 1: `tissuefit run --out DIR` deleted DIR/mesh and all it held. Now a stage folder
+/// holding files the program did not make is refused, naming them; `--force` runs beside them and
+/// still removes or replaces only the program's own files.
+#[test]
+fn a_run_never_deletes_or_replaces_files_it_did_not_make_in_its_stage_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let doublet = repo().join("data/demo/doublet.tif");
+    let run = |p: &Path, out: &Path, force: bool| {
+        let mut args = vec!["run", p.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        if force {
+            args.push("--force");
+        }
+        let o = tissuefit(&args);
+        let (stdout, stderr) = text(&o);
+        (o.status.code(), format!("{stdout}{stderr}"))
+    };
+
+    // The reproducer: notes in proj/mesh, the pipeline and its labels in proj, --out proj.
+    let proj = tmp.path().join("proj");
+    std::fs::create_dir_all(proj.join("mesh")).unwrap();
+    std::fs::write(proj.join("mesh/notes.txt"), "notes\n").unwrap();
+    std::fs::copy(&doublet, proj.join("labels.tif")).unwrap();
+    let p = labels_pipeline(&proj, "labels.tif", "");
+    let (code, out) = run(&p, &proj, false);
+    assert_eq!(code, Some(2), "{out}");
+    assert!(out.contains("notes.txt") && out.contains("did not make") && out.contains("--force"), "{out}");
+    assert_eq!(std::fs::read_to_string(proj.join("mesh/notes.txt")).unwrap(), "notes\n");
+    let (code, out) = run(&p, &proj, true);
+    assert_eq!(code, Some(0), "{out}");
+    assert_eq!(std::fs::read_to_string(proj.join("mesh/notes.txt")).unwrap(), "notes\n");
+    assert!(proj.join("mesh/tissue.vtp").is_file() && proj.join("measure/summary.json").is_file());
+    let manifest = read_json(&proj.join("manifest.json"));
+    let owned = manifest["stages"][0]["outputs"].as_object().unwrap();
+    assert!(owned.contains_key("tissue.vtp") && !owned.contains_key("notes.txt"), "{owned:?}");
+    // Unchanged: skipped, notes or not. A changed [mesh] re-runs the stage beside the notes with
+    // --force: the program's old files are replaced, the notes stay.
+    let (code, out) = run(&p, &proj, false);
+    assert_eq!((code, out.matches(": skipped").count()), (Some(0), 2), "{out}");
+    let p = labels_pipeline(&proj, "labels.tif", "[mesh]\ntarget_nodes = 150\n");
+    assert_eq!(run(&p, &proj, false).0, Some(2));
+    let (code, out) = run(&p, &proj, true);
+    assert_eq!(code, Some(0), "{out}");
+    assert_eq!(std::fs::read_to_string(proj.join("mesh/notes.txt")).unwrap(), "notes\n");
+    assert_eq!(statuses(&proj), vec![("mesh".into(), "complete".into()), ("measure".into(), "complete".into())]);
+
+    // The input TIFF kept inside OUT/mesh survives, with or without --force, byte for byte.
+    let kept = tmp.path().join("kept");
+    std::fs::create_dir_all(kept.join("mesh")).unwrap();
+    std::fs::copy(&doublet, kept.join("mesh/labels.tif")).unwrap();
+    let original = std::fs::read(&doublet).unwrap();
+    let p = labels_pipeline(&kept, "mesh/labels.tif", "");
+    let (code, out) = run(&p, &kept, false);
+    assert_eq!(code, Some(2), "{out}");
+    assert!(out.contains("labels.tif"), "{out}");
+    let (code, out) = run(&p, &kept, true);
+    assert_eq!(code, Some(0), "{out}");
+    assert_eq!(std::fs::read(kept.join("mesh/labels.tif")).unwrap(), original);
+
+    // A file of a name the stage writes, not made by the program, is not replaced even with --force.
+    let clash = tmp.path().join("clash");
+    std::fs::create_dir_all(clash.join("measure")).unwrap();
+    std::fs::write(clash.join("measure/summary.json"), "{\"mine\": true}\n").unwrap();
+    std::fs::copy(&doublet, clash.join("labels.tif")).unwrap();
+    let p = labels_pipeline(&clash, "labels.tif", "");
+    let (code, out) = run(&p, &clash, true);
+    assert_eq!(code, Some(2), "{out}");
+    assert!(out.contains("summary.json") && out.contains("did not make the one there"), "{out}");
+    assert_eq!(std::fs::read_to_string(clash.join("measure/summary.json")).unwrap(), "{\"mine\": true}\n");
+
+    // Nor a manifest.json or config.resolved.toml that no run made, in the run folder itself.
+    for (name, text) in [("manifest.json", "{\"my\": \"notes\"}\n"), ("config.resolved.toml", "mine = 1\n")] {
+        let own = tmp.path().join(format!("own-{name}"));
+        std::fs::create_dir_all(&own).unwrap();
+        std::fs::write(own.join(name), text).unwrap();
+        std::fs::copy(&doublet, own.join("labels.tif")).unwrap();
+        let p = labels_pipeline(&own, "labels.tif", "");
+        let (code, out) = run(&p, &own, true);
+        assert_eq!(code, Some(2), "{out}");
+        assert!(out.contains(name) && out.contains("move it away"), "{out}");
+        assert_eq!(std::fs::read_to_string(own.join(name)).unwrap(), text);
+        assert!(!own.join("mesh").exists());
+    }
+}
+
+fn stage_status(run: &Path, stage: &str) -> Option<String> {
+    let text = std::fs::read_to_string(run.join("manifest.json")).ok()?;
+    let m: serde_json::Value = serde_json::from_str(&text).ok()?;
+    m["stages"].as_array()?.iter().find(|s| s["name"] == stage).map(|s| s["status"].as_str().unwrap().to_string())
+}
+
+/// Starts `tissuefit run` and waits until its simulate stage is running.
+fn start_until_simulating(p: &Path, run: &Path) -> std::process::Child {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(["run", p.to_str().unwrap(), "--out", run.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while stage_status(run, "simulate").as_deref() != Some("running") {
+        assert!(child.try_wait().unwrap().is_none(), "the first run ended before simulating");
+        assert!(started.elapsed().as_secs() < 300, "the simulate stage did not start");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child
+}
+
+/// Issue 23, item 7: a second run into a folder in use fails at once, naming the folder and the
+/// process; SIGTERM leaves the stage `interrupted` (not `running`); after a kill -9 the next run
+/// records the stage it finds `running` as interrupted and runs it again.
+#[test]
+fn a_second_run_into_a_busy_folder_fails_at_once_and_an_interrupted_stage_is_recorded_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A relaxation that cannot converge: it runs until stopped.
+    let endless = |t: String| {
+        t.split("[fit]").next().unwrap().replace(
+            "max_steps = 1000",
+            "max_steps = 100000000\nforce_tolerance = 1e-30\nenergy_tolerance = 1e-30\nvolume_tolerance = 1e-30",
+        )
+    };
+    let p = demo_pipeline(tmp.path(), endless);
+    let run = tmp.path().join("run");
+    let mut first = start_until_simulating(&p, &run);
+    let asked = std::time::Instant::now();
+    let o = tissuefit(&["run", p.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(asked.elapsed().as_secs() < 60, "the second run waited");
+    assert!(err.contains(&run.display().to_string()) && err.contains(&format!("process id {}", first.id())), "{err}");
+    assert!(err.contains("kill -9"), "{err}");
+    assert_eq!(stage_status(&run, "simulate").as_deref(), Some("running"), "the second run touched the manifest");
+    // SIGTERM: exit 130, the stage marked interrupted.
+    assert!(Command::new("kill").args(["-TERM", &first.id().to_string()]).status().unwrap().success());
+    assert_eq!(first.wait().unwrap().code(), Some(130));
+    assert_eq!(stage_status(&run, "simulate").as_deref(), Some("interrupted"));
+
+    // kill -9 leaves `running`; the next run (a relaxation that ends) says it was interrupted.
+    let mut second = start_until_simulating(&p, &run);
+    second.kill().unwrap();
+    second.wait().unwrap();
+    assert_eq!(stage_status(&run, "simulate").as_deref(), Some("running"));
+    let p = demo_without_fit(tmp.path());
+    let o = tissuefit(&["run", p.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let (stdout, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{stdout}{err}");
+    assert!(
+        err.contains("stage simulate: the run that started it") && err.contains("ended before it finished"),
+        "{err}"
+    );
+    assert_eq!(stage_status(&run, "simulate").as_deref(), Some("complete"));
+}
+
+/// The fit's temporary folder (`.fit.tmp-PID`) in a run directory, if any.
+fn fit_temporary(run: &Path) -> Option<PathBuf> {
+    std::fs::read_dir(run)
+        .ok()?
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with(".fit.tmp-")))
+}
+
+/// Issue 23, item 7: a pipeline's fit lost every evaluation to kill -9. Now the next run goes on from
+/// the trace the killed fit left (its evaluations are not simulated again) and ends with the outputs
+/// of an uninterrupted run.
+#[test]
+fn a_pipeline_fit_killed_with_sigkill_resumes_from_its_trace_to_the_uninterrupted_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let pipeline = demo_pipeline(tmp.path(), |t| {
+        t.replace("max_evaluations = 24", "max_evaluations = 14").replace("points = 2", "points = 1")
+    });
+    let p = pipeline.to_str().unwrap();
+    let reference = tmp.path().join("reference");
+    let o = tissuefit(&["--threads", "2", "run", p, "--out", reference.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+
+    let run = tmp.path().join("run");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(["--threads", "2", "run", p, "--out", run.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Killed once the trace holds two evaluations.
+    let started = std::time::Instant::now();
+    loop {
+        let rows = fit_temporary(&run)
+            .and_then(|d| std::fs::read_to_string(d.join("trace.csv")).ok())
+            .map_or(0, |t| t.lines().count());
+        if rows >= 3 {
+            break;
+        }
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before its fit had two evaluations");
+        assert!(started.elapsed().as_secs() < 300, "no fit evaluation after 5 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(stage_status(&run, "fit").as_deref(), Some("running"));
+    let killed = std::fs::read_to_string(fit_temporary(&run).unwrap().join("trace.csv")).unwrap();
+    let killed_rows: Vec<&str> = killed.lines().collect();
+
+    let o = tissuefit(&["--threads", "2", "run", p, "--out", run.to_str().unwrap()]);
+    let (stdout, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{stdout}{stderr}");
+    assert!(stdout.contains("fit: resuming the interrupted run from the"), "{stdout}");
+    assert_eq!(stage_status(&run, "fit").as_deref(), Some("complete"));
+    assert!(fit_temporary(&run).is_none(), "a temporary fit folder is left");
+    // result.json's `simulated_here` counts this process's simulations (fewer: the rest came from
+    // the trace); everything else is the uninterrupted run's.
+    let result = |dir: &Path| {
+        let mut v = read_json(&dir.join("fit/result.json"));
+        let here = v.as_object_mut().unwrap().remove("simulated_here").unwrap().as_u64().unwrap();
+        strip_wall_times(&mut v);
+        (v, here)
+    };
+    let ((resumed, here), (uninterrupted, all)) = (result(&run), result(&reference));
+    assert_eq!(resumed, uninterrupted);
+    assert!(here + (killed_rows.len() as u64 - 1) <= all, "simulated {here} of {all} again");
+    let without_result = |dir: &Path| {
+        let mut h = data_hashes(dir);
+        h.remove("fit/result.json");
+        h
+    };
+    assert_eq!(without_result(&run), without_result(&reference));
+    // The killed run's evaluations were reused, not simulated again: their rows, wall times
+    // included, open the final trace.
+    let trace = std::fs::read_to_string(run.join("fit/trace.csv")).unwrap();
+    let rows: Vec<&str> = trace.lines().collect();
+    assert!(rows.len() > killed_rows.len());
+    assert_eq!(rows[..killed_rows.len()], killed_rows[..]);
+}

@@ -122,8 +122,12 @@ fn a_two_by_two_grid_runs_lists_reproduces_skips_and_collects() {
     let alone = tmp.path().join("alone");
     let o = tissuefit(&["--threads", "1", "sweep", s, "--out", alone.to_str().unwrap(), "--index", "2"]);
     assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
-    let names: Vec<String> =
-        std::fs::read_dir(&alone).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    // (Besides the sweep folder's lock file, `.tissuefit.lock`.)
+    let names: Vec<String> = std::fs::read_dir(&alone)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n != ".tissuefit.lock")
+        .collect();
     assert_eq!(names, ["run-0002"], "only run 2, no results table");
     let (a, b) = (data_files(&out.join("run-0002")), data_files(&alone.join("run-0002")));
     assert!(a.len() >= 12, "{:?}", a.iter().map(|f| &f.0).collect::<Vec<_>>());

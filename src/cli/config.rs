@@ -14,7 +14,8 @@ pub enum ConfigCommand {
         file: PathBuf,
     },
     /// Print the Markdown reference of every pipeline-file key (type, default, description) and of
-    /// the model parameters, generated from the schemas (docs/config-reference.md is this output).
+    /// the model parameters, generated from the schemas (the docs book's reference/configuration.md is
+    /// this output).
     Reference {
         /// Only this section: input, mesh, measure, simulate, fit, demo or model.
         #[arg(long, value_name = "SECTION")]

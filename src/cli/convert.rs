@@ -1,7 +1,7 @@
 //! `tissuefit convert IN OUT`: between SimuCell3D legacy VTK, multi-material meshes and ParaView.
 
 use super::{InputArgs, Outcome};
-use crate::io::{CellField, read_tissue, write_tissue};
+use crate::io::{CellField, Format, OutputPolicy, read_tissue, write_tissue};
 use crate::mechanics::Parameters;
 use anyhow::Context;
 use std::path::PathBuf;
@@ -20,6 +20,11 @@ pub struct ConvertArgs {
 }
 
 pub fn run(args: &ConvertArgs) -> anyhow::Result<Outcome> {
+    OutputPolicy::new().input("INPUT", &args.input).input_opt("--config", args.config.as_deref()).file(
+        "OUTPUT",
+        &args.output,
+        Format::Tissue,
+    )?;
     let read = read_tissue(&args.input, &args.input_args.read_options())
         .with_context(|| format!("reading {}", args.input.display()))?;
     for w in &read.warnings {

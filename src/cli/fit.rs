@@ -1,21 +1,23 @@
 //! `tissuefit fit --config FIT.toml --out DIR`: fit surface tension and adhesion to observed morphology.
 
 use super::Outcome;
-use crate::inference::{FitConfig, FitOptions, run_fit};
+use crate::inference::{FitConfig, FitOptions, InferenceError, run_fit};
+use crate::io::OutputPolicy;
 use crate::pipeline::PipelineConfig;
 use anyhow::Context;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct FitArgs {
-    /// Fit configuration (TOML; see the README, "Fitting parameters"), or a pipeline file (one with an
+    /// Fit configuration (TOML; see the docs book, "Fitting parameters"), or a pipeline file (one with an
     /// `[input]` table; its `[fit]` on the labels of `[input]` meshed like `[mesh]`, as `tissuefit run`).
     #[arg(long, value_name = "TOML")]
     pub config: PathBuf,
     /// Output folder: trace.csv, result.json, objective.png, landscape.png, fit.toml, model.toml.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated).
+    /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated);
+    /// an error when DIR holds no trace.csv.
     #[arg(long)]
     pub resume: bool,
     /// Overrides optimizer.max_evaluations.
@@ -41,6 +43,16 @@ fn load_config(path: &Path) -> anyhow::Result<FitConfig> {
 
 pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
     let mut config = load_config(&args.config)?;
+    let observed = config.observed().ok();
+    OutputPolicy::new()
+        .input("--config", &args.config)
+        .input_opt("observed.tissue", observed.and_then(|o| o.tissue.as_deref()))
+        .input_opt("observed.labels", observed.and_then(|o| o.labels.as_deref()))
+        .folder(
+            "--out",
+            &args.out,
+            &["trace.csv", "result.json", "objective.png", "landscape.png", "fit.toml", "model.toml"],
+        )?;
     if let Some(n) = args.max_evaluations {
         anyhow::ensure!(n > 0, "--max-evaluations must be at least 1");
         config.optimizer.max_evaluations = n;
@@ -49,35 +61,60 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         config.optimizer.seed = s;
     }
     let options = FitOptions { resume: args.resume, progress: true, plots: true };
-    let result = run_fit(&config, &args.out, &options).with_context(|| format!("fitting {}", args.config.display()))?;
+    let result = match run_fit(&config, &args.out, &options) {
+        Ok(r) => r,
+        Err(e @ InferenceError::Failed(_)) => {
+            return Err(anyhow::anyhow!(
+                "{e} (every evaluation and its reason: {}; no result.json was written)",
+                args.out.join("trace.csv").display()
+            ))
+            .with_context(|| format!("fitting {}", args.config.display()));
+        }
+        Err(e) => return Err(e).with_context(|| format!("fitting {}", args.config.display())),
+    };
+    // The word for a fitted quantity: a value at a search bound is never "determined".
+    let state = |at_bound: &Option<String>, determined: Option<bool>| match (at_bound, determined) {
+        (Some(side), _) => format!("AT THE {} SEARCH BOUND: widen it and fit again", side.to_uppercase()),
+        (None, Some(true)) => "determined".to_string(),
+        (None, Some(false)) => "NOT determined".to_string(),
+        (None, None) => "no profile".to_string(),
+    };
     let params: Vec<String> = result
         .parameters
         .iter()
         .filter(|(_, p)| p.fitted)
         .map(|(n, p)| {
-            let d = match p.determined {
-                Some(true) => "determined",
-                Some(false) => "NOT determined",
-                None => "no profile",
-            };
-            format!("{n} = {:.4e} [{:.3e}, {:.3e}] ({d})", p.si, p.range[0], p.range[1])
+            format!(
+                "{n} = {:.4e} [{:.3e}, {:.3e}] ({})",
+                p.si,
+                p.range[0],
+                p.range[1],
+                state(&p.at_bound, p.determined)
+            )
         })
         .collect();
     let ratios: Vec<String> = result
         .ratios
         .iter()
         .map(|(n, r)| {
-            let d = match r.determined {
-                Some(true) => "determined",
-                Some(false) => "NOT determined",
-                None => "no profile",
-            };
-            format!("{n} = {:.4e} [{:.3e}, {:.3e}] ({d})", r.value, r.range[0], r.range[1])
+            format!(
+                "{n} = {:.4e} [{:.3e}, {:.3e}] ({})",
+                r.value,
+                r.range[0],
+                r.range[1],
+                state(&r.at_bound, r.determined)
+            )
         })
         .collect();
     eprintln!(
-        "{}: objective {:.4e} after {} evaluations ({}), {:.1} s; {}{}{}; outputs in {}",
+        "{}: {}objective {:.4e} after {} evaluations ({}), {:.1} s; {}{}{}; outputs in {}",
         args.config.display(),
+        if result.poor_fit {
+            "POOR FIT (the objective lies far above the forward model's noise: the model does not describe these data; \
+             see result.json, identifiability): "
+        } else {
+            ""
+        },
         result.objective,
         result.evaluations,
         if result.converged { "converged".to_string() } else { format!("NOT converged: {}", result.stop_reason) },
@@ -87,5 +124,6 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         ratios.join("; "),
         args.out.display()
     );
-    Ok(if result.converged { Outcome::Success } else { Outcome::CheckFailed })
+    // A poor fit completed but found a problem, like an unconverged one: exit code 1.
+    Ok(if result.converged && !result.poor_fit { Outcome::Success } else { Outcome::CheckFailed })
 }

@@ -10,9 +10,9 @@ use super::Outcome;
 use super::label_args::{LabelOutputArgs, describe_grid, parse_shape, parse_voxel_size};
 use crate::geometry::Real;
 use crate::imaging::{LabelPattern, LabelSpec, generate_labels, generate_nuclei, write_label_tiff};
-use crate::io::{parse_lengths, write_atomically, write_tissue};
+use crate::io::{Format, OutputPolicy, parse_lengths, write_atomically, write_tissue};
 use crate::meshing::{GenerationSummary, TissueKind, TissueSpec, generate_tissue};
-use anyhow::{Context, bail};
+use anyhow::Context;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Subcommand, Debug)]
@@ -97,10 +97,13 @@ struct GenerateReport<'a> {
 
 fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
     let started = std::time::Instant::now();
-    match args.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
-        Some("vtp" | "vtk") => {}
-        _ => bail!("--out {}: use a .vtp (ParaView) or .vtk (SimuCell3D legacy) file name", args.out.display()),
-    }
+    let report_path = args.report.clone().unwrap_or_else(|| {
+        let stem = args.out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "tissue".into());
+        args.out.with_file_name(format!("{stem}.report.json"))
+    });
+    let mut outputs = OutputPolicy::new();
+    outputs.file("--out", &args.out, Format::Tissue)?;
+    outputs.file("--report", &report_path, Format::Json)?;
     let cells = args.cells.unwrap_or(args.kind.default_cells());
     let spec = TissueSpec {
         kind: args.kind,
@@ -118,10 +121,6 @@ fn run_mesh(args: &GenerateMeshArgs) -> anyhow::Result<Outcome> {
     let generated = generate_tissue(&spec).with_context(|| format!("generating a {}", args.kind))?;
     let tissue = &generated.tissue;
     write_tissue(&args.out, tissue, &[]).with_context(|| format!("writing {}", args.out.display()))?;
-    let report_path = args.report.clone().unwrap_or_else(|| {
-        let stem = args.out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "tissue".into());
-        args.out.with_file_name(format!("{stem}.report.json"))
-    });
     let wall_seconds = started.elapsed().as_secs_f64();
     let threads = rayon::current_num_threads();
     let report = GenerateReport { output: &args.out, wall_seconds, threads, summary: generated.summary() };
@@ -193,6 +192,11 @@ pub fn run(cmd: &GenerateCommand) -> anyhow::Result<Outcome> {
     if args.lumen && args.kind != LabelPattern::Aggregate {
         anyhow::bail!("--lumen applies to --kind aggregate only");
     }
+    let mut outputs = OutputPolicy::new();
+    outputs.file("--out", &args.out, Format::Tiff)?;
+    if let Some(nuclei) = &args.nuclei {
+        outputs.file("--nuclei", nuclei, Format::Tiff)?;
+    }
     let spec = LabelSpec {
         pattern: args.kind,
         shape: args.shape,
@@ -201,7 +205,9 @@ pub fn run(cmd: &GenerateCommand) -> anyhow::Result<Outcome> {
         seed: args.seed,
         lumen: args.lumen,
     };
-    let generated = generate_labels(&spec).context("generating labels")?;
+    let generated = generate_labels(&spec).with_context(|| {
+        format!("generating labels on --shape {:?} (z,y,x) with --voxel-size {:?} m", spec.shape, spec.voxel_size)
+    })?;
     // Both volumes are made before either is written, so an error leaves neither file.
     let nuclei = match &args.nuclei {
         Some(_) => Some(

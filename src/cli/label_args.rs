@@ -2,15 +2,31 @@
 
 use crate::geometry::Real;
 use crate::imaging::{LabelDtype, LabelVolume, LabelWriteOptions, TiffCompression};
-use crate::io::parse_lengths;
+use crate::io::{PLAUSIBLE_LENGTH, implausible_length, parse_lengths};
 
 /// Parses a voxel size `Z,Y,X` (or one length for all three); units as in `parse_lengths`.
+/// A voxel edge outside 1 nm – 1 mm is refused as a unit slip, with a hint (`0.235,0.15,0.15` →
+/// `0.235,0.15,0.15um`).
 pub(crate) fn parse_voxel_size(s: &str) -> Result<[Real; 3], String> {
-    match parse_lengths(s)?.as_slice() {
-        [a] => Ok([*a; 3]),
-        [z, y, x] => Ok([*z, *y, *x]),
-        _ => Err(format!("`{s}`: give one voxel size or three (z,y,x), e.g. 0.235,0.15,0.15um")),
+    let v = match parse_lengths(s)?.as_slice() {
+        [a] => [*a; 3],
+        [z, y, x] => [*z, *y, *x],
+        _ => return Err(format!("`{s}`: give one voxel size or three (z,y,x), e.g. 0.235,0.15,0.15um")),
+    };
+    if let Some(bad) = v.iter().find_map(|&l| implausible_length("voxel size", l)) {
+        let bare = !s.chars().any(|c| c.is_alphabetic() && c != 'e' && c != 'E');
+        let [lo, hi] = PLAUSIBLE_LENGTH;
+        let all_um = v.iter().all(|&l| (lo..=hi).contains(&(l * 1e-6)));
+        if bare && all_um {
+            return Err(format!(
+                "`{s}`: voxel sizes of {v:?} m lie outside the plausible range 1 nm – 1 mm for cells; did you mean \
+                 {}um? (a bare number is metres)",
+                s.trim()
+            ));
+        }
+        return Err(format!("`{s}`: {bad}"));
     }
+    Ok(v)
 }
 
 /// Parses a grid shape `Z,Y,X` (or one count for all three).

@@ -7,7 +7,7 @@ use super::label_args::{describe_grid, parse_voxel_size};
 use super::{InputArgs, Outcome};
 use crate::geometry::Real;
 use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, label_overlap, read_label_tiff};
-use crate::io::{LengthScale, read_tissue, write_atomically};
+use crate::io::{LengthScale, OutputGroup, OutputPolicy, read_tissue};
 use crate::mesh::{CellKind, Tissue};
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
 use crate::morphology::{
@@ -81,6 +81,11 @@ pub struct MeasureArgs {
     pub compare_voxel_size: Option<[Real; 3]>,
 }
 
+/// Bytes per voxel that measuring a label volume needs besides the volume itself (4 bytes per voxel):
+/// the dense relabelled copy (4), label statistics and the per-label smoothed fields (~5); about 13
+/// in all. The TIFF reader checks the total against the memory limit before decoding.
+const MEASURE_WORK_BYTES_PER_VOXEL: u64 = 9;
+
 /// Whether `path` is a TIFF: by extension, else by its magic number (II*/MM* classic, II+/MM+ BigTIFF).
 fn is_tiff(path: &Path) -> bool {
     if let Some(ext) = path.extension().and_then(|e| e.to_str()) {
@@ -105,7 +110,11 @@ enum Input {
 
 fn read_input(path: &Path, args: &MeasureArgs) -> anyhow::Result<Input> {
     if is_tiff(path) {
-        let options = LabelReadOptions { voxel_size: args.voxel_size, ..Default::default() };
+        let options = LabelReadOptions {
+            voxel_size: args.voxel_size,
+            work_bytes_per_voxel: MEASURE_WORK_BYTES_PER_VOXEL,
+            ..Default::default()
+        };
         let read =
             read_label_tiff(path, &options).with_context(|| format!("reading label volume {}", path.display()))?;
         for w in &read.warnings {
@@ -156,6 +165,7 @@ struct SummaryFile<'a> {
 /// `measure TISSUE --config PIPELINE.toml --out DIR`: the pipeline's measure stage into DIR.
 fn run_stage(tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let config = PipelineConfig::load(pipeline)?;
+    OutputPolicy::new().input("TISSUE", tissue).input("--config", pipeline).folder("--out", out, &OUTPUT_FILES)?;
     if is_tiff(tissue) {
         bail!(
             "{}: with a pipeline file ({}), measure takes the mesh stage's tissue (e.g. runs/NAME/mesh/tissue.vtp), \
@@ -176,10 +186,18 @@ fn run_stage(tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outco
     Ok(Outcome::Success)
 }
 
+/// What `measure` writes into --out.
+const OUTPUT_FILES: [&str; 3] = ["cells.csv", "contacts.csv", "summary.json"];
+
 pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
     if let Some(pipeline) = &args.config {
         return run_stage(&args.tissue, pipeline, &args.out);
     }
+    OutputPolicy::new().input("TISSUE", &args.tissue).input_opt("--compare", args.compare.as_deref()).folder(
+        "--out",
+        &args.out,
+        &OUTPUT_FILES,
+    )?;
     let input = read_input(&args.tissue, args)?;
     let labels_only = args.voxel_size.is_some()
         || args.border != BorderPolicy::Keep
@@ -294,9 +312,11 @@ fn compare_inputs(input: &Input, other: &Input, args: &MeasureArgs) -> anyhow::R
     })
 }
 
+/// The three files all or nothing ([`OutputGroup`]): a full disk leaves none of them, never two.
 fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> anyhow::Result<()> {
+    let mut group = OutputGroup::new();
     if let Some(first) = m.cells.first() {
-        write_csv(&dir.join("cells.csv"), &m.cells, first)?;
+        write_csv(&mut group, &dir.join("cells.csv"), &m.cells, first)?;
     }
     let example = ContactMorphology {
         cell_a: 0,
@@ -310,33 +330,35 @@ fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> anyho
         rim_edges: 0,
         far_field_angle_deg: None,
     };
-    write_csv(&dir.join("contacts.csv"), &m.contacts, &example)?;
+    write_csv(&mut group, &dir.join("contacts.csv"), &m.contacts, &example)?;
     let path = dir.join("summary.json");
-    write_atomically(&path, |w| {
-        serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
-        writeln!(w)
-    })
-    .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+    group
+        .write(&path, |w| {
+            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
+            writeln!(w)
+        })
+        .with_context(|| format!("writing {}", path.display()))?;
+    group.commit().with_context(|| format!("writing the outputs into {}", dir.display()))
 }
 
 /// Writes rows under a header of `T`'s serde field names, in field order; the header comes from
 /// `example` (not written) so that a file without rows still has its columns.
-fn write_csv<T: Serialize>(path: &Path, rows: &[T], example: &T) -> anyhow::Result<()> {
-    write_atomically(path, |w| {
-        let mut header = csv::Writer::from_writer(Vec::new());
-        header.serialize(example)?;
-        let bytes = header.into_inner().map_err(|e| e.into_error())?;
-        let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
-        w.write_all(first_line)?;
-        w.write_all(b"\n")?;
-        let mut csv = csv::WriterBuilder::new().has_headers(false).from_writer(&mut *w);
-        for row in rows {
-            csv.serialize(row)?;
-        }
-        csv.flush()
-    })
-    .with_context(|| format!("writing {}", path.display()))
+fn write_csv<T: Serialize>(group: &mut OutputGroup, path: &Path, rows: &[T], example: &T) -> anyhow::Result<()> {
+    group
+        .write(path, |w| {
+            let mut header = csv::Writer::from_writer(Vec::new());
+            header.serialize(example)?;
+            let bytes = header.into_inner().map_err(|e| e.into_error())?;
+            let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
+            w.write_all(first_line)?;
+            w.write_all(b"\n")?;
+            let mut csv = csv::WriterBuilder::new().has_headers(false).from_writer(&mut *w);
+            for row in rows {
+                csv.serialize(row)?;
+            }
+            csv.flush()
+        })
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_seconds: f64) -> std::io::Result<()> {

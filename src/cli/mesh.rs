@@ -12,7 +12,9 @@ use super::Outcome;
 use super::label_args::{describe_grid, parse_voxel_size};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, LabelVolume, read_label_tiff};
-use crate::io::{LengthScale, ReadOptions, parse_lengths, read_tissue, write_atomically, write_tissue};
+use crate::io::{
+    Format, LengthScale, OutputPolicy, ReadOptions, parse_lengths, read_tissue, write_atomically, write_tissue,
+};
 use crate::meshing::{
     BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshing, LabelMeshingOptions,
     LabelReport, LabelStatus, mesh_cells_and_nuclei, retriangulate,
@@ -85,9 +87,13 @@ pub struct MeshArgs {
     pub report: Option<PathBuf>,
 }
 
+/// One length (l_min); outside 1 nm – 1 mm it is refused as a unit slip, with a hint.
 fn parse_length(s: &str) -> Result<Real, String> {
     match parse_lengths(s)?.as_slice() {
-        [l] => Ok(*l),
+        [l] => match crate::io::implausible_length("l_min", *l) {
+            Some(bad) => Err(format!("`{s}`: {bad}")),
+            None => Ok(*l),
+        },
         _ => Err(format!("`{s}`: give one length, e.g. 0.4um")),
     }
 }
@@ -236,6 +242,11 @@ fn mesh_input(args: &MeshArgs, labels: &Path, options: &LabelMeshingOptions) -> 
 /// `mesh --config PIPELINE.toml --out DIR`: the pipeline's mesh stage into DIR.
 fn run_stage(pipeline: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let config = PipelineConfig::load(pipeline)?;
+    OutputPolicy::new()
+        .input("--config", pipeline)
+        .input_opt("[input] labels", config.input.labels.as_deref())
+        .input_opt("[input] mesh", config.input.mesh.as_deref())
+        .folder("--out", out, &[crate::pipeline::MESH_TISSUE, "report.json"])?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let started = Instant::now();
     let line = run_mesh(&config.input, &config.mesh, out)?;
@@ -254,11 +265,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
     }
     let labels = args.labels.as_deref().expect("clap requires LABELS without --config");
     let started = Instant::now();
-    match args.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
-        Some("vtp" | "vtk") => {}
-        _ => bail!("--out {}: use a .vtp (ParaView) or .vtk (SimuCell3D legacy) file name", args.out.display()),
-    }
     let report_path = args.report.clone().unwrap_or_else(|| default_report_path(&args.out));
+    let mut outputs = OutputPolicy::new().input("LABELS", labels).input_opt("--nuclei", args.nuclei.as_deref());
+    outputs.file("--out", &args.out, Format::Tissue)?;
+    outputs.file("--report", &report_path, Format::Json)?;
     let options = LabelMeshingOptions {
         l_min: args.l_min,
         target_nodes: args.target_nodes,

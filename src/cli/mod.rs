@@ -30,7 +30,7 @@ pub struct Cli {
     /// Only errors on stderr.
     #[arg(short, long, global = true)]
     pub quiet: bool,
-    /// Worker threads (default: all cores, or RAYON_NUM_THREADS).
+    /// Worker threads (default: all cores, or RAYON_NUM_THREADS); at most 4 per available core.
     #[arg(long, global = true)]
     pub threads: Option<usize>,
     #[command(subcommand)]
@@ -115,6 +115,23 @@ impl InputArgs {
     }
 }
 
+/// Most worker threads per available core: beyond a few per core threads only add scheduling and
+/// synchronisation cost (at 1000 threads a run was already slower than with one per core).
+pub const MAX_THREADS_PER_CORE: usize = 4;
+
+/// `--threads N`, capped at [`MAX_THREADS_PER_CORE`] × the available cores with a warning.
+fn capped_threads(asked: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let max = MAX_THREADS_PER_CORE * cores;
+    if asked > max {
+        tracing::warn!(
+            "--threads {asked}: using {max} ({MAX_THREADS_PER_CORE} per available core, {cores} cores); more only slow the run down"
+        );
+        return max;
+    }
+    asked
+}
+
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
     init_logging(cli.verbose, cli.quiet);
@@ -123,7 +140,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
     // dominated small simulations).
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = cli.threads {
-        builder = builder.num_threads(n);
+        builder = builder.num_threads(capped_threads(n));
     }
     let pool = builder.build()?;
     pool.install(|| match cli.command {

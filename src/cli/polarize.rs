@@ -3,7 +3,7 @@
 //! `.vtp` carries `face_type`, so ParaView colours by it) and print the counts per face type.
 
 use super::{InputArgs, Outcome};
-use crate::io::{read_tissue, write_tissue};
+use crate::io::{Format, OutputPolicy, read_tissue, write_tissue};
 use crate::mechanics::{
     ContactWorkspace, Parameters, RayCastSettings, TermSet, TissueForces, cell_parameters, polarize_by_ray_casting,
     polarize_from_contacts,
@@ -54,6 +54,11 @@ fn estimated_min_edge(tissue: &Tissue) -> Option<f64> {
 }
 
 pub fn run(args: &PolarizeArgs) -> anyhow::Result<Outcome> {
+    OutputPolicy::new().input("INPUT", &args.input).input_opt("--config", args.config.as_deref()).file(
+        "--out",
+        &args.out,
+        Format::Tissue,
+    )?;
     let read = read_tissue(&args.input, &args.input_args.read_options())
         .with_context(|| format!("reading {}", args.input.display()))?;
     for w in &read.warnings {

@@ -2,9 +2,9 @@
 //! [--size W,H] [--edges]`: a picture of a tissue (see [`crate::render`]).
 
 use super::{InputArgs, Outcome};
-use crate::io::read_tissue;
+use crate::io::{Format, OutputPolicy, read_tissue};
 use crate::render::{ColorBy, RenderOptions, View, render_tissue, write_png};
-use anyhow::{Context, bail};
+use anyhow::Context;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -40,10 +40,7 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 }
 
 pub fn run(args: &RenderArgs) -> anyhow::Result<Outcome> {
-    match args.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
-        Some("png") => {}
-        _ => bail!("--out {}: pictures are written as PNG; use a .png file name", args.out.display()),
-    }
+    OutputPolicy::new().input("TISSUE", &args.tissue).file("--out", &args.out, Format::Png)?;
     let read = read_tissue(&args.tissue, &args.input.read_options())
         .with_context(|| format!("reading {}", args.tissue.display()))?;
     for w in &read.warnings {

@@ -2,13 +2,14 @@
 //! directory (see [`crate::pipeline`]).
 
 use super::Outcome;
+use crate::io::OutputPolicy;
 use crate::pipeline::{PipelineOptions, run_pipeline};
 use anyhow::Context;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct RunArgs {
-    /// Pipeline file (TOML; see the README, "Pipelines").
+    /// Pipeline file (TOML; see the docs book, "Pipelines and configs").
     pub pipeline: PathBuf,
     /// Run directory. Default: runs/<pipeline file stem> in the current folder.
     #[arg(long, value_name = "DIR")]
@@ -23,8 +24,31 @@ fn default_out(pipeline: &Path) -> PathBuf {
     Path::new("runs").join(stem)
 }
 
+/// Ctrl-C / SIGTERM: the stages in progress are marked `interrupted` in their manifests, then the
+/// process exits with 130 (the lock goes with it). Without this they would stay `running`.
+pub(super) fn watch_interrupts() {
+    let installed = ctrlc::set_handler(|| {
+        for (dir, stage) in crate::pipeline::interrupt_active_runs() {
+            eprintln!(
+                "interrupted: stage {stage} is marked interrupted in {}; run the same command again to redo it",
+                dir.join("manifest.json").display()
+            );
+        }
+        std::process::exit(130);
+    });
+    if let Err(e) = installed {
+        tracing::warn!("cannot catch Ctrl-C ({e}); an interrupted stage stays `running` until the next run");
+    }
+}
+
 pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
     let out = args.out.clone().unwrap_or_else(|| default_out(&args.pipeline));
+    OutputPolicy::new().input("PIPELINE", &args.pipeline).folder(
+        "--out",
+        &out,
+        &["config.resolved.toml", "manifest.json", "mesh/", "measure/", "simulate/", "fit/"],
+    )?;
+    watch_interrupts();
     let print = |line: &str| println!("{line}");
     let options = PipelineOptions { out: out.clone(), force: args.force, progress: true, on_event: &print };
     let started = std::time::Instant::now();

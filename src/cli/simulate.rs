@@ -6,12 +6,14 @@
 //! checkpoint_every_seconds in the config; default every 600 s), and when interrupted (Ctrl-C,
 //! SIGTERM) at the end of the step in progress, then exits with status 130. A resumed run ends with
 //! exactly the outputs of an uninterrupted one (same seed and threads; summary.json's wall time
-//! aside, which sums the sessions). A completed run deletes its checkpoint.
+//! aside, which sums the sessions). A completed run deletes its checkpoint. The checkpoint also
+//! holds the run's settings (checkpoint period, `--stop-at-step`), which a resumed run keeps unless
+//! the `--resume` command line gives them again (then with a note).
 
 use super::{InputArgs, Outcome};
 use crate::io::{
-    CHECKPOINT_FILE, RunInfo, SimulationRecorder, checksum, read_checkpoint, read_tissue, write_bytes_atomically,
-    write_checkpoint, write_events, write_simucell3d,
+    CHECKPOINT_FILE, OutputPolicy, RunInfo, RunSettings, SimulationRecorder, checksum, read_checkpoint, read_tissue,
+    write_bytes_atomically, write_checkpoint, write_events, write_simucell3d,
 };
 use crate::mechanics::{
     CheckpointRequest, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationError, SimulationMode,
@@ -66,8 +68,9 @@ pub struct SimulateArgs {
     /// time (0: not by time).
     #[arg(long, value_name = "S")]
     pub checkpoint_every_seconds: Option<f64>,
-    /// Save a checkpoint and stop (exit 130, as when interrupted) at the end of step K; continue
-    /// with --resume. Splits a long run into jobs that fit a cluster's time limit.
+    /// Save a checkpoint and stop (exit 130, as when interrupted) at the end of step K (≥ 1, and with
+    /// --resume after the checkpoint's step); continue with --resume. Splits a long run into jobs
+    /// that fit a cluster's time limit.
     #[arg(long, value_name = "K")]
     pub stop_at_step: Option<u64>,
     #[command(flatten)]
@@ -273,6 +276,9 @@ impl Observer for Progress {
 }
 
 pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
+    if args.stop_at_step == Some(0) {
+        bail!("--stop-at-step 0: a run stops at the end of a step, and step 0 is the start; give K ≥ 1");
+    }
     watch_interrupts();
     if let Some(dir) = &args.resume {
         return resume(args, dir);
@@ -280,6 +286,12 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
     let (Some(tissue), Some(out)) = (&args.tissue, &args.out) else {
         bail!("simulate needs a TISSUE and --out DIR, or --resume DIR");
     };
+    let mut written: Vec<&str> = OUTPUTS.to_vec();
+    written.extend(["reference.vtp", "cells.csv", "contacts.csv", "frames/"]);
+    OutputPolicy::new()
+        .input("TISSUE", tissue)
+        .input_opt("--config", args.config.as_deref())
+        .folder("--out", out, &written)?;
     if let Some(pipeline) = args.config.as_deref().filter(|p| is_pipeline_file(p)) {
         return run_stage(args, tissue, pipeline, out);
     }
@@ -307,8 +319,15 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         threads: rayon::current_num_threads() as u64,
         wall_seconds: 0.0,
         output: crate::io::OutputState { frames: Vec::new(), stats_bytes: 0 },
+        settings: RunSettings {
+            checkpoint_every_steps: args.checkpoint_every_steps.unwrap_or(params.simulation.checkpoint_every_steps),
+            checkpoint_every_seconds: args
+                .checkpoint_every_seconds
+                .unwrap_or(params.simulation.checkpoint_every_seconds),
+            stop_at_step: args.stop_at_step,
+        },
     };
-    drive(args, out, &params, &mut sim, recorder, info)
+    drive(out, &params, &mut sim, recorder, info)
 }
 
 /// `simulate TISSUE --config PIPELINE.toml --out DIR`: the pipeline's simulate stage into DIR. The
@@ -382,16 +401,55 @@ fn resume(args: &SimulateArgs, dir: &Path) -> anyhow::Result<Outcome> {
     let params = Parameters::from_toml_str(&info.parameters, &path.display().to_string())
         .with_context(|| format!("reading the parameters saved in {}", path.display()))?;
     let step = state.step;
+    let mut info = info;
+    resume_settings(args, &mut info.settings, step)?;
     let mut sim = Simulation::restore(state, &params).with_context(|| format!("resuming {}", path.display()))?;
     let recorder = SimulationRecorder::resume(dir, time_is_step(&params), &info.output)
         .with_context(|| format!("resuming the outputs in {}", dir.display()))?;
     eprintln!("{}: resuming {} at step {step}", dir.display(), info.input);
-    drive(args, dir, &params, &mut sim, recorder, info)
+    drive(dir, &params, &mut sim, recorder, info)
+}
+
+/// The saved settings of a resumed run, with the options of the `--resume` command line in their
+/// place (each replacement noted). A saved stop at or before the checkpoint's step has happened.
+fn resume_settings(args: &SimulateArgs, saved: &mut RunSettings, step: u64) -> anyhow::Result<()> {
+    if let Some(n) = args.checkpoint_every_steps
+        && n != saved.checkpoint_every_steps
+    {
+        eprintln!(
+            "note: --checkpoint-every-steps {n} replaces the run's {} (saved in its checkpoint)",
+            saved.checkpoint_every_steps
+        );
+        saved.checkpoint_every_steps = n;
+    }
+    if let Some(s) = args.checkpoint_every_seconds
+        && s != saved.checkpoint_every_seconds
+    {
+        eprintln!(
+            "note: --checkpoint-every-seconds {s} replaces the run's {} (saved in its checkpoint)",
+            saved.checkpoint_every_seconds
+        );
+        saved.checkpoint_every_seconds = s;
+    }
+    if saved.stop_at_step.is_some_and(|k| k <= step) {
+        saved.stop_at_step = None;
+    }
+    if let Some(k) = args.stop_at_step {
+        if k <= step {
+            bail!("--stop-at-step {k}: the checkpoint is at step {step} already; give a later step");
+        }
+        if let Some(before) = saved.stop_at_step.filter(|&b| b != k) {
+            eprintln!("note: --stop-at-step {k} replaces the run's stop at step {before}");
+        }
+        saved.stop_at_step = Some(k);
+    } else if let Some(k) = saved.stop_at_step {
+        eprintln!("note: the run stops at step {k}, as it was started with --stop-at-step {k}");
+    }
+    Ok(())
 }
 
 /// Runs (or continues) the simulation, then writes the final outputs or explains how it stopped.
 fn drive(
-    args: &SimulateArgs,
     out: &Path,
     params: &Parameters,
     sim: &mut Simulation<'_>,
@@ -408,7 +466,8 @@ fn drive(
         ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}")
             .expect("valid template"),
     );
-    let every_seconds = args.checkpoint_every_seconds.unwrap_or(s.checkpoint_every_seconds);
+    let settings = info.settings.clone();
+    let every_seconds = settings.checkpoint_every_seconds;
     if !(every_seconds.is_finite() && every_seconds >= 0.0) {
         bail!("--checkpoint-every-seconds must be a finite number ≥ 0 (0: not by time), got {every_seconds}");
     }
@@ -417,9 +476,9 @@ fn drive(
     let checkpoints = Checkpoints {
         path: out.join(CHECKPOINT_FILE),
         info,
-        every_steps: args.checkpoint_every_steps.unwrap_or(s.checkpoint_every_steps),
+        every_steps: settings.checkpoint_every_steps,
         every_seconds,
-        stop_at_step: args.stop_at_step,
+        stop_at_step: settings.stop_at_step,
         last: Instant::now(),
         session: Instant::now(),
         wall_before,

@@ -3,13 +3,14 @@
 //! `DIR/run-NNNN`, then `DIR/results.csv` and `DIR/plots/`.
 
 use super::Outcome;
+use crate::io::OutputPolicy;
 use crate::pipeline::{Sweep, SweepOptions, collect_results, plot_results, run_sweep};
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct SweepArgs {
-    /// Sweep file (TOML; see the README, "Parameter sweeps").
+    /// Sweep file (TOML; see the docs book, "Parameter sweeps").
     pub sweep: PathBuf,
     /// Sweep directory: run-0000/, run-0001/, …, results.csv, plots/. Default: sweeps/<sweep file stem>.
     #[arg(long, value_name = "DIR")]
@@ -48,8 +49,14 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<Outcome> {
         let stem = args.sweep.file_stem().map_or("sweep".into(), |s| s.to_string_lossy().into_owned());
         PathBuf::from("sweeps").join(stem)
     });
+    OutputPolicy::new().input("SWEEP", &args.sweep).input("base", &sweep.base).folder(
+        "--out",
+        &out,
+        &["results.csv", "plots/"],
+    )?;
     let started = std::time::Instant::now();
     if !args.collect {
+        super::run::watch_interrupts();
         let print = |line: &str| println!("{line}");
         let threads = rayon::current_num_threads();
         let options = SweepOptions {

@@ -6,7 +6,7 @@ use super::label_args::{LabelOutputArgs, describe_grid, parse_shape, parse_voxel
 use super::{InputArgs, Outcome};
 use crate::geometry::{Real, Vec3, bounding_box};
 use crate::imaging::{LabelReadOptions, VoxelGrid, read_label_tiff, voxelize_with_stats, write_label_tiff};
-use crate::io::read_tissue;
+use crate::io::{Format, OutputPolicy, read_tissue};
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -41,6 +41,11 @@ pub struct VoxelizeArgs {
 }
 
 pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
+    OutputPolicy::new().input("TISSUE", &args.tissue).input_opt("--like", args.like.as_deref()).file(
+        "--out",
+        &args.out,
+        Format::Tiff,
+    )?;
     let t0 = Instant::now();
     let read = read_tissue(&args.tissue, &args.input.read_options())
         .with_context(|| format!("reading {}", args.tissue.display()))?;
@@ -63,7 +68,8 @@ pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
                 bail!("{} holds no cells to voxelise", args.tissue.display());
             };
             match args.shape {
-                None => VoxelGrid::covering(lo, hi, voxel_size, args.margin)?,
+                None => VoxelGrid::covering(lo, hi, voxel_size, args.margin)
+                    .with_context(|| format!("--voxel-size {voxel_size:?} (z,y,x) m around the tissue"))?,
                 Some(shape) => {
                     let [sz, sy, sx] = voxel_size;
                     let half = Vec3::new(
@@ -71,7 +77,8 @@ pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
                         (shape[1] - 1) as Real * sy,
                         (shape[0] - 1) as Real * sz,
                     ) / 2.0;
-                    VoxelGrid::new(shape, voxel_size, (lo + hi) / 2.0 - half)?
+                    VoxelGrid::new(shape, voxel_size, (lo + hi) / 2.0 - half)
+                        .with_context(|| format!("--shape {shape:?} with --voxel-size {voxel_size:?} (z,y,x)"))?
                 }
             }
         }
@@ -79,8 +86,25 @@ pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
     };
     let grid_seconds = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
-    let (volume, stats) = voxelize_with_stats(&tissue, &grid).context("voxelising")?;
+    let (volume, stats) = voxelize_with_stats(&tissue, &grid).with_context(|| match (&args.like, args.shape) {
+        (Some(like), _) => format!("voxelising onto the grid of --like {}", like.display()),
+        (None, Some(shape)) => format!("voxelising onto --shape {shape:?} (z,y,x)"),
+        (None, None) => format!("voxelising with --voxel-size {:?} m (z,y,x) around the tissue", grid.voxel_size),
+    })?;
     let voxelize_seconds = t2.elapsed().as_secs_f64();
+    // An all-background volume is no label image of the tissue: refuse it rather than write it.
+    if stats.voxels.iter().all(|(_, n)| *n == 0) {
+        let [sz, sy, sx] = grid.voxel_size;
+        bail!(
+            "no voxel of the grid ({:?} voxels of {sz:e},{sy:e},{sx:e} m, z,y,x) lies inside a cell of {}, so {} would \
+             hold no label; the voxels are too coarse for the cells (or the grid misses them): give a smaller \
+             --voxel-size (a bare number is metres: 0.5 is 0.5 m, 0.5um is 0.5 µm), or --like a label volume of \
+             this tissue",
+            grid.shape,
+            args.tissue.display(),
+            args.out.display()
+        );
+    }
     let t3 = Instant::now();
     let dtype = write_label_tiff(&args.out, &volume, &args.output.options())
         .with_context(|| format!("writing {}", args.out.display()))?;

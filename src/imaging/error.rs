@@ -56,4 +56,7 @@ pub enum ImagingError {
     BackgroundCell { cell: CellId },
     #[error("cannot generate labels: {0}")]
     Generate(String),
+    /// A declared size beyond the memory limit (see `limits.rs`), or an unreadable limit.
+    #[error("{0}")]
+    Limit(String),
 }

@@ -10,9 +10,12 @@
 //! - [`voxelize`]: closed cell surfaces → labels, by exact ray–triangle crossings along x.
 //! - [`label_overlap`]: per-label IoU and χ = 1 − IoU of two label volumes on one grid.
 //! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate).
+//! - [`check_voxel_memory`]: the one memory limit every dense voxel array is checked against before
+//!   it is allocated (`limits.rs`; `TISSUEFIT_MEMORY_LIMIT`).
 
 mod error;
 mod generate;
+mod limits;
 mod metadata;
 mod overlap;
 mod tiff_read;
@@ -22,9 +25,12 @@ mod voxelize;
 
 pub use error::ImagingError;
 pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels, generate_nuclei};
+pub use limits::{DEFAULT_MEMORY_LIMIT, MEMORY_LIMIT_ENV, check_voxel_memory, format_bytes, memory_limit, parse_bytes};
 pub use metadata::VoxelSizeSource;
 pub use overlap::{LabelOverlap, label_overlap};
-pub use tiff_read::{FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff};
+pub use tiff_read::{
+    FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff, read_label_tiff_bytes,
+};
 pub use tiff_write::{LabelDtype, LabelWriteOptions, TiffCompression, write_label_tiff};
-pub use volume::{LabelInfo, LabelMask, LabelVolume, VoxelGrid};
+pub use volume::{AnisotropyError, LabelInfo, LabelMask, LabelVolume, MAX_ANISOTROPY, VoxelGrid};
 pub use voxelize::{VoxelizeStats, voxelize, voxelize_with_stats};

@@ -5,8 +5,12 @@
 //!
 //! Bad input never panics: every declared size is checked against the file size before anything
 //! is allocated (uncompressed pages must be stored in full; compressed ones cannot expand more than
-//! [`MAX_EXPANSION`] times), and every error names the file.
+//! [`MAX_EXPANSION`] times), and every error names the file. Pages may share their data (a crafted
+//! file of 600 pages pointing at one strip), so the headers of all pages are read first and the
+//! total decoded size is checked against the memory limit ([`super::check_voxel_memory`]) before
+//! the first page is decoded.
 
+use super::limits::check_voxel_memory;
 use super::metadata::{StackMetadata, VoxelSizeSource, parse_metadata};
 use super::{ImagingError, LabelVolume};
 use crate::geometry::{Real, Vec3};
@@ -35,11 +39,14 @@ pub struct LabelReadOptions {
     /// Size (m) assumed, with a warning, for every axis that neither the file nor the caller sizes.
     /// Default [`FALLBACK_VOXEL_SIZE`] (1 µm).
     pub fallback_voxel_size: Real,
+    /// Bytes per voxel the caller will need on top of the volume's own 4 (e.g. `measure`'s work
+    /// arrays), so that the memory check before decoding covers the whole run. Default 0.
+    pub work_bytes_per_voxel: u64,
 }
 
 impl Default for LabelReadOptions {
     fn default() -> Self {
-        Self { voxel_size: None, origin: None, fallback_voxel_size: FALLBACK_VOXEL_SIZE }
+        Self { voxel_size: None, origin: None, fallback_voxel_size: FALLBACK_VOXEL_SIZE, work_bytes_per_voxel: 0 }
     }
 }
 
@@ -76,8 +83,23 @@ impl std::fmt::Display for PixelType {
 pub fn read_label_tiff(path: &Path, options: &LabelReadOptions) -> Result<LabelRead, ImagingError> {
     let file = File::open(path).map_err(|source| ImagingError::Open { path: path.to_path_buf(), source })?;
     let file_size = file.metadata().map_err(|source| ImagingError::Open { path: path.to_path_buf(), source })?.len();
+    decode_label_tiff(BufReader::with_capacity(1 << 16, file), file_size, path, options)
+}
+
+/// [`read_label_tiff`] on a TIFF held in memory; `path` names it in errors.
+pub fn read_label_tiff_bytes(bytes: &[u8], path: &Path, options: &LabelReadOptions) -> Result<LabelRead, ImagingError> {
+    decode_label_tiff(std::io::Cursor::new(bytes), bytes.len() as u64, path, options)
+}
+
+/// Decodes a label TIFF of `file_size` bytes from `reader`.
+fn decode_label_tiff<R: std::io::Read + std::io::Seek>(
+    reader: R,
+    file_size: u64,
+    path: &Path,
+    options: &LabelReadOptions,
+) -> Result<LabelRead, ImagingError> {
     let corrupt = |e: tiff::TiffError| corrupt(path, e);
-    let decoder = Decoder::new(BufReader::with_capacity(1 << 16, file)).map_err(corrupt)?;
+    let decoder = Decoder::new(reader).map_err(corrupt)?;
     // No tag value or compressed chunk can be larger than the file, and no decoded buffer larger than
     // the file expanded by the largest compression ratio; each page is also checked below.
     let mut limits = Limits::default();
@@ -101,20 +123,22 @@ pub fn read_label_tiff(path: &Path, options: &LabelReadOptions) -> Result<LabelR
     }
     let compression = decoder.find_tag_unsigned::<u16>(Tag::Compression).ok().flatten().unwrap_or(1);
 
-    let mut data: Vec<u32> = Vec::new();
+    // First pass, headers only: every page's size, type and stored bytes, so that the total is
+    // checked against the memory limit before a single page is decoded (pages may share one strip,
+    // so no per-page check bounds the total).
     let mut first: Option<(u32, u32, PixelType)> = None;
-    let mut page = 0usize;
+    let mut pages = 0usize;
     loop {
         let (width, height) = decoder.dimensions().map_err(corrupt)?;
         let pixel = pixel_type(&mut decoder, path)?;
-        check_stored_size(&mut decoder, path, page, file_size, width, height, pixel)?;
+        check_stored_size(&mut decoder, path, pages, file_size, width, height, pixel)?;
         match first {
             None => first = Some((width, height, pixel)),
             Some((w0, h0, p0)) => {
                 if (width, height) != (w0, h0) {
                     return Err(ImagingError::PageSize {
                         path: path.to_path_buf(),
-                        page,
+                        page: pages,
                         width,
                         height,
                         first_width: w0,
@@ -124,28 +148,39 @@ pub fn read_label_tiff(path: &Path, options: &LabelReadOptions) -> Result<LabelR
                 if pixel != p0 {
                     return Err(ImagingError::PageType {
                         path: path.to_path_buf(),
-                        page,
+                        page: pages,
                         page_type: pixel.to_string(),
                         first_type: p0.to_string(),
                     });
                 }
             }
         }
-        let decoded = decoder.read_image().map_err(corrupt)?;
-        let page_len = width as usize * height as usize;
-        data.reserve(page_len);
-        append_labels(decoded, page_len, &mut data, |i| [page, i / width as usize, i % width as usize], path)?;
-        page += 1;
+        pages += 1;
         if !decoder.more_images() {
             break;
         }
         decoder.next_image().map_err(corrupt)?;
     }
     let (width, height, pixel) = first.expect("at least one page was read");
-    if page == 1 {
+    if pages == 1 {
         return Err(ImagingError::NotAVolume { path: path.to_path_buf(), width, height });
     }
-    let labels = Array3::from_shape_vec((page, height as usize, width as usize), data)
+    let voxels = (pages as u64).checked_mul(width as u64).and_then(|n| n.checked_mul(height as u64));
+    check_voxel_memory(
+        voxels,
+        4u64.saturating_add(options.work_bytes_per_voxel),
+        &format!("{}: {pages} pages of {width} × {height} voxels", path.display()),
+        "crop or bin the volume (e.g. Fiji Image › Crop, Image › Scale)",
+    )?;
+
+    let page_len = width as usize * height as usize;
+    let mut data: Vec<u32> = Vec::with_capacity(page_len * pages);
+    for page in 0..pages {
+        decoder.seek_to_image(page).map_err(corrupt)?;
+        let decoded = decoder.read_image().map_err(corrupt)?;
+        append_labels(decoded, page_len, &mut data, |i| [page, i / width as usize, i % width as usize], path)?;
+    }
+    let labels = Array3::from_shape_vec((pages, height as usize, width as usize), data)
         .map_err(|e| ImagingError::Corrupt { path: path.to_path_buf(), message: e.to_string() })?;
 
     let mut warnings = meta.warnings.clone();

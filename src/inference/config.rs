@@ -377,7 +377,7 @@ pub struct ProfileConfig {
     pub acceptable_increase: Real,
     /// Extra evaluations at the optimum, each with every fitted parameter × (1 + k·1e-9), k = 1…n:
     /// the same model up to round-off, so their spread (with the best's) is the forward model's
-    /// noise floor σ (a chaotic relaxation ends elsewhere from a one-bit change; see the README).
+    /// noise floor σ (a chaotic relaxation ends elsewhere from a one-bit change; see the docs book, "Forward-model noise").
     /// The profile's threshold becomes mean + `acceptable_increase` + `noise_sigmas`·σ, so a range
     /// narrower than the noise is never reported. 0: no estimate (σ taken as 0). Default 2.
     #[serde(default = "default_noise_replicates")]
@@ -411,7 +411,7 @@ impl Default for ProfileConfig {
 impl FitConfig {
     /// Reads a config file; relative paths inside become relative to its folder.
     pub fn load(path: &Path) -> Result<Self, InferenceError> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
             .map_err(|e| InferenceError::Config(format!("reading {}: {e}", path.display())))?;
         let mut config = Self::from_toml_str(&text, &path.display().to_string())?;
         let base = path.parent().unwrap_or(Path::new("."));
@@ -452,6 +452,16 @@ impl FitConfig {
             (None, None) => return Err("observed: give `tissue` (a mesh file) or `labels` (a label TIFF)".into()),
             _ => {}
         }
+        if let Some(v) = observed.voxel_size
+            && let Some(bad) = v.iter().find_map(|&l| crate::io::implausible_length("observed.voxel_size", l))
+        {
+            return Err(bad);
+        }
+        if let Some(bad) =
+            observed.meshing.l_min.and_then(|l| crate::io::implausible_length("observed.meshing.l_min", l))
+        {
+            return Err(bad);
+        }
         self.check_settings()
     }
 
@@ -476,6 +486,13 @@ impl FitConfig {
                     if !(lo > 0.0 && hi > lo && hi.is_finite()) {
                         return Err(format!("parameters.{name}.bounds: need 0 < lo < hi, finite; got [{lo}, {hi}]"));
                     }
+                    if name.starts_with("surface_tension")
+                        && let Some(bad) = [lo, hi]
+                            .iter()
+                            .find_map(|&g| crate::io::implausible_tension(&format!("parameters.{name}.bounds"), g))
+                    {
+                        return Err(bad);
+                    }
                     if let Some(x) = p.initial
                         && !(x >= lo && x <= hi)
                     {
@@ -486,6 +503,11 @@ impl FitConfig {
                 (None, Some(v)) => {
                     if !(v.is_finite() && v >= 0.0) {
                         return Err(format!("parameters.{name}.value: need a finite value ≥ 0; got {v}"));
+                    }
+                    if name.starts_with("surface_tension")
+                        && let Some(bad) = crate::io::implausible_tension(&format!("parameters.{name}.value"), v)
+                    {
+                        return Err(bad);
                     }
                     if p.initial.is_some() {
                         return Err(format!("parameters.{name}.initial: only a fitted parameter has a start"));
@@ -567,6 +589,30 @@ impl FitConfig {
     }
 
     /// The base model: `model` (or the defaults) with `model_overrides` applied, validated.
+    /// The values a parameter or key ratio (`lateral_over_apical`, `adhesion_over_tension`) can take
+    /// within the search bounds and fixed values of `[parameters]`, and the config keys that set
+    /// them; `None` for a name the parameters do not set.
+    pub fn reachable(&self, name: &str) -> Option<([Real; 2], Vec<String>)> {
+        let one = |n: &str| -> Option<([Real; 2], String)> {
+            let p = self.parameters.get(n)?;
+            match (p.bounds, p.value) {
+                (Some(b), _) => Some((b, format!("parameters.{n}.bounds"))),
+                (None, Some(v)) => Some(([v, v], format!("parameters.{n}.value"))),
+                (None, None) => None,
+            }
+        };
+        if let Some((range, key)) = one(name) {
+            return Some((range, vec![key]));
+        }
+        let names: Vec<String> = self.parameters.keys().cloned().collect();
+        let (_, num, den) = super::ratio_parts(&names).into_iter().find(|(r, _, _)| *r == name)?;
+        let ((n, kn), (d, kd)) = (one(num)?, one(den)?);
+        if d[0] <= 0.0 {
+            return None;
+        }
+        Some(([n[0] / d[1], n[1] / d[0]], vec![kn, kd]))
+    }
+
     pub fn base_parameters(&self) -> Result<Parameters, InferenceError> {
         Parameters::load_with_overrides(self.model.as_deref(), self.model_overrides.as_ref())
             .map_err(|e| InferenceError::Config(e.to_string()))

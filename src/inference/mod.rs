@@ -33,7 +33,7 @@ pub use forward::{Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metrics, Obse
 pub use optimise::{BOUND_PENALTY, BudgetSpent, Evaluator, OptimiserOutcome, optimise};
 pub use plot::{plot_landscape, plot_objective};
 pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};
-pub use result::{FitResult, ParameterResult, RatioResult};
+pub use result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
 pub use run::{FitOptions, load_observation, run_fit, run_fit_observed};
 pub use space::{FittedParameter, PARAMETER_NAMES, ParameterSpace};
 pub use trace::{read_trace, write_trace};
@@ -51,4 +51,8 @@ pub enum InferenceError {
     Optimiser(String),
     #[error("writing outputs: {0}")]
     Output(String),
+    /// No evaluation of the fit was usable (every one failed or ended unconverged): there is no
+    /// fitted value, only the failures' summary and what to change.
+    #[error("the fit failed: {0}")]
+    Failed(String),
 }

@@ -91,7 +91,7 @@ pub fn plot_objective(path: &Path, trace: &[Evaluation]) -> Result<(), Inference
             .map_err(|e| err(path, e))?;
         root.present().map_err(|e| err(path, e))?;
     }
-    std::fs::rename(&tmp, path).map_err(|e| err(path, e))
+    crate::io::replace_with(&tmp, path).map_err(|e| err(path, e))
 }
 
 /// Evaluated points over the first two fitted parameters (log10 SI), coloured by log10 objective.
@@ -169,5 +169,5 @@ pub fn plot_landscape(path: &Path, space: &ParameterSpace, trace: &[Evaluation])
             .map_err(|e| err(path, e))?;
         root.present().map_err(|e| err(path, e))?;
     }
-    std::fs::rename(&tmp, path).map_err(|e| err(path, e))
+    crate::io::replace_with(&tmp, path).map_err(|e| err(path, e))
 }

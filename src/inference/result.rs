@@ -6,6 +6,15 @@ use crate::geometry::Real;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
+/// A fitted value within this fraction of its search range (in log space) from a bound is reported
+/// at that bound (`at_bound`), never determined: the data may prefer a value beyond it.
+pub const AT_BOUND_FRACTION: Real = 0.01;
+
+/// A best objective above this (the metrics miss the observed ones by √25 = 5 of their scales each),
+/// beyond `profile.noise_sigmas` σ of the forward model's noise at the optimum, is a poor fit
+/// (`poor_fit`): the model does not describe the data (a real ovule scored 1042).
+pub const POOR_FIT_OBJECTIVE: Real = 25.0;
+
 /// One parameter of the result.
 #[derive(Clone, Debug, Serialize)]
 pub struct ParameterResult {
@@ -23,6 +32,9 @@ pub struct ParameterResult {
     pub determined: Option<bool>,
     /// Search bounds (SI) of a fitted parameter.
     pub bounds: Option<[Real; 2]>,
+    /// `"lower"` or `"upper"` when the best value lies at (within [`AT_BOUND_FRACTION`] of) that
+    /// search bound: then it is not determined; widen the bound and fit again.
+    pub at_bound: Option<String>,
 }
 
 /// A key ratio of the result.
@@ -31,6 +43,9 @@ pub struct RatioResult {
     pub value: Real,
     pub range: [Real; 2],
     pub determined: Option<bool>,
+    /// `"lower"` or `"upper"` when the ratio lies at the most extreme value its parameters' search
+    /// bounds allow (then it is not determined).
+    pub at_bound: Option<String>,
     /// What it is, in words.
     pub meaning: String,
 }
@@ -45,6 +60,8 @@ pub struct FitResult {
     pub evaluations: usize,
     /// Whether the optimiser met its own criterion (not only the budget).
     pub converged: bool,
+    /// Seconds of this process. A resumed fit counts its own session only (the trace's rows keep
+    /// the wall time of each earlier evaluation).
     pub wall_seconds: Real,
     /// Key ratios (γ_lateral/γ_apical, ω/γ) and whether the data determine them.
     pub ratios: BTreeMap<String, RatioResult>,
@@ -71,4 +88,7 @@ pub struct FitResult {
     /// The forward model's noise at the optimum and the profile's acceptance threshold (`None`
     /// without a usable best point).
     pub noise: Option<super::profile::NoiseFloor>,
+    /// The best objective lies far above what the forward model's noise explains (see
+    /// [`POOR_FIT_OBJECTIVE`]): the model does not describe the data.
+    pub poor_fit: bool,
 }

@@ -1,18 +1,18 @@
 //! The fit driver: observed data → optimiser → profile → `trace.csv`, `result.json`, plots.
 
 use super::config::FitConfig;
-use super::forward::{Evaluation, ForwardModel, Observation};
+use super::forward::{Evaluation, ForwardModel, Observation, Status};
 use super::optimise::{Evaluator, optimise};
 use super::profile::{NoiseFloor, Slice, profile, ratio_parts};
-use super::result::{FitResult, ParameterResult, RatioResult};
+use super::result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
 use super::space::ParameterSpace;
 use super::trace::{read_trace, write_trace};
 use super::{InferenceError, plot};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
 use crate::io::{LengthScale, ReadOptions, read_tissue, write_bytes_atomically};
-use crate::mechanics::ContactModel;
-use crate::mesh::CellKind;
+use crate::mechanics::{ContactModel, Polarity};
+use crate::mesh::{CellKind, FaceType};
 use crate::meshing::mesh_labels;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::collections::BTreeMap;
@@ -25,6 +25,7 @@ use std::time::Instant;
 pub struct FitOptions {
     /// Continue from `DIR/trace.csv`: its evaluations are reused (not re-simulated) when the
     /// optimiser asks for them again, which it does in the same order, so the result is the same.
+    /// Without a trace there is nothing to resume: an error.
     pub resume: bool,
     /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
     pub progress: bool,
@@ -100,6 +101,13 @@ pub fn run_fit_observed(
             )));
         }
         read_trace(&trace_path, &space)?
+    } else if options.resume {
+        // Starting afresh instead would hide a mistyped --out, or a fit that never began.
+        return Err(InferenceError::Resume(format!(
+            "{}: nothing to resume, there is no trace.csv (a fit writes it from its first evaluation on); check \
+             --out, or run without --resume to start the fit",
+            out.display()
+        )));
     } else {
         Vec::new()
     };
@@ -109,6 +117,7 @@ pub fn run_fit_observed(
         None => load_observation(config)?,
     };
     let model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())?;
+    check_fitted_parameters_act(&model)?;
     std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
     let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;
     write_bytes_atomically(&out.join("fit.toml"), resolved.as_bytes()).map_err(|e| output_err(out, &e))?;
@@ -142,6 +151,13 @@ pub fn run_fit_observed(
     let trace = evaluator.trace();
     let evaluations = trace.len();
     let best = best_of(&trace).cloned().ok_or_else(|| InferenceError::Optimiser("no evaluation was made".into()))?;
+    if !best.status.usable() {
+        // Every evaluation was penalised: the "optimum" is a penalty, not a fit (the simplex of equal
+        // penalties even looks converged). The trace stays, with every evaluation's reason.
+        bar.finish_and_clear();
+        write_trace(&trace_path, &model.space, &trace)?;
+        return Err(InferenceError::Failed(describe_failures(&trace, config)));
+    }
     bar.set_message(format!("best objective {:.4e}; profiling", best.objective));
     let (slices, noise) = if best.status.usable() {
         let (slices, noise) = profile(&evaluator, &best.x, best.objective, &config.profile);
@@ -174,6 +190,156 @@ pub fn run_fit_observed(
         plot::plot_landscape(&out.join("landscape.png"), &model.space, &full_trace)?;
     }
     Ok(result)
+}
+
+/// Why every evaluation of a fit was penalised, summarised (each kind of reason once, with its count
+/// and an example) with what to change.
+fn describe_failures(trace: &[Evaluation], config: &FitConfig) -> String {
+    // Reasons that differ only in their numbers (steps, residuals, values) are one kind.
+    let kind = |r: &str| r.chars().map(|c| if c.is_ascii_digit() { '#' } else { c }).collect::<String>();
+    let mut kinds: Vec<(String, usize, &Evaluation)> = Vec::new();
+    for e in trace {
+        let k = format!("{}: {}", e.status.name(), kind(&e.reason));
+        match kinds.iter_mut().find(|(key, _, _)| *key == k) {
+            Some(entry) => entry.1 += 1,
+            None => kinds.push((k, 1, e)),
+        }
+    }
+    kinds.sort_by_key(|k| std::cmp::Reverse(k.1));
+    let shown: Vec<String> = kinds
+        .iter()
+        .take(3)
+        .map(|(_, n, e)| {
+            format!(
+                "{n} × {} ({})",
+                e.status.name(),
+                if e.reason.is_empty() { "no reason recorded" } else { &e.reason }
+            )
+        })
+        .collect();
+    let more = if kinds.len() > 3 { format!("; and {} other kind(s)", kinds.len() - 3) } else { String::new() };
+    let mut remedies = Vec::new();
+    if trace.iter().any(|e| e.status == Status::Unconverged) {
+        remedies.push(format!(
+            "unconverged runs: raise forward.max_steps{} or forward.accept_residual (now {:e}), or check the model's \
+             time step and l_min against the mesh",
+            config.forward.max_steps.map_or(String::new(), |n| format!(" (now {n})")),
+            config.forward.accept_residual
+        ));
+    }
+    if trace.iter().any(|e| e.status == Status::Failed && e.reason.starts_with("invalid parameters")) {
+        remedies.push(
+            "invalid parameters: the model rejects the points the bounds allow; check the bounds' units (tensions \
+             in N/m, e.g. 0.5e-3 for 0.5 mN/m; adhesion in Pa/m) and the model's time step"
+                .to_string(),
+        );
+    }
+    if trace.iter().any(|e| e.status == Status::Failed && !e.reason.starts_with("invalid parameters")) {
+        remedies.push(
+            "failed runs: simulate the observed tissue with the model at the start values (`tissuefit simulate`) \
+             to see why, and check the tensions are in N/m"
+                .to_string(),
+        );
+    }
+    format!(
+        "none of the {} evaluations was usable, every one scored the failure penalty {:e}, so there is no fitted \
+         value: {}{more}. What to change: {}",
+        trace.len(),
+        config.objective.failure_penalty,
+        shown.join("; "),
+        remedies.join("; ")
+    )
+}
+
+/// Refuses a fit before it starts when a fitted parameter cannot change the forward model: the
+/// fit's parameters are written into the model's epithelial cell types only, a per-face-type tension
+/// acts only on faces of that type (which, with `numerics.polarity = "none"`, are the types read
+/// from the input: a meshed label volume has apical faces only), and adhesion needs a second cell.
+fn check_fitted_parameters_act(model: &ForwardModel) -> Result<(), InferenceError> {
+    let base = &model.base;
+    let tissue = &model.observation.tissue;
+    let moving: Vec<&crate::mesh::Cell> = tissue
+        .cells()
+        .iter()
+        .filter(|c| c.kind().is_cell() && !c.kind().is_immobile())
+        .filter(|c| base.cell_type(c.cell_type()).is_some_and(|t| t.kind == CellKind::Epithelial))
+        .collect();
+    let fitted: Vec<&str> = model.space.fitted.iter().map(|p| p.name.as_str()).collect();
+    if moving.is_empty() {
+        return Err(InferenceError::Config(format!(
+            "parameters: {} cannot change the model: a fit writes them into the model's epithelial cell types \
+             (cell_types with kind = \"epithelial\"), and no moving cell of the observed tissue has one; give the \
+             observed cells an epithelial cell type",
+            fitted.join(", ")
+        )));
+    }
+    let named =
+        |n: &str| model.space.fitted.iter().any(|p| p.name == n) || model.space.fixed.iter().any(|(f, _)| f == n);
+    let per_type = [
+        ("surface_tension_apical", FaceType::Apical),
+        ("surface_tension_lateral", FaceType::Lateral),
+        ("surface_tension_basal", FaceType::Basal),
+    ];
+    let several_cells = tissue.cells().iter().filter(|c| c.kind().is_cell()).count() > 1;
+    // Which face types can exist on the moving epithelial cells during a relaxation, and why not.
+    let possible = |ft: FaceType| -> Result<(), String> {
+        match base.numerics.polarity {
+            Polarity::None => {
+                if moving.iter().any(|c| c.face_types().contains(&ft)) {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "numerics.polarity = \"none\" keeps the face types as read, and no moving epithelial cell of \
+                         the observed tissue has a {} face (a meshed label volume has apical faces only); set \
+                         numerics.polarity = \"contacts\" in the model (or model_overrides) so that faces between \
+                         cells become lateral, or fit `surface_tension`",
+                        ft.name()
+                    ))
+                }
+            }
+            Polarity::Contacts
+                if ft == FaceType::Apical && !tissue.cells().iter().any(|c| c.kind() == CellKind::Lumen) =>
+            {
+                Err("numerics.polarity = \"contacts\" types a face apical only where it touches a lumen, and the \
+                     observed tissue has no lumen; fit `surface_tension_basal` (the free surface) or `surface_tension`"
+                    .to_string())
+            }
+            _ if ft == FaceType::Lateral && !several_cells => {
+                Err("lateral faces are faces between cells, and the observed tissue has one cell".to_string())
+            }
+            _ => Ok(()),
+        }
+    };
+    for p in &model.space.fitted {
+        let why = match p.name.as_str() {
+            "surface_tension" => {
+                // It sets the face types that no per-type name overrides.
+                let open: Vec<FaceType> = per_type.iter().filter(|(n, _)| !named(n)).map(|(_, ft)| *ft).collect();
+                if open.is_empty() {
+                    Some(
+                        "surface_tension_apical, _lateral and _basal are all given, and they override it on every face"
+                            .to_string(),
+                    )
+                } else if open.iter().all(|ft| possible(*ft).is_err()) {
+                    let reasons: Vec<String> = open.iter().filter_map(|ft| possible(*ft).err()).collect();
+                    Some(format!("the face types it still sets cannot occur: {}", reasons.join("; ")))
+                } else {
+                    None
+                }
+            }
+            "adhesion" if tissue.cells().len() < 2 => {
+                Some("adhesion acts between cells, and the observed tissue has one cell".to_string())
+            }
+            name => per_type.iter().find(|(n, _)| *n == name).and_then(|(_, ft)| possible(*ft).err()),
+        };
+        if let Some(why) = why {
+            return Err(InferenceError::Config(format!(
+                "parameters.{}: fitting it cannot change the model, so the data cannot determine it: {why}",
+                p.name
+            )));
+        }
+    }
+    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -221,30 +387,94 @@ fn assemble(
         let fixed: Vec<&str> = space.fixed.iter().map(|(n, _)| n.as_str()).collect();
         format!(" given the fixed {}", fixed.join(", "))
     };
+    let all_names: Vec<String> = values.keys().cloned().collect();
+    // The other directions the profile probed (scale, key ratios) and how far each moves every
+    // fitted parameter's log per unit offset: a parameter's range must hold every acceptable point
+    // they found, or the parameter and ratio ranges contradict each other.
+    let mut directions: Vec<(&Slice, Vec<Real>)> = Vec::new();
+    if let Some(s) = slice("scale") {
+        directions.push((s, vec![1.0; space.dim()]));
+    }
+    for (rname, num, den) in ratio_parts(&all_names) {
+        let (i, j) = (space.fitted.iter().position(|p| p.name == num), space.fitted.iter().position(|p| p.name == den));
+        let mut d = vec![0.0; space.dim()];
+        match (i, j) {
+            (Some(i), Some(j)) => {
+                d[i] = 0.5;
+                d[j] = -0.5;
+            }
+            (Some(i), None) => d[i] = 1.0,
+            (None, Some(j)) => d[j] = -1.0,
+            (None, None) => continue,
+        }
+        if let Some(s) = slice(rname) {
+            directions.push((s, d));
+        }
+    }
     for (name, &v) in &values {
-        let fitted = space.fitted.iter().find(|p| &p.name == name);
-        let (range, determined, bounds) = match fitted {
+        let fitted = space.fitted.iter().position(|p| &p.name == name);
+        let mut at_bound = None;
+        let mut widened_by = Vec::new();
+        let (range, determined, bounds) = match fitted.map(|k| (k, &space.fitted[k])) {
             None => ([v, v], None, None),
-            Some(p) => match slice(name) {
-                None => (p.bounds, None, Some(p.bounds)),
-                Some(s) => {
-                    let determined = s.determined() && !scale_open;
-                    let range = if scale_open {
-                        p.bounds
-                    } else {
-                        [
-                            s.lower.map_or(p.bounds[0], |o| (v * o.exp()).max(p.bounds[0])),
-                            s.upper.map_or(p.bounds[1], |o| (v * o.exp()).min(p.bounds[1])),
-                        ]
-                    };
-                    (range, Some(determined), Some(p.bounds))
+            Some((k, p)) => {
+                at_bound = bound_hit(v, p.bounds);
+                match slice(name) {
+                    None => (p.bounds, None, Some(p.bounds)),
+                    Some(s) => {
+                        // Own slice first, then every other acceptable point of the profile.
+                        let mut lo = s.lower.map(|o| v * o.exp());
+                        let mut hi = s.upper.map(|o| v * o.exp());
+                        for (other, d) in &directions {
+                            if d[k] == 0.0 || other.name == s.name {
+                                continue;
+                            }
+                            for (side, sign) in [(other.lower, -1.0), (other.upper, 1.0)] {
+                                let (moved, down) = match side {
+                                    Some(o) => (Some(v * (d[k] * o).exp()), d[k] * o < 0.0),
+                                    None => (None, d[k] * sign < 0.0),
+                                };
+                                let slot = if down { &mut lo } else { &mut hi };
+                                let before = *slot;
+                                *slot = match (before, moved) {
+                                    (Some(b), Some(m)) if down => Some(b.min(m)),
+                                    (Some(b), Some(m)) => Some(b.max(m)),
+                                    _ => None,
+                                };
+                                if *slot != before && !widened_by.contains(&other.name) {
+                                    widened_by.push(other.name.clone());
+                                }
+                            }
+                        }
+                        let determined = lo.is_some() && hi.is_some() && !scale_open && at_bound.is_none();
+                        let range = if scale_open {
+                            p.bounds
+                        } else {
+                            [
+                                lo.map_or(p.bounds[0], |l| l.max(p.bounds[0])),
+                                hi.map_or(p.bounds[1], |h| h.min(p.bounds[1])),
+                            ]
+                        };
+                        (range, Some(determined), Some(p.bounds))
+                    }
                 }
-            },
+            }
         };
-        if let Some(d) = determined {
+        let other_directions = if widened_by.is_empty() {
+            String::new()
+        } else {
+            format!(" (including the acceptable points along {})", widened_by.join(", "))
+        };
+        if let (Some(side), Some(b)) = (at_bound, bounds) {
+            statements.push(format!(
+                "{name}: NOT determined: the best value {v:.4e} lies at the {side} search bound {:.4e}, so the data \
+                 may prefer a value beyond it; widen parameters.{name}.bounds and fit again",
+                if side == "lower" { b[0] } else { b[1] }
+            ));
+        } else if let Some(d) = determined {
             statements.push(if d {
                 format!(
-                    "{name}: determined by the data{given}: {v:.4e} SI, acceptable range [{:.4e}, {:.4e}]",
+                    "{name}: determined by the data{given}: {v:.4e} SI, acceptable range [{:.4e}, {:.4e}]{other_directions}",
                     range[0], range[1]
                 )
             } else if scale_open {
@@ -256,7 +486,7 @@ fn assemble(
             } else {
                 format!(
                     "{name}: NOT determined by the data: the objective stays below the acceptance threshold {increase} on at \
-                     least one side of {v:.4e}; range reported [{:.4e}, {:.4e}]",
+                     least one side of {v:.4e}{other_directions}; range reported [{:.4e}, {:.4e}]",
                     range[0], range[1]
                 )
             });
@@ -270,6 +500,7 @@ fn assemble(
                 fitted: fitted.is_some(),
                 determined,
                 bounds,
+                at_bound: at_bound.map(str::to_string),
             },
         );
     }
@@ -288,15 +519,19 @@ fn assemble(
             b(num, lo) / b(den, !lo)
         };
         let s = slice(rname);
+        // A ratio at the most extreme value the parameters' bounds allow hit those bounds.
+        let extremes = [extreme(true), extreme(false)];
+        let at_bound = if extremes[0] < extremes[1] { bound_hit(value, extremes) } else { None };
         let (range, determined) = match s {
             Some(s) => (
+                // Within what the bounds allow (a probe beyond a bound was evaluated at the bound).
                 [
-                    s.lower.map_or(extreme(true), |o| value * o.exp()),
-                    s.upper.map_or(extreme(false), |o| value * o.exp()),
+                    s.lower.map_or(extremes[0], |o| (value * o.exp()).max(extremes[0])),
+                    s.upper.map_or(extremes[1], |o| (value * o.exp()).min(extremes[1])),
                 ],
-                Some(s.determined()),
+                Some(s.determined() && at_bound.is_none()),
             ),
-            None => ([extreme(true), extreme(false)], None),
+            None => (extremes, None),
         };
         let meaning = match rname {
             "lateral_over_apical" => {
@@ -309,7 +544,13 @@ fn assemble(
                 model.base.numerics.contact_cutoff
             ),
         };
-        if let Some(d) = determined {
+        if let Some(side) = at_bound {
+            statements.push(format!(
+                "{rname} = {value:.4e}: NOT determined: it lies at the {side} end [{:.4e}, {:.4e}] of what the search \
+                 bounds of {num} and {den} allow; widen those bounds and fit again",
+                extremes[0], extremes[1]
+            ));
+        } else if let Some(d) = determined {
             statements.push(format!(
                 "{rname} = {value:.4e}: {} (acceptable range [{:.4e}, {:.4e}])",
                 if d { "determined by the data" } else { "NOT determined by the data" },
@@ -326,6 +567,7 @@ fn assemble(
                     value: value * f,
                     range: [range[0] * f, range[1] * f],
                     determined,
+                    at_bound: at_bound.map(str::to_string),
                     meaning: format!(
                         "w/(2γ) = ω·c²/(4γ), c = {:.3e} m: the spring doublet's Young–Dupré group (cos θ = 1 − w/(2γ))",
                         model.base.numerics.contact_cutoff
@@ -333,7 +575,10 @@ fn assemble(
                 },
             );
         }
-        ratios.insert(rname.to_string(), RatioResult { value, range, determined, meaning });
+        ratios.insert(
+            rname.to_string(),
+            RatioResult { value, range, determined, at_bound: at_bound.map(str::to_string), meaning },
+        );
     }
     statements.push(
         "An equilibrium shape fixes only dimensionless combinations; the absolute scale enters through volume \
@@ -360,6 +605,25 @@ fn assemble(
     if !best.status.usable() {
         statements.push(format!("no usable evaluation: the best run was {} ({})", best.status.name(), best.reason));
     }
+    // The forward model's own scatter at the optimum explains objectives up to a few σ; a best
+    // objective far beyond both that and POOR_FIT_OBJECTIVE means the model misses the data.
+    let sigma = noise.map_or(0.0, |n| if n.std.is_finite() { n.std } else { 0.0 });
+    let poor_floor = POOR_FIT_OBJECTIVE + config.profile.noise_sigmas * sigma;
+    let poor_fit = best.objective > poor_floor;
+    if poor_fit {
+        statements.push(format!(
+            "POOR FIT: the best objective {:.4e} lies far above what the forward model's noise explains ({:.4e} = \
+             {POOR_FIT_OBJECTIVE} + {}·σ, σ = {sigma:.3}): the simulated metrics miss the observed ones by about {:.1} \
+             scales each (observed {:?}, best {:?}); the model or its settings (contact model, polarity, l_min, \
+             static cells) do not describe these data, so do not trust the fitted values",
+            best.objective,
+            poor_floor,
+            config.profile.noise_sigmas,
+            best.objective.sqrt(),
+            model.observation.metrics,
+            best.metrics
+        ));
+    }
     FitResult {
         parameters,
         objective: best.objective,
@@ -381,6 +645,21 @@ fn assemble(
         threads: rayon::current_num_threads(),
         profile: slices.to_vec(),
         noise: noise.cloned(),
+        poor_fit,
+    }
+}
+
+/// `Some("lower" | "upper")` when `v` lies within [`AT_BOUND_FRACTION`] of the log-range of
+/// `bounds` from that bound.
+fn bound_hit(v: Real, bounds: [Real; 2]) -> Option<&'static str> {
+    let (lo, hi, x) = (bounds[0].ln(), bounds[1].ln(), v.ln());
+    let tolerance = AT_BOUND_FRACTION * (hi - lo);
+    if x - lo <= tolerance {
+        Some("lower")
+    } else if hi - x <= tolerance {
+        Some("upper")
+    } else {
+        None
     }
 }
 

@@ -25,8 +25,9 @@ use std::path::{Path, PathBuf};
 
 /// File name of the checkpoint inside a simulation's output folder.
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
-/// Version of the payload's structure; bumped on every change to it.
-pub const CHECKPOINT_VERSION: u32 = 2;
+/// Version of the payload's structure; bumped on every change to it (3: [`RunSettings`] added, and
+/// the relaxation's descent step and lowest-residual state).
+pub const CHECKPOINT_VERSION: u32 = 3;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;
 
@@ -40,7 +41,20 @@ pub struct OutputState {
     pub stats_bytes: u64,
 }
 
-/// The run a checkpoint belongs to: command inputs, resolved parameters, output progress.
+/// The settings of a run that are not simulation parameters but shape how it runs; saved so that a
+/// resumed run goes on as the original would have (issue 23: a resume once fell back to the
+/// default checkpoint period). An option given again on the `--resume` command line replaces one.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunSettings {
+    /// Checkpoint every this many steps (0: not by step count), as resolved (command line > config).
+    pub checkpoint_every_steps: u64,
+    /// Checkpoint every this many seconds of wall time (0: not by time).
+    pub checkpoint_every_seconds: f64,
+    /// Save and stop at the end of this step (`--stop-at-step`), kept for a run killed before it.
+    pub stop_at_step: Option<u64>,
+}
+
+/// The run a checkpoint belongs to: command inputs, resolved parameters and settings, output progress.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RunInfo {
     /// tissuefit version that wrote the checkpoint.
@@ -59,6 +73,7 @@ pub struct RunInfo {
     /// Wall time (s) spent before this checkpoint, over all earlier sessions.
     pub wall_seconds: f64,
     pub output: OutputState,
+    pub settings: RunSettings,
 }
 
 /// A checkpoint that cannot be written or used. Every variant names the file.

@@ -19,6 +19,9 @@ pub enum IoError {
     Mesh { path: PathBuf, cell: CellId, source: MeshError },
     #[error("{path}: {source}")]
     Tissue { path: PathBuf, source: TissueError },
+    /// An output the output policy refuses (see [`super::output`]).
+    #[error(transparent)]
+    Output(#[from] super::OutputError),
 }
 
 impl IoError {

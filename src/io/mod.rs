@@ -5,11 +5,13 @@
 //! [`LengthScale`] converts them on reading.
 
 mod atomic;
+mod bounded;
 mod checkpoint;
 mod error;
 mod legacy_parse;
 mod legacy_tissue;
 mod legacy_write;
+mod output;
 mod pvd;
 mod read;
 mod simulation_output;
@@ -17,15 +19,19 @@ mod units;
 mod vtp;
 
 pub use atomic::{remove_stale_temporaries, write_atomically, write_bytes_atomically};
+pub use bounded::{MAX_CONFIG_FILE, MAX_TISSUE_FILE, UNSIZED_CAP, read_capped, read_text_capped};
 pub use checkpoint::{
-    CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, checksum, decode_checkpoint,
-    read_checkpoint, write_checkpoint,
+    CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, RunSettings, checksum,
+    decode_checkpoint, read_checkpoint, write_checkpoint,
 };
 pub use error::IoError;
 pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;
+pub use output::{Format, OutputError, OutputGroup, OutputPolicy, check_target, replace_with};
 pub use pvd::{PvdEntry, write_pvd};
-pub use read::{ReadOptions, ReadReport, read_tissue, write_tissue};
+pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue};
 pub use simulation_output::{SimulationRecorder, write_events};
-pub use units::{LengthScale, parse_lengths};
+pub use units::{
+    LengthScale, PLAUSIBLE_LENGTH, PLAUSIBLE_TENSION, implausible_length, implausible_tension, parse_lengths,
+};
 pub use vtp::{CellField, read_vtp, write_vtp};

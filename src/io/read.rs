@@ -3,7 +3,7 @@
 use super::legacy_parse::parse_legacy;
 use super::legacy_tissue::tissue_from_grid;
 use super::legacy_write::write_simucell3d;
-use super::{CellField, IoError, LengthScale, TissueFormat, read_vtp, write_vtp};
+use super::{CellField, IoError, LengthScale, TissueFormat, write_vtp};
 use crate::geometry::bounding_box;
 use crate::mesh::Tissue;
 use std::path::Path;
@@ -33,15 +33,22 @@ pub struct ReadReport {
 /// reports the defects. Structural problems (truncated file, wrong counts, indices out of range,
 /// non-finite coordinates, unknown cell types) are errors naming the file and line.
 pub fn read_tissue(path: &Path, options: &ReadOptions) -> Result<ReadReport, IoError> {
-    let bytes = std::fs::read(path).map_err(|source| IoError::Open { path: path.into(), source })?;
+    let bytes = super::read_capped(path, super::MAX_TISSUE_FILE)
+        .map_err(|source| IoError::Open { path: path.into(), source })?;
+    read_tissue_bytes(path, &bytes, options)
+}
+
+/// [`read_tissue`] on the file's bytes; `path` names it in errors and its extension picks the format
+/// as for a file.
+pub fn read_tissue_bytes(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<ReadReport, IoError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let head = &bytes[..bytes.len().min(64)];
     let mut warnings = Vec::new();
     let (mut tissue, format) =
         if ext.as_deref() == Some("vtp") || head.starts_with(b"<?xml") || head.starts_with(b"<VTKFile") {
-            (read_vtp(path)?, TissueFormat::Vtp)
+            (super::vtp::parse_vtp(path, bytes)?, TissueFormat::Vtp)
         } else if head.starts_with(b"# vtk") || ext.as_deref() == Some("vtk") {
-            let grid = parse_legacy(path, &bytes)?;
+            let grid = parse_legacy(path, bytes)?;
             tissue_from_grid(path, &grid, &mut warnings)?
         } else {
             return Err(IoError::Unsupported {

@@ -32,6 +32,7 @@ impl SimulationRecorder {
         let frames_dir = dir.join("frames");
         std::fs::create_dir_all(&frames_dir).map_err(|source| IoError::Write { path: frames_dir.clone(), source })?;
         let partial = dir.join("stats.csv.partial");
+        super::check_target("output", &partial)?;
         let file = File::create(&partial).map_err(|source| IoError::Write { path: partial.clone(), source })?;
         let mut stats = BufWriter::new(file);
         let header = format!(
@@ -143,6 +144,7 @@ impl SimulationRecorder {
         let partial = self.dir.join("stats.csv.partial");
         self.stats.flush().map_err(|source| IoError::Write { path: partial.clone(), source })?;
         let done = self.dir.join("stats.csv");
+        super::check_target("output", &done)?;
         std::fs::rename(&partial, &done).map_err(|source| IoError::Write { path: done, source })
     }
 

@@ -302,12 +302,13 @@ pub(super) fn escape_xml(text: &str) -> String {
 
 /// Reads a `.vtp` file written by [`write_vtp`] or by ParaView (ASCII or raw appended data).
 pub fn read_vtp(path: &Path) -> Result<Tissue, IoError> {
-    let bytes = std::fs::read(path).map_err(|source| IoError::Open { path: path.to_path_buf(), source })?;
+    let bytes = super::read_capped(path, super::MAX_TISSUE_FILE)
+        .map_err(|source| IoError::Open { path: path.to_path_buf(), source })?;
     parse_vtp(path, &bytes)
 }
 
 /// Parses the bytes of a `.vtp` file; `path` only names it in errors.
-fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<Tissue, IoError> {
+pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<Tissue, IoError> {
     let (xml, appended) = split_appended(path, bytes)?;
     let doc = roxmltree::Document::parse(&xml)
         .map_err(|e| IoError::parse(path, Some(e.pos().row as usize), format!("malformed XML: {e}")))?;

@@ -156,9 +156,23 @@ pub(crate) fn prepare_field(
     if !any {
         return Err(MeshingError::EmptyMask { shape: [sz, sy, sx] });
     }
-    // Padding: the blur kernel's reach plus two voxels of background on every side.
-    let reach = spacing.map(|s| if sigma > 0.0 { (3.0 * sigma / s).ceil() as usize } else { 0 });
-    let pad = reach.map(|r| r + 2);
+    // Padding: the blur kernel's reach plus two voxels of background on every side. The reach is
+    // sized in floating point and checked before any cast: on a strongly anisotropic grid σ (a
+    // fraction of the largest voxel) spans more grid steps along the fine axes than any grid holds.
+    let reach_steps = spacing.map(|s| if sigma > 0.0 { (3.0 * sigma / s).ceil() } else { 0.0 });
+    let padded = [0, 1, 2].map(|a| (hi[a] - lo[a] + 1) as Real + 2.0 * (reach_steps[a] + 2.0));
+    if !padded.iter().all(|n| n.is_finite()) || padded.iter().product::<Real>() > MAX_GRID_POINTS as Real {
+        let axis = (1..3).fold(0, |widest, a| if reach_steps[a] > reach_steps[widest] { a } else { widest });
+        return Err(MeshingError::SmoothingTooWide {
+            sigma,
+            axis: ["x", "y", "z"][axis],
+            steps: sigma / spacing[axis],
+            fine: spacing[axis],
+            coarse: spacing.iter().copied().fold(0.0, Real::max),
+            max: MAX_GRID_POINTS,
+        });
+    }
+    let pad = reach_steps.map(|r| r as usize + 2);
     let dims = [0, 1, 2].map(|a| hi[a] - lo[a] + 1 + 2 * pad[a]);
     let cells = dims[0].checked_mul(dims[1]).and_then(|n| n.checked_mul(dims[2]));
     let Some(cells) = cells.filter(|&n| n <= MAX_GRID_POINTS) else {
@@ -271,17 +285,22 @@ fn fill_cavities(inside: &mut [bool], dims: [usize; 3]) -> usize {
 
 /// Convolves along one axis with a normalised Gaussian of standard deviation `sigma` grid steps,
 /// truncated at 3σ. Outside the grid counts as 0 (the padding keeps the cell away from the border).
+/// The kernel never reaches further than the axis is long (taps beyond it never meet a grid point;
+/// [`prepare_field`] pads by the full reach, so there it is never shortened), and a σ of no finite
+/// positive width leaves the values as they are.
 fn blur_axis(values: &mut [f32], dims: [usize; 3], axis: usize, sigma: Real) {
-    let reach = (3.0 * sigma).ceil() as isize;
-    if reach == 0 {
+    let n = dims[axis];
+    let steps = (3.0 * sigma).ceil();
+    // NaN fails the comparison: no finite positive width, no blur.
+    if steps.is_nan() || steps < 1.0 || n < 2 {
         return;
     }
+    let reach = steps.min((n - 1) as Real) as isize;
     let mut kernel: Vec<f32> =
         (-reach..=reach).map(|d| (-(d * d) as Real / (2.0 * sigma * sigma)).exp() as f32).collect();
     let sum: f32 = kernel.iter().sum();
     kernel.iter_mut().for_each(|k| *k /= sum);
     let stride = [1, dims[0], dims[0] * dims[1]][axis];
-    let n = dims[axis];
     let mut line = vec![0.0f32; n];
     for start in 0..values.len() {
         // Visit each line once, from the grid point whose coordinate along `axis` is 0.
@@ -363,6 +382,37 @@ mod tests {
         }
         // Far outside the grid: no projection.
         assert!(f.project_to_level(&Vec3::repeat(-100.0), 0.5).is_none());
+    }
+
+    /// Regression: one voxel edge 10²⁰ times the others (a TIFF's `spacing=1e30`, a typo in
+    /// `--voxel-size`) made σ span ~10²⁰ steps along the fine axes, and the kernel allocation
+    /// panicked with "capacity overflow".
+    #[test]
+    fn smoothing_wider_than_any_grid_is_an_error_not_a_panic() {
+        let m = Array3::from_elem((3, 3, 3), true);
+        let voxel_size = [1e14, 4e-7, 4e-7];
+        let sigma = 0.35 * 1e14;
+        let err = prepare_field(m.view(), voxel_size, Vec3::zeros(), sigma).unwrap_err();
+        assert!(matches!(err, MeshingError::SmoothingTooWide { axis: "x", .. }), "{err}");
+        let text = err.to_string();
+        assert!(text.contains("--voxel-size") && text.contains("1.000e14"), "{text}");
+    }
+
+    #[test]
+    fn blur_kernel_is_bounded_by_the_axis() {
+        // σ of 10¹⁸ steps on a 5-point axis: no allocation of 10¹⁸ taps; the kernel is cut at
+        // the axis length (±4 steps, 9 equal taps) and the values stay finite.
+        let dims = [5, 1, 1];
+        let mut values = vec![0.0, 0.0, 1.0, 0.0, 0.0];
+        blur_axis(&mut values, dims, 0, 1e18);
+        assert!(values.iter().all(|v| (*v - 1.0 / 9.0).abs() < 1e-6), "{values:?}");
+        // No width (0, NaN, negative, infinite) or a one-point axis: unchanged.
+        for (sigma, n) in [(0.0, 3), (Real::NAN, 3), (-1.0, 3), (Real::INFINITY, 1)] {
+            let mut values = vec![0.0, 1.0, 0.0][..n].to_vec();
+            let before = values.clone();
+            blur_axis(&mut values, [n, 1, 1], 0, sigma);
+            assert_eq!(values, before, "σ = {sigma}");
+        }
     }
 
     #[test]

@@ -142,6 +142,8 @@ pub enum LabelMeshingError {
     NucleusIdOverflow { label: u32, offset: u32, max: u32 },
     #[error(transparent)]
     Tissue(#[from] TissueError),
+    #[error(transparent)]
+    Anisotropy(#[from] crate::imaging::AnisotropyError),
 }
 
 /// What happened to one label.
@@ -280,6 +282,7 @@ pub fn mesh_cells_and_nuclei(
     if options.l_min.is_none() && options.target_nodes == 0 {
         return Err(LabelMeshingError::InvalidTargetNodes);
     }
+    volume.grid().check_anisotropy()?;
     if let Some(n) = nuclei {
         check_same_grid(volume, n)?;
     }

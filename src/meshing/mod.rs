@@ -86,6 +86,12 @@ pub enum MeshingError {
     EmptyMask { shape: [usize; 3] },
     #[error("the padded grid {dims:?} (x, y, z) exceeds {max} points")]
     TooLarge { dims: [usize; 3], max: usize },
+    #[error(
+        "the smoothing σ = {sigma:.3e} m spans {steps:.3e} voxels of {fine:.3e} m along {axis}, more than a grid \
+         of {max} points holds: the voxel sizes ({coarse:.3e} m along the coarsest axis) differ by too much; \
+         check the voxel size (--voxel-size, or the TIFF's metadata)"
+    )]
+    SmoothingTooWide { sigma: Real, axis: &'static str, steps: Real, fine: Real, coarse: Real, max: usize },
     #[error("the cell has {voxels} voxels; at least {min} are needed to mesh it")]
     TooFewVoxels { voxels: usize, min: usize },
     #[error("surface extraction found no surface")]

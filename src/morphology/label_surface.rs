@@ -156,13 +156,16 @@ pub(crate) fn measure_label_surface(
 }
 
 /// Separable Gaussian blur of standard deviation `sigma` (m) on a grid of voxel size `size` (z, y, x),
-/// kernel truncated at 3σ, zero outside the array. `sigma = 0` returns the field unchanged.
+/// kernel truncated at 3σ, zero outside the array, and never longer than the axis (taps beyond it
+/// never meet a voxel; an unbounded kernel on a strongly anisotropic grid did not fit in memory).
+/// `sigma = 0` returns the field unchanged.
 fn gaussian_blur(mut field: Array3<Real>, size: [Real; 3], sigma: Real) -> Array3<Real> {
-    if sigma <= 0.0 {
+    if sigma.is_nan() || sigma <= 0.0 {
         return field;
     }
     for (a, s) in size.iter().enumerate() {
-        let radius = (3.0 * sigma / s).ceil() as isize;
+        let longest = field.len_of(Axis(a)).saturating_sub(1) as Real;
+        let radius = (3.0 * sigma / s).ceil().min(longest).max(0.0) as isize;
         let kernel: Vec<Real> =
             (-radius..=radius).map(|k| (-(k as Real * s).powi(2) / (2.0 * sigma * sigma)).exp()).collect();
         let total: Real = kernel.iter().sum();

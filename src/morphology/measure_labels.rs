@@ -97,6 +97,7 @@ pub fn measure_labels(
         return Err(MorphologyError::InvalidExteriorFraction { value: f });
     }
     let grid = volume.grid();
+    grid.check_anisotropy()?;
     let largest_voxel = grid.voxel_size.iter().copied().fold(0.0, Real::max);
     let sigma = settings.normal_smoothing.unwrap_or(DEFAULT_NORMAL_SMOOTHING_VOXELS * largest_voxel);
     if !(sigma.is_finite() && sigma >= 0.0) {

@@ -66,4 +66,6 @@ pub enum MorphologyError {
         "cannot derive the default contact distance: the mean edge length is {mean_edge:e} m; give a contact distance"
     )]
     NoEdgeLength { mean_edge: Real },
+    #[error(transparent)]
+    Anisotropy(#[from] crate::imaging::AnisotropyError),
 }

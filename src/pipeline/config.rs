@@ -228,7 +228,7 @@ impl PipelineConfig {
     /// Reads, checks and resolves a pipeline file: relative paths become relative to its folder,
     /// `input.seed` fills the seeds the sections leave out, and the inputs must exist.
     pub fn load(path: &Path) -> Result<Self, PipelineError> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
             .map_err(|e| PipelineError::Config(format!("reading {}: {e}", path.display())))?;
         Self::load_text(&text, path)
     }
@@ -308,6 +308,19 @@ impl PipelineConfig {
         {
             return Err(format!("input.voxel_size: three sizes > 0 (m, z,y,x); got {v:?}"));
         }
+        // A bare number is metres: 0.235 meant as µm is refused with a hint.
+        for (key, l) in self
+            .input
+            .voxel_size
+            .iter()
+            .flatten()
+            .map(|&l| ("input.voxel_size", l))
+            .chain(self.mesh.l_min.map(|l| ("mesh.l_min", l)))
+        {
+            if let Some(bad) = crate::io::implausible_length(key, l) {
+                return Err(bad);
+            }
+        }
         let f = self.measure.exterior_free_fraction;
         if !(0.0..=1.0).contains(&f) {
             return Err(format!("measure.exterior_free_fraction: must lie in [0, 1]; got {f}"));
@@ -344,6 +357,17 @@ impl PipelineConfig {
             for (name, v) in &demo.truth {
                 if !(v.is_finite() && *v > 0.0) {
                     return Err(format!("demo.truth.{name}: must be > 0; got {v}"));
+                }
+                // A truth the fit's ranges cannot reach contradicts them: the fit could never recover it.
+                if let Some(([lo, hi], keys)) = self.fit.as_ref().and_then(|f| f.reachable(name))
+                    && !(*v >= lo * (1.0 - 1e-12) && *v <= hi * (1.0 + 1e-12))
+                {
+                    let keys: Vec<String> = keys.iter().map(|k| format!("fit.{k}")).collect();
+                    return Err(format!(
+                        "demo.truth.{name} = {v} contradicts {}: they allow {name} only in [{lo:e}, {hi:e}]; widen \
+                         the bounds or correct the truth",
+                        keys.join(" and ")
+                    ));
                 }
             }
         }
@@ -454,7 +478,7 @@ pub fn fit_config(fit: &FitConfig, input: &InputSection, mesh: &MeshingConfig) -
 /// table (neither the model's nor the fit's schema has one). Unreadable or non-TOML files are not;
 /// their own loader reports why.
 pub fn is_pipeline_file(path: &Path) -> bool {
-    std::fs::read_to_string(path)
+    crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
         .is_ok_and(|text| toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("input")))
 }
 

@@ -25,6 +25,9 @@ pub enum StageStatus {
     Skipped,
     /// Ended with an error (the message is in `note`).
     Failed,
+    /// Stopped before it finished: Ctrl-C or SIGTERM, or found `running` by the next run (whose lock
+    /// proves the process that wrote it has ended: killed, or out of time).
+    Interrupted,
 }
 
 impl std::fmt::Display for StageStatus {
@@ -34,6 +37,7 @@ impl std::fmt::Display for StageStatus {
             StageStatus::Complete => "complete",
             StageStatus::Skipped => "skipped",
             StageStatus::Failed => "failed",
+            StageStatus::Interrupted => "interrupted",
         })
     }
 }
@@ -56,7 +60,10 @@ pub struct StageRecord {
     pub wall_seconds: f64,
     /// Seconds of the run that made the outputs.
     pub ran_seconds: f64,
-    /// Output file (relative to the stage folder) → blake3.
+    /// Output file (relative to the stage folder, `/`-separated) → blake3. These are the files the
+    /// program owns in the stage folder, whatever the status: a re-run replaces or removes only them,
+    /// never another file in the folder (while a stage's new files are moved in, they are listed
+    /// here with the old ones, so an interruption leaves none unowned).
     pub outputs: BTreeMap<String, String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
@@ -89,6 +96,24 @@ impl Manifest {
                 None
             }
         }
+    }
+
+    /// Reads DIR/manifest.json for a run into DIR: `None` when there is none; an error when the file
+    /// is there but is not a tissuefit manifest (a run never replaces a file it did not make).
+    pub fn read_own(dir: &Path) -> Result<Option<Manifest>, PipelineError> {
+        let path = dir.join("manifest.json");
+        let text = match std::fs::read_to_string(&path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(PipelineError::Io { path, message: e.to_string() }),
+        };
+        serde_json::from_str(&text).map(Some).map_err(|e| PipelineError::Io {
+            path,
+            message: format!(
+                "is not a manifest of tissuefit ({e}), and a run would replace it; move it away, or choose \
+                 another --out"
+            ),
+        })
     }
 
     /// Writes DIR/manifest.json atomically.
@@ -126,7 +151,30 @@ pub fn hash_file(path: &Path) -> Result<String, PipelineError> {
 
 /// blake3 of every file under `dir` (relative names with `/`, sorted).
 pub fn hash_outputs(dir: &Path) -> Result<BTreeMap<String, String>, PipelineError> {
+    hash_named(dir, list_files(dir)?)
+}
+
+/// blake3 of the files `names` under `dir` that exist (a missing one is left out).
+pub fn hash_named<S: AsRef<str>>(
+    dir: &Path,
+    names: impl IntoIterator<Item = S>,
+) -> Result<BTreeMap<String, String>, PipelineError> {
     let mut out = BTreeMap::new();
+    for name in names {
+        let path = dir.join(name.as_ref());
+        if path.is_file() {
+            out.insert(name.as_ref().to_string(), hash_file(&path)?);
+        }
+    }
+    Ok(out)
+}
+
+/// Every file under `dir`, relative names with `/`, sorted (none when `dir` is missing).
+pub fn list_files(dir: &Path) -> Result<Vec<String>, PipelineError> {
+    let mut out = Vec::new();
+    if !dir.exists() {
+        return Ok(out);
+    }
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
         let entries =
@@ -134,14 +182,15 @@ pub fn hash_outputs(dir: &Path) -> Result<BTreeMap<String, String>, PipelineErro
         for entry in entries {
             let entry = entry.map_err(|e| PipelineError::Io { path: d.clone(), message: e.to_string() })?;
             let path = entry.path();
-            if path.is_dir() {
+            // Not followed: a link to a folder is listed as one entry, never walked into.
+            if entry.file_type().is_ok_and(|t| t.is_dir()) {
                 stack.push(path);
             } else {
                 let rel = path.strip_prefix(dir).unwrap_or(&path);
-                let name = rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/");
-                out.insert(name, hash_file(&path)?);
+                out.push(rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/"));
             }
         }
     }
+    out.sort();
     Ok(out)
 }

@@ -10,8 +10,18 @@
 //! stage's outputs, model files): a complete stage whose key and outputs are unchanged is skipped
 //! and its outputs reused, so an interrupted run resumes at its first unfinished stage. Results do
 //! not depend on the thread count, so the key leaves it out.
+//!
+//! Nothing the program did not make is deleted: the manifest lists, per stage, the files the
+//! program wrote into its folder, and a re-run replaces or removes only those. A stage folder that
+//! holds other files (notes, an input kept there) is refused, naming them, unless `--force`, which
+//! runs the stage beside them (still removing only the program's files, and refusing to replace a
+//! file of the same name). A run holds the folder's lock ([`lock`]) from start to end: a second run
+//! into it fails at once. Ctrl-C or SIGTERM marks the stage in progress `interrupted` in the
+//! manifest; after a kill -9 the next run finds it `running` with the lock free and records it as
+//! `interrupted` before going on.
 
 mod config;
+pub mod lock;
 mod manifest;
 mod reference;
 mod run;
@@ -24,7 +34,7 @@ pub use config::{
 };
 pub use manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file};
 pub use reference::{REFERENCE_SECTIONS, config_reference};
-pub use run::{DemoCheck, PipelineOptions, PipelineOutcome, run_pipeline};
+pub use run::{DemoCheck, PipelineOptions, PipelineOutcome, interrupt_active_runs, run_pipeline};
 pub use stages::{MESH_TISSUE, run_measure, run_mesh, run_simulate};
 pub use sweep::{RunReport, Sweep, SweepOptions, collect_results, run_sweep};
 pub use sweep_plot::plot_results;
@@ -41,4 +51,7 @@ pub enum PipelineError {
     /// Reading or writing the run directory.
     #[error("{path}: {message}")]
     Io { path: std::path::PathBuf, message: String },
+    /// Another process holds the directory's lock ([`lock`]).
+    #[error("{dir}: {message}")]
+    Locked { dir: std::path::PathBuf, message: String },
 }

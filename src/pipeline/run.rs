@@ -1,14 +1,72 @@
-//! Running a pipeline: stage keys, skipping, temporary stage folders renamed into place, manifest.
+//! Running a pipeline: the lock, stage keys, skipping, stages made in temporary folders and moved
+//! into place, the manifest (and what the program owns in each stage folder).
 
 use super::PipelineError;
 use super::config::PipelineConfig;
-use super::manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file, hash_outputs};
+use super::lock::DirLock;
+use super::manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file, hash_named, hash_outputs, list_files};
 use super::stages::{MESH_TISSUE, run_fit_stage, run_measure, run_mesh, run_simulate};
 use crate::geometry::Real;
 use crate::io::write_bytes_atomically;
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::time::Instant;
+
+/// The manifests of the runs in progress in this process (a sweep runs several at a time), so that
+/// Ctrl-C or SIGTERM can mark their running stages interrupted; and whether that has happened (after
+/// which no manifest is written again, so the mark stays).
+static ACTIVE: Mutex<(Vec<(PathBuf, Manifest)>, bool)> = Mutex::new((Vec::new(), false));
+
+fn active() -> std::sync::MutexGuard<'static, (Vec<(PathBuf, Manifest)>, bool)> {
+    ACTIVE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Writes `out/manifest.json` and keeps a copy for [`interrupt_active_runs`]. Once those have been
+/// marked interrupted, nothing is written (the process is about to exit).
+fn publish(out: &Path, manifest: &Manifest) -> Result<(), PipelineError> {
+    let mut guard = active();
+    let (runs, stopping) = &mut *guard;
+    if *stopping {
+        return Ok(());
+    }
+    match runs.iter_mut().find(|(dir, _)| dir == out) {
+        Some((_, m)) => *m = manifest.clone(),
+        None => runs.push((out.to_path_buf(), manifest.clone())),
+    }
+    manifest.write(out)
+}
+
+/// Forgets a run directory's manifest when its run ends, however it ends.
+struct ActiveRun(PathBuf);
+
+impl Drop for ActiveRun {
+    fn drop(&mut self) {
+        active().0.retain(|(dir, _)| *dir != self.0);
+    }
+}
+
+/// For a Ctrl-C/SIGTERM handler: marks every stage running in this process `interrupted` in its
+/// run directory's manifest, and stops all further manifest writes (call it, then exit). Returns
+/// `(run directory, stage)` for each stage marked.
+pub fn interrupt_active_runs() -> Vec<(PathBuf, String)> {
+    let mut guard = active();
+    let (runs, stopping) = &mut *guard;
+    *stopping = true;
+    let mut marked = Vec::new();
+    for (dir, manifest) in runs.iter_mut() {
+        for stage in manifest.stages.iter_mut().filter(|s| s.status == StageStatus::Running) {
+            stage.status = StageStatus::Interrupted;
+            stage.note = Some("interrupted by Ctrl-C or SIGTERM; run the same command again to redo it".into());
+            marked.push((dir.clone(), stage.name.clone()));
+        }
+        if let Err(e) = manifest.write(dir) {
+            eprintln!("{e}");
+        }
+    }
+    marked
+}
 
 /// How to run.
 pub struct PipelineOptions<'a> {
@@ -65,15 +123,41 @@ fn toml_of<T: Serialize>(value: &T) -> Result<String, PipelineError> {
     toml::to_string(value).map_err(|e| PipelineError::Config(format!("serialising a section: {e}")))
 }
 
-/// Runs `tissuefit run`: every stage of `pipeline` into `options.out`.
+/// Runs `tissuefit run`: every stage of `pipeline` into `options.out`, holding its lock throughout.
 pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<PipelineOutcome, PipelineError> {
     let config = PipelineConfig::load(pipeline)?;
+    let lock = DirLock::exclusive(&options.out)?;
+    run_locked(pipeline, config, options, &lock)
+}
+
+/// [`run_pipeline`] for a caller that holds `options.out`'s lock already (a sweep's run).
+pub(super) fn run_pipeline_locked(
+    pipeline: &Path,
+    options: &PipelineOptions<'_>,
+    lock: &DirLock,
+) -> Result<PipelineOutcome, PipelineError> {
+    run_locked(pipeline, PipelineConfig::load(pipeline)?, options, lock)
+}
+
+fn run_locked(
+    pipeline: &Path,
+    config: PipelineConfig,
+    options: &PipelineOptions<'_>,
+    _lock: &DirLock,
+) -> Result<PipelineOutcome, PipelineError> {
     let out = &options.out;
-    std::fs::create_dir_all(out).map_err(io_err(out))?;
-    let resolved = config.to_toml_string()?;
+    let _active = ActiveRun(out.clone());
+    // Read with --force too: it records what the program owns in the stage folders.
+    let previous = Manifest::read_own(out)?;
     let resolved_path = out.join("config.resolved.toml");
-    write_bytes_atomically(&resolved_path, resolved.as_bytes())
-        .map_err(|e| PipelineError::Io { path: resolved_path.clone(), message: e.to_string() })?;
+    if previous.is_none() && resolved_path.exists() {
+        return Err(PipelineError::Io {
+            path: resolved_path,
+            message: "was not made by a tissuefit run (there is no manifest.json beside it), and a run would \
+                      replace it; move it away, or choose another --out"
+                .into(),
+        });
+    }
 
     // A generated input has no file: its key is the generator's specification (in the mesh key).
     let (input_hash, mut inputs) = match config.input.source() {
@@ -101,7 +185,18 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
     let simulate_model_hash = model_hash(&simulate_model)?;
     let fit_model_hash = model_hash(&fit_model)?;
 
-    let previous = if options.force { None } else { Manifest::read(out) };
+    // We hold the lock, so a stage still `running` belongs to a run that has ended: killed (kill -9,
+    // a time limit) before it could say so.
+    let mut stages = previous.as_ref().map_or_else(Vec::new, |m| m.stages.clone());
+    for s in stages.iter_mut().filter(|s| s.status == StageStatus::Running) {
+        tracing::warn!(
+            "stage {}: the run that started it in {} ended before it finished; it runs again",
+            s.name,
+            out.display()
+        );
+        s.status = StageStatus::Interrupted;
+        s.note = Some("interrupted: the run that started it ended before it finished (killed, or out of time)".into());
+    }
     let config_json = serde_json::to_value(&config).map_err(|e| PipelineError::Config(e.to_string()))?;
     let mut manifest = Manifest {
         tissuefit_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -111,9 +206,13 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
         threads: rayon::current_num_threads(),
         inputs,
         config: config_json,
-        stages: Vec::new(),
+        stages,
     };
-    manifest.write(out)?;
+    publish(out, &manifest)?;
+    // Written after the manifest: a config.resolved.toml without one is not the program's.
+    let resolved = config.to_toml_string()?;
+    write_bytes_atomically(&resolved_path, resolved.as_bytes())
+        .map_err(|e| PipelineError::Io { path: resolved_path.clone(), message: e.to_string() })?;
 
     let mut runner = Runner { out, previous: previous.as_ref(), manifest: &mut manifest, options };
 
@@ -126,20 +225,23 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
         mesh: &config.mesh,
     })?;
     let mesh_key = stage_key("mesh", &mesh_section, &[&input_hash]);
-    let mesh = runner.stage("mesh", mesh_key, |dir| run_mesh(&config.input, &config.mesh, dir).map(|s| (s, true)))?;
+    let mesh = runner
+        .stage("mesh", mesh_key, false, |dir, _| run_mesh(&config.input, &config.mesh, dir).map(|s| (s, true)))?;
     let tissue_hash = mesh.outputs.get(MESH_TISSUE).cloned().unwrap_or_default();
     let tissue = out.join("mesh").join(MESH_TISSUE);
 
     // measure
     let measure_key = stage_key("measure", &toml_of(&config.measure)?, &[&tissue_hash]);
-    runner.stage("measure", measure_key, |dir| run_measure(&tissue, &config.measure, dir).map(|s| (s, true)))?;
+    runner
+        .stage("measure", measure_key, false, |dir, _| run_measure(&tissue, &config.measure, dir).map(|s| (s, true)))?;
 
     // simulate
     let mut simulate_converged = None;
     if let Some(section) = &config.simulate {
         let text = toml_of(section)? + &toml_of(&config.measure)?;
         let key = stage_key("simulate", &text, &[&tissue_hash, &simulate_model_hash]);
-        let record = runner.stage("simulate", key, |dir| run_simulate(&tissue, section, &config.measure, dir))?;
+        let record =
+            runner.stage("simulate", key, false, |dir, _| run_simulate(&tissue, section, &config.measure, dir))?;
         let run = read_json(&out.join("simulate").join("simulation.json"))?;
         let time_run = run["mode"] == "time";
         let reference_ok =
@@ -156,8 +258,8 @@ pub fn run_pipeline(pipeline: &Path, options: &PipelineOptions<'_>) -> Result<Pi
         // The fit starts from the mesh stage's tissue and measures simulations on the labels' grid.
         let key = stage_key("fit", &text, &[&input_hash, &tissue_hash, &fit_model_hash]);
         let mesh_dir = out.join("mesh");
-        runner.stage("fit", key, |dir| {
-            let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, options.progress)?;
+        runner.stage("fit", key, true, |dir, resume| {
+            let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, resume, options.progress)?;
             let fitted: Vec<String> = r
                 .parameters
                 .iter()
@@ -222,19 +324,45 @@ struct Runner<'a, 'o> {
 }
 
 impl Runner<'_, '_> {
-    /// Skips the stage when an earlier run completed it with the same key and its outputs are
-    /// unchanged; otherwise runs `body` into a temporary folder, renames it into place, and records it.
-    fn stage<F>(&mut self, name: &'static str, key: String, body: F) -> Result<StageRecord, PipelineError>
+    fn publish(&self) -> Result<(), PipelineError> {
+        publish(self.out, self.manifest)
+    }
+
+    /// Skips the stage when an earlier run completed it with the same key and its files are
+    /// unchanged (unless `--force`); otherwise runs `body` into a temporary folder and moves its
+    /// files into the stage folder, replacing only the files the program owns there (see the
+    /// module doc of [`crate::pipeline`]), and records it.
+    ///
+    /// A `resumable` stage (the fit) whose run with the same key was interrupted (killed, Ctrl-C, a
+    /// time limit) goes on in the temporary folder that run left, from its `trace.csv`: `body` is
+    /// called with `true` then, and the finished stage is the one an uninterrupted run makes.
+    fn stage<F>(
+        &mut self,
+        name: &'static str,
+        key: String,
+        resumable: bool,
+        body: F,
+    ) -> Result<StageRecord, PipelineError>
     where
-        F: FnOnce(&Path) -> Result<(String, bool), PipelineError>,
+        F: FnOnce(&Path, bool) -> Result<(String, bool), PipelineError>,
     {
         let dir = self.out.join(name);
-        if let Some(prev) = self.previous.and_then(|m| m.stage(name))
+        if dir.exists() && !dir.is_dir() {
+            return Err(PipelineError::Io {
+                path: dir.clone(),
+                message: format!("is not a folder, but stage {name} writes its files there; move it away"),
+            });
+        }
+        let prev = self.previous.and_then(|m| m.stage(name));
+        // What the program made in the folder: every file an earlier run recorded, whatever its status.
+        let owned: BTreeMap<String, String> = prev.map(|p| p.outputs.clone()).unwrap_or_default();
+        if let Some(prev) = prev
+            && !self.options.force
             && prev.status.done()
             && prev.key == key
             && dir.is_dir()
         {
-            let now = hash_outputs(&dir)?;
+            let now = hash_named(&dir, owned.keys())?;
             if now == prev.outputs {
                 let record = StageRecord {
                     status: StageStatus::Skipped,
@@ -249,36 +377,97 @@ impl Runner<'_, '_> {
                     prev.ran_seconds
                 ));
                 self.manifest.set_stage(record.clone());
-                self.manifest.write(self.out)?;
+                self.publish()?;
                 return Ok(record);
             }
             tracing::info!("stage {name}: outputs in {} changed since the last run; running again", dir.display());
         }
+        // Files in the folder that no run of the program made: never removed nor replaced.
+        let foreign: Vec<String> = list_files(&dir)?.into_iter().filter(|f| !owned.contains_key(f)).collect();
+        if !foreign.is_empty() && !self.options.force {
+            return Err(PipelineError::Io {
+                path: dir.clone(),
+                message: format!(
+                    "holds {} that tissuefit did not make ({}); the program never deletes what it did not \
+                     create. Move {} out of the stage folder, or pass --force to run the stage beside {} \
+                     (only the files tissuefit made are replaced)",
+                    if foreign.len() == 1 { "a file" } else { "files" },
+                    show_list(&foreign),
+                    if foreign.len() == 1 { "it" } else { "them" },
+                    if foreign.len() == 1 { "it" } else { "them" },
+                ),
+            });
+        }
+        let interrupted =
+            prev.is_some_and(|p| matches!(p.status, StageStatus::Running | StageStatus::Interrupted) && p.key == key);
         let mut record = StageRecord {
             name: name.to_string(),
             status: StageStatus::Running,
             key,
             wall_seconds: 0.0,
             ran_seconds: 0.0,
-            outputs: Default::default(),
+            outputs: owned.clone(),
             note: None,
         };
         self.manifest.set_stage(record.clone());
-        self.manifest.write(self.out)?;
+        self.publish()?;
         (self.options.on_event)(&format!("{name}: running"));
-        // Temporary folders of this stage left by an interrupted run (any process id) go first.
+        // Temporary folders of this stage left by an interrupted run (`.NAME.tmp-<process id>`) go first.
+        // (The lock proves the processes that made them have ended.) One holding the trace of an
+        // interrupted resumable stage with this key is kept to go on from.
         let prefix = format!(".{name}.tmp-");
+        let mut stale = Vec::new();
         for entry in std::fs::read_dir(self.out).map_err(io_err(self.out))?.flatten() {
-            if entry.file_name().to_string_lossy().starts_with(&prefix) && entry.path().is_dir() {
-                std::fs::remove_dir_all(entry.path()).map_err(io_err(&entry.path()))?;
+            let file_name = entry.file_name().to_string_lossy().into_owned();
+            let ours = file_name
+                .strip_prefix(&prefix)
+                .is_some_and(|pid| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()));
+            if ours && entry.file_type().is_ok_and(|t| t.is_dir()) {
+                stale.push(entry.path());
             }
         }
+        let keep = (resumable && interrupted && !self.options.force)
+            .then(|| stale.iter().position(|d| d.join("trace.csv").is_file()))
+            .flatten()
+            .map(|i| stale.swap_remove(i));
+        for d in stale {
+            std::fs::remove_dir_all(&d).map_err(io_err(&d))?;
+        }
         let tmp = self.out.join(format!("{prefix}{}", std::process::id()));
-        std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
+        let resume = match keep {
+            Some(kept) => {
+                std::fs::rename(&kept, &tmp).map_err(io_err(&tmp))?;
+                // The files the killed process was writing (`trace.csv.tmp-PID`, ...).
+                crate::io::remove_stale_temporaries(&tmp)
+                    .map_err(|e| PipelineError::Io { path: tmp.clone(), message: e.to_string() })?;
+                let rows = std::fs::read_to_string(tmp.join("trace.csv")).map_or(0, |t| t.lines().count().max(1) - 1);
+                tracing::info!("stage {name}: going on from {} ({rows} evaluations)", kept.display());
+                (self.options.on_event)(&format!(
+                    "{name}: resuming the interrupted run from the {rows} evaluations in its trace"
+                ));
+                true
+            }
+            None => {
+                std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
+                false
+            }
+        };
         let started = Instant::now();
-        let result = body(&tmp);
+        let result = body(&tmp, resume).and_then(|r| {
+            let made = hash_outputs(&tmp)?;
+            if let Some(clash) = made.keys().find(|f| foreign.contains(f)) {
+                return Err(PipelineError::Io {
+                    path: dir.join(clash),
+                    message: format!(
+                        "stage {name} writes a file of this name, but tissuefit did not make the one there; \
+                         move it away and run again"
+                    ),
+                });
+            }
+            Ok((r, made))
+        });
         let wall = started.elapsed().as_secs_f64();
-        let (line, ok) = match result {
+        let ((line, ok), made) = match result {
             Ok(r) => r,
             Err(e) => {
                 let _ = std::fs::remove_dir_all(&tmp);
@@ -286,22 +475,68 @@ impl Runner<'_, '_> {
                 record.wall_seconds = wall;
                 record.note = Some(e.to_string());
                 self.manifest.set_stage(record);
-                self.manifest.write(self.out)?;
+                self.publish()?;
                 return Err(e);
             }
         };
-        if dir.exists() {
-            std::fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
-        }
-        std::fs::rename(&tmp, &dir).map_err(io_err(&dir))?;
-        record.outputs = hash_outputs(&dir)?;
+        // Owned while they move in: the record lists the old files and the new ones.
+        record.outputs.extend(made.iter().map(|(k, v)| (k.clone(), v.clone())));
+        self.manifest.set_stage(record.clone());
+        self.publish()?;
+        install(&tmp, &dir, &owned, &made)?;
+        record.outputs = made;
         record.status = StageStatus::Complete;
         record.wall_seconds = wall;
         record.ran_seconds = wall;
         record.note = (!ok).then(|| "completed, but did not converge".to_string());
         self.manifest.set_stage(record.clone());
-        self.manifest.write(self.out)?;
+        self.publish()?;
         (self.options.on_event)(&format!("{name}: done in {wall:.2} s: {line}"));
         Ok(record)
     }
+}
+
+/// At most five names, then how many more.
+fn show_list(names: &[String]) -> String {
+    let mut shown: Vec<String> = names.iter().take(5).cloned().collect();
+    if names.len() > 5 {
+        shown.push(format!("and {} more", names.len() - 5));
+    }
+    shown.join(", ")
+}
+
+/// Moves the files `made` from the temporary folder `tmp` into the stage folder `dir`: first the
+/// `owned` files of the earlier run go (and the folders they leave empty), then each new file is
+/// renamed into place; `tmp` is removed at the end. Nothing else in `dir` is touched.
+fn install(
+    tmp: &Path,
+    dir: &Path,
+    owned: &BTreeMap<String, String>,
+    made: &BTreeMap<String, String>,
+) -> Result<(), PipelineError> {
+    for name in owned.keys() {
+        let path = dir.join(name);
+        if std::fs::symlink_metadata(&path).is_ok() {
+            std::fs::remove_file(&path).map_err(io_err(&path))?;
+        }
+    }
+    // Folders the old files were in, deepest first: removed only when that left them empty.
+    let mut parents: Vec<PathBuf> = owned
+        .keys()
+        .filter_map(|n| Path::new(n).parent().filter(|p| !p.as_os_str().is_empty()).map(|p| dir.join(p)))
+        .collect();
+    parents.sort_by_key(|p| std::cmp::Reverse(p.components().count()));
+    parents.dedup();
+    for p in parents {
+        let _ = std::fs::remove_dir(&p);
+    }
+    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    for name in made.keys() {
+        let (from, to) = (tmp.join(name), dir.join(name));
+        if let Some(parent) = to.parent() {
+            std::fs::create_dir_all(parent).map_err(io_err(parent))?;
+        }
+        std::fs::rename(&from, &to).map_err(io_err(&to))?;
+    }
+    std::fs::remove_dir_all(tmp).map_err(io_err(tmp))
 }

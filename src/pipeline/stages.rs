@@ -8,7 +8,8 @@ use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
 use crate::inference::{FitConfig, FitOptions, FitResult, MeshingConfig, Observation, run_fit_observed};
 use crate::io::{
-    LengthScale, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d, write_tissue,
+    LengthScale, OutputGroup, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d,
+    write_tissue,
 };
 use crate::mechanics::{Observer, RelaxMethod, Sample, Simulation, SimulationMode};
 use crate::mesh::{CellKind, Tissue};
@@ -24,20 +25,23 @@ fn stage_err(stage: &'static str) -> impl Fn(String) -> PipelineError {
     move |message| PipelineError::Stage { stage, message }
 }
 
-fn write_json<T: Serialize>(path: &Path, value: &T, stage: &'static str) -> Result<(), PipelineError> {
+fn json_bytes<T: Serialize>(value: &T, stage: &'static str) -> Result<Vec<u8>, PipelineError> {
     let mut json = serde_json::to_string_pretty(value).map_err(|e| stage_err(stage)(e.to_string()))?;
     json.push('\n');
-    write_bytes_atomically(path, json.as_bytes()).map_err(|e| stage_err(stage)(e.to_string()))
+    Ok(json.into_bytes())
 }
 
-fn write_csv<T: Serialize>(path: &Path, rows: &[T], stage: &'static str) -> Result<(), PipelineError> {
+fn write_json<T: Serialize>(path: &Path, value: &T, stage: &'static str) -> Result<(), PipelineError> {
+    write_bytes_atomically(path, &json_bytes(value, stage)?).map_err(|e| stage_err(stage)(e.to_string()))
+}
+
+fn csv_bytes<T: Serialize>(path: &Path, rows: &[T], stage: &'static str) -> Result<Vec<u8>, PipelineError> {
     let err = stage_err(stage);
     let mut w = csv::Writer::from_writer(Vec::new());
     for row in rows {
         w.serialize(row).map_err(|e| err(format!("{}: {e}", path.display())))?;
     }
-    let bytes = w.into_inner().map_err(|e| err(format!("{}: {e}", path.display())))?;
-    write_bytes_atomically(path, &bytes).map_err(|e| err(e.to_string()))
+    w.into_inner().map_err(|e| err(format!("{}: {e}", path.display())))
 }
 
 /// `mesh/report.json`: the per-label report of `tissuefit mesh` without wall time.
@@ -186,10 +190,16 @@ fn read_meshed(path: &Path, stage: &'static str) -> Result<Tissue, PipelineError
     Ok(read.tissue)
 }
 
+/// cells.csv, contacts.csv and summary.json, all or nothing ([`OutputGroup`]).
 fn write_morphology(out: &Path, m: &Morphology, stage: &'static str) -> Result<(), PipelineError> {
-    write_csv(&out.join("cells.csv"), &m.cells, stage)?;
-    write_csv(&out.join("contacts.csv"), &m.contacts, stage)?;
-    write_json(&out.join("summary.json"), &m.summary, stage)
+    let err = |e: crate::io::IoError| stage_err(stage)(e.to_string());
+    let mut group = OutputGroup::new();
+    let cells = out.join("cells.csv");
+    group.write_bytes(&cells, &csv_bytes(&cells, &m.cells, stage)?).map_err(err)?;
+    let contacts = out.join("contacts.csv");
+    group.write_bytes(&contacts, &csv_bytes(&contacts, &m.contacts, stage)?).map_err(err)?;
+    group.write_bytes(&out.join("summary.json"), &json_bytes(&m.summary, stage)?).map_err(err)?;
+    group.commit().map_err(err)
 }
 
 fn describe(m: &Morphology) -> String {
@@ -399,13 +409,14 @@ pub fn run_simulate(
 /// The fit of `tissuefit fit` with observed = the input labels meshed like `[mesh]`. The meshed
 /// tissue is the mesh stage's `tissue.vtp` (and its `report.json`'s l_min) in `mesh_dir`, read back
 /// bit for bit instead of meshing the labels again; the labels are still read, to measure the
-/// simulations like the data.
+/// simulations like the data. `resume`: go on from `out/trace.csv` (an interrupted fit's).
 pub fn run_fit_stage(
     input: &InputSection,
     mesh: &MeshingConfig,
     fit: &FitConfig,
     mesh_dir: &Path,
     out: &Path,
+    resume: bool,
     progress: bool,
 ) -> Result<FitResult, PipelineError> {
     let err = stage_err("fit");
@@ -429,7 +440,7 @@ pub fn run_fit_stage(
         None => Observation::new(tissue, None, None),
     }
     .map_err(|e| err(e.to_string()))?;
-    run_fit_observed(&config, Some(observation), out, &FitOptions { resume: false, progress, plots: true })
+    run_fit_observed(&config, Some(observation), out, &FitOptions { resume, progress, plots: true })
         .map_err(|e| err(e.to_string()))
 }
 
@@ -450,7 +461,7 @@ mod tests {
         let mesh = MeshingConfig { target_nodes: 60, ..Default::default() };
         let fit: FitConfig = toml::from_str("[parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\n").unwrap();
         // Without the mesh stage's outputs the fit stage has nothing to start from, and says which file.
-        let e = run_fit_stage(&input, &mesh, &fit, &mesh_dir, &tmp.path().join("fit"), false).unwrap_err();
+        let e = run_fit_stage(&input, &mesh, &fit, &mesh_dir, &tmp.path().join("fit"), false, false).unwrap_err();
         assert!(e.to_string().contains(&mesh_dir.join(MESH_TISSUE).display().to_string()), "{e}");
         // With them, its observation is that tissue: the fit's meshed labels are the mesh stage's.
         std::fs::create_dir_all(&mesh_dir).unwrap();

@@ -23,8 +23,9 @@
 //! starts.
 
 use super::config::{PipelineConfig, schema_message};
+use super::lock::DirLock;
 use super::manifest::Manifest;
-use super::run::{PipelineOptions, run_pipeline};
+use super::run::{PipelineOptions, run_pipeline_locked};
 use super::{PipelineError, nearest};
 use crate::io::write_bytes_atomically;
 use serde::Deserialize;
@@ -286,7 +287,8 @@ pub fn show_toml(v: &Value) -> String {
 impl Sweep {
     /// Reads and checks a sweep file and every run's pipeline; nothing is written.
     pub fn load(path: &Path) -> Result<Sweep, PipelineError> {
-        let text = std::fs::read_to_string(path).map_err(|e| config_err(path, format!("reading: {e}")))?;
+        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+            .map_err(|e| config_err(path, format!("reading: {e}")))?;
         let file: SweepFile = toml::from_str(&text).map_err(|e| {
             let line = e.span().map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
             let at = line.map_or(String::new(), |l| format!(":{l}"));
@@ -297,8 +299,8 @@ impl Sweep {
         if !base.is_file() {
             return Err(config_err(path, format!("base: {} does not exist", base.display())));
         }
-        let base_text =
-            std::fs::read_to_string(&base).map_err(|e| config_err(path, format!("base {}: {e}", base.display())))?;
+        let base_text = crate::io::read_text_capped(&base, crate::io::MAX_CONFIG_FILE)
+            .map_err(|e| config_err(path, format!("base {}: {e}", base.display())))?;
         // The base alone must be a valid pipeline: errors in it are reported against it.
         PipelineConfig::load_text(&base_text, &base)?;
         let mut base_table: Table = toml::from_str(&base_text).map_err(|e| config_err(&base, e.message()))?;
@@ -526,7 +528,9 @@ pub struct RunReport {
 }
 
 /// Runs the sweep's runs (all, or `options.only`), `options.jobs` at a time. A failed run is
-/// recorded (in its report and `DIR/run-NNNN/failed.txt`), never fatal to the others.
+/// recorded (in its report and `DIR/run-NNNN/failed.txt`), never fatal to the others. The sweep
+/// folder's lock is held throughout: exclusive for a whole sweep, shared for one run of a job array
+/// (`options.only`; the tasks run side by side, each holding its run folder's lock).
 pub fn run_sweep(sweep: &Sweep, options: &SweepOptions<'_>) -> Result<Vec<RunReport>, PipelineError> {
     let selected: Vec<&SweepRun> = match options.only {
         Some(i) => match sweep.runs.get(i) {
@@ -540,8 +544,7 @@ pub fn run_sweep(sweep: &Sweep, options: &SweepOptions<'_>) -> Result<Vec<RunRep
         },
         None => sweep.runs.iter().collect(),
     };
-    std::fs::create_dir_all(&options.out)
-        .map_err(|e| PipelineError::Io { path: options.out.clone(), message: e.to_string() })?;
+    let _lock = if options.only.is_some() { DirLock::shared(&options.out)? } else { DirLock::exclusive(&options.out)? };
     let jobs = options.jobs.clamp(1, selected.len().max(1));
     let threads = (options.threads / jobs).max(1);
     let next = AtomicUsize::new(0);
@@ -576,8 +579,17 @@ fn run_one(sweep: &Sweep, run: &SweepRun, options: &SweepOptions<'_>) -> RunRepo
     (options.on_event)(&format!("{label}: started"));
     let started = Instant::now();
     let quiet = |line: &str| tracing::info!("run {:04}: {line}", run.index);
+    // Locked before anything in the folder is touched: a run folder another process is writing into
+    // is left alone (no failed.txt either).
+    let lock = match DirLock::exclusive(&dir) {
+        Ok(lock) => lock,
+        Err(e) => {
+            let reason = e.to_string();
+            (options.on_event)(&format!("{label}: failed: {reason}"));
+            return RunReport { index: run.index, status: "failed", reason: Some(reason), wall_seconds: 0.0 };
+        }
+    };
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Result<_, PipelineError> {
-        std::fs::create_dir_all(&dir).map_err(|e| PipelineError::Io { path: dir.clone(), message: e.to_string() })?;
         let failed = dir.join(FAILED_FILE);
         if failed.exists() {
             std::fs::remove_file(&failed)
@@ -595,7 +607,7 @@ fn run_one(sweep: &Sweep, run: &SweepRun, options: &SweepOptions<'_>) -> RunRepo
         write_bytes_atomically(&pipeline, text.as_bytes())
             .map_err(|e| PipelineError::Io { path: pipeline.clone(), message: e.to_string() })?;
         let po = PipelineOptions { out: dir.clone(), force: options.force, progress: false, on_event: &quiet };
-        run_pipeline(&pipeline, &po)
+        run_pipeline_locked(&pipeline, &po, &lock)
     }));
     let wall_seconds = started.elapsed().as_secs_f64();
     let (status, reason) = match outcome {

@@ -206,7 +206,7 @@ pub fn plot_results(sweep: &Sweep, rows: &[ResultRow], out: &Path) -> Result<Vec
             }
             root.present().map_err(|e| err(&path, e))?;
         }
-        std::fs::rename(&tmp, &path).map_err(|e| err(&path, e))?;
+        crate::io::replace_with(&tmp, &path).map_err(|e| err(&path, e))?;
         written.push(path);
     }
     Ok(written)

@@ -486,7 +486,7 @@ impl Parameters {
         let mut table = match model {
             Some(path) => {
                 let origin = path.display().to_string();
-                let text = std::fs::read_to_string(path)
+                let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
                     .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
                 toml::from_str::<Table>(&text).map_err(|e| ParamError::Syntax { origin, message: e.to_string() })?
             }
@@ -508,8 +508,8 @@ impl Parameters {
     /// The result passed [`Parameters::validate`]; call it again for the warnings.
     pub fn load(path: &Path) -> Result<Self, ParamError> {
         let origin = path.display().to_string();
-        let text =
-            std::fs::read_to_string(path).map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
+        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+            .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
         Self::from_toml_str(&text, &origin)
     }
 

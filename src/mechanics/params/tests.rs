@@ -327,3 +327,17 @@ fn ray_casting_polarity_reads_with_its_keys_and_rejects_bad_values() {
     let message = rejection("[numerics]\npolarity_voxelsize = 1e-6\n");
     assert!(message.contains("did you mean `polarity_voxel_size`?"), "{message}");
 }
+
+#[test]
+fn lengths_and_tensions_typed_in_the_wrong_unit_are_warned_with_a_hint() {
+    // l_min typed as µm (0.3 m) and a tension typed as mN/m (0.5 N/m): valid numbers, named in warnings.
+    let params = load(
+        "[numerics]\nmin_edge_length = 0.3\ncontact_cutoff = 0.3\ntime_step = 1e-17\n[[cell_types]]\nkind = \"epithelial\"\n\
+         [cell_types.faces.lateral]\nsurface_tension = 0.5\n",
+    )
+    .expect("loads");
+    let warnings = params.validate().unwrap_or_else(|e| panic!("only warned: {e}"));
+    let says = |needle: &str| warnings.iter().any(|w| w.contains(needle));
+    assert!(says("numerics.min_edge_length = 3e-1 m") && says("did you mean 0.3um?"), "{warnings:?}");
+    assert!(says("cell_types[0].faces.lateral.surface_tension") && says("did you mean 0.5e-3 N/m?"), "{warnings:?}");
+}

@@ -52,6 +52,27 @@ impl Parameters {
             ));
         }
 
+        // Plausible for cells, or a unit slip (a bare number is metres): warned, not refused.
+        for (key, l) in [
+            ("numerics.min_edge_length", numerics.min_edge_length),
+            ("numerics.contact_cutoff", numerics.contact_cutoff),
+        ] {
+            if l > 0.0
+                && let Some(w) = crate::io::implausible_length(key, l)
+            {
+                report.warnings.push(w);
+            }
+        }
+        // Cells' tensions (a nucleus' envelope may be far softer by design).
+        for (index, cell_type) in self.cell_types.iter().enumerate().filter(|(_, t)| t.kind == CellKind::Epithelial) {
+            for (face_type, face) in cell_type.faces.iter() {
+                let key = format!("cell_types[{index}].faces.{}.surface_tension", face_type.name());
+                if let Some(w) = crate::io::implausible_tension(&key, face.surface_tension) {
+                    report.warnings.push(w);
+                }
+            }
+        }
+
         let numerics_valid = report.errors.is_empty();
         let sim = &self.simulation;
         let sim_defaults = SimulationSettings::default();

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Regenerates the figures of the docs book that come from running tissuefit, so that none is typed by
+# hand: the demo's pictures (docs/src/img/) and printed output, and the real-data tutorial's output
+# (docs/src/generated/, included by the chapters). Run from anywhere after `cargo build --release`;
+# the real-data part needs ../shared/data/real next to the repository (skipped without it).
+# Outputs go to runs/demo and runs/real-ovule (git-ignored). Wall times depend on the machine; the
+# numbers of the tables in the Validation chapters come from the commands listed in "Reproducing the
+# figures" there.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+bin=target/release/tissuefit
+[ -x "$bin" ] || { echo "build first: cargo build --release" >&2; exit 2; }
+gen=docs/src/generated
+img=docs/src/img
+mkdir -p "$gen"
+
+"$bin" --threads 2 run pipelines/demo.toml --out runs/demo --force > "$gen/demo-run.txt"
+"$bin" render runs/demo/mesh/tissue.vtp --out "$img/demo-mesh.png" --view y --edges --size 420,280
+"$bin" render runs/demo/simulate/final.vtk --out "$img/demo-relaxed.png" --view y --edges --size 420,280
+cp runs/demo/fit/objective.png runs/demo/fit/landscape.png "$img/"
+
+ovule=../shared/data/real/plant-seg__sample_ovule_labels.tif
+if [ -f "$ovule" ]; then
+    "$bin" --threads 2 run pipelines/real-ovule.toml --out runs/real-ovule --force > "$gen/ovule-run.txt"
+    "$bin" --threads 2 measure "$ovule" --border static --include-static --out runs/real-ovule/measure-labels \
+        > "$gen/ovule-measure-labels.txt"
+else
+    echo "$ovule not found: the real-data tutorial's output is not regenerated" >&2
+fi
+echo "regenerated: $img/demo-*.png, objective.png, landscape.png, $gen/*.txt"

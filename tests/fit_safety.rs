@@ -1,0 +1,293 @@
+//! A fit never says "converged" over a failure (issue 22, items 1–3): a fit whose every evaluation
+//! was penalised is an error with the reasons and what to change (`tissuefit fit`, the pipeline's fit
+//! stage); a fitted parameter that cannot change the model is refused before the fit starts.
+//!
+//! Kept cheap: the demo doublet meshed at 60 nodes per cell, relaxations of one step (which never
+//! converge, so every evaluation is penalised), two evaluations.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use tissuefit::inference::{FitConfig, FitOptions, InferenceError, run_fit};
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tissuefit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("runs the binary")
+}
+
+/// The fit part shared by the fit config and the pipeline (`prefix` "" or "fit."): the demo's
+/// truth as the model (with `numerics` TOML lines under `model_overrides.numerics`), γ_lateral
+/// fitted, relaxations of one step that never converge.
+fn fit_body(prefix: &str, numerics: &str) -> String {
+    let model = repo().join("data/demo/doublet_truth.toml");
+    format!(
+        r#"
+{prefix}model = {model:?}
+[{prefix}model_overrides.numerics]
+{numerics}
+[{prefix}parameters.surface_tension]
+value = 1e-3
+[{prefix}parameters.surface_tension_lateral]
+bounds = [2e-4, 1e-3]
+[{prefix}optimizer]
+max_evaluations = 2
+[{prefix}forward]
+max_steps = 1
+accept_residual = 0.0
+volume_passes = 0
+measure_like_data = false
+"#,
+        model = model.display().to_string()
+    )
+}
+
+fn write_fit_config(dir: &Path, numerics: &str) -> PathBuf {
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        "{}[observed]\nlabels = {:?}\n[observed.meshing]\ntarget_nodes = 60\n",
+        fit_body("", numerics),
+        labels.display().to_string()
+    );
+    let path = dir.join("fit.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn a_fit_whose_every_evaluation_fails_exits_non_zero_with_the_reasons_and_never_says_converged() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = write_fit_config(dir.path(), "");
+    let out = dir.path().join("out");
+    let o = tissuefit(&["--threads", "2", "fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_ne!(o.status.code(), Some(0), "{stderr}");
+    assert_ne!(o.status.code(), Some(1), "an error, not a finished fit whose check failed: {stderr}");
+    assert!(!stderr.contains("(converged)"), "{stderr}");
+    assert!(stderr.contains("the fit failed") && stderr.contains("none of the 2 evaluations was usable"), "{stderr}");
+    // The reasons, summarised (two unconverged runs, one kind), and the remedy naming the keys.
+    assert!(stderr.contains("2 × unconverged (not converged within 1 steps"), "{stderr}");
+    assert!(stderr.contains("forward.max_steps (now 1)") && stderr.contains("forward.accept_residual"), "{stderr}");
+    assert!(stderr.contains("trace.csv") && stderr.contains("no result.json"), "{stderr}");
+    assert!(!out.join("result.json").exists(), "no result for a fit that has none");
+    let trace = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    assert_eq!(trace.lines().count(), 3, "header and the two evaluations:\n{trace}");
+
+    // The library says the same with its own error kind.
+    let config = FitConfig::load(&config).unwrap();
+    let e = run_fit(&config, &dir.path().join("lib"), &FitOptions::default()).unwrap_err();
+    assert!(matches!(e, InferenceError::Failed(_)), "{e}");
+}
+
+#[test]
+fn a_pipeline_fit_stage_whose_every_evaluation_fails_is_marked_failed() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        "{}[input]\nlabels = {:?}\n[mesh]\ntarget_nodes = 60\n",
+        fit_body("fit.", ""),
+        labels.display().to_string()
+    );
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, text).unwrap();
+    let run = dir.path().join("run");
+    let o = tissuefit(&["--threads", "2", "run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_ne!(o.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("none of the 2 evaluations was usable"), "{stderr}");
+    assert!(!stderr.contains("(converged)"), "{stderr}");
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("manifest.json")).unwrap()).unwrap();
+    let fit = manifest["stages"].as_array().unwrap().iter().find(|s| s["name"] == "fit").unwrap();
+    assert_eq!(fit["status"].as_str(), Some("failed"), "{manifest}");
+    assert!(fit["note"].as_str().unwrap().contains("unconverged"), "{manifest}");
+    assert!(!run.join("fit").exists(), "no fit folder that looks complete");
+}
+
+#[test]
+fn fitting_a_lateral_tension_that_no_face_can_have_is_refused_before_the_fit_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    // Without polarisation a meshed label volume keeps its apical faces: no lateral face ever exists.
+    let config = write_fit_config(dir.path(), "polarity = \"none\"");
+    let config = FitConfig::load(&config).unwrap();
+    let out = dir.path().join("out");
+    let e = run_fit(&config, &out, &FitOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("parameters.surface_tension_lateral") && e.contains("cannot change the model"), "{e}");
+    assert!(e.contains("numerics.polarity = \"none\"") && e.contains("\"contacts\""), "{e}");
+    assert!(!out.exists(), "refused before anything was written or simulated");
+}
+
+/// The demo's fit (γ_lateral of the coupled doublet, truth 0.5e-3) with `lateral` bounds and
+/// `objective` lines; a short search and a one-point profile.
+fn write_demo_fit(dir: &Path, bounds: &str, objective: &str) -> PathBuf {
+    let model = repo().join("data/demo/doublet_truth.toml");
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        r#"model = {:?}
+[model_overrides.simulation]
+max_steps = 1000
+[observed]
+labels = {:?}
+[observed.meshing]
+target_nodes = 100
+[parameters.surface_tension]
+value = 1e-3
+[parameters.surface_tension_lateral]
+bounds = {bounds}
+[objective]
+contact_fraction = 0.0
+coordination = 0.0
+contact_angle = 0.0
+{objective}
+[optimizer]
+max_evaluations = 4
+[forward]
+accept_residual = 1e9
+[profile]
+points = 1
+span = 1.3
+"#,
+        model.display().to_string(),
+        labels.display().to_string()
+    );
+    let path = dir.join("fit.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn cli_fit(config: &Path, out: &Path) -> (Option<i32>, String, serde_json::Value) {
+    let o = tissuefit(&["--threads", "2", "fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    let json =
+        std::fs::read_to_string(out.join("result.json")).unwrap_or_else(|e| panic!("no result.json ({e}): {stderr}"));
+    (o.status.code(), stderr, serde_json::from_str(&json).unwrap())
+}
+
+#[test]
+fn a_best_value_at_a_search_bound_is_never_determined_and_a_poor_fit_is_flagged() {
+    let dir = tempfile::tempdir().unwrap();
+    // The truth (0.5e-3) lies below the bounds: the search ends at the lower bound.
+    let config = write_demo_fit(dir.path(), "[6e-4, 1e-3]", "");
+    let (code, stderr, json) = cli_fit(&config, &dir.path().join("bound"));
+    let p = &json["parameters"]["surface_tension_lateral"];
+    assert!((p["si"].as_f64().unwrap() / 6e-4 - 1.0).abs() < 1e-9, "{json}");
+    assert_eq!(p["at_bound"].as_str(), Some("lower"), "{json}");
+    assert_eq!(p["determined"].as_bool(), Some(false), "{json}");
+    let r = &json["ratios"]["lateral_over_apical"];
+    assert_eq!((r["at_bound"].as_str(), r["determined"].as_bool()), (Some("lower"), Some(false)), "{json}");
+    // The ratio's range stays within what the bounds allow (0.6 … 1.0).
+    assert!(r["range"][0].as_f64().unwrap() >= 0.6 * (1.0 - 1e-12), "{json}");
+    let says = json["identifiability"].as_array().unwrap().iter().map(|l| l.as_str().unwrap()).collect::<Vec<_>>();
+    assert!(says.iter().any(|l| l.contains("widen parameters.surface_tension_lateral.bounds")), "{says:?}");
+    assert!(
+        stderr.contains("surface_tension_lateral = 6.0000e-4") && stderr.contains("AT THE LOWER SEARCH BOUND"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("(determined)"), "{stderr}");
+    assert_eq!(json["poor_fit"].as_bool(), Some(false), "{json}");
+    assert!(!stderr.contains("POOR FIT"), "{stderr}");
+    assert!(code == Some(0) || code == Some(1), "{stderr}");
+
+    // The same misfit measured on a scale 100 times finer (objective × 10⁴, still below the failure
+    // penalty): far above the forward model's noise.
+    let config = write_demo_fit(dir.path(), "[6e-4, 1e-3]", "sphericity_scale = 5e-5");
+    let (code, stderr, json) = cli_fit(&config, &dir.path().join("poor"));
+    let objective = json["objective"].as_f64().unwrap();
+    let sigma = json["noise"]["std"].as_f64().unwrap_or(0.0);
+    eprintln!("poor fit: objective {objective}, σ {sigma}");
+    assert!(objective > tissuefit::inference::POOR_FIT_OBJECTIVE + 2.0 * sigma, "{json}");
+    assert_eq!(json["poor_fit"].as_bool(), Some(true), "{json}");
+    assert!(stderr.contains("POOR FIT"), "{stderr}");
+    let says = json["identifiability"].as_array().unwrap().iter().map(|l| l.as_str().unwrap()).collect::<Vec<_>>();
+    assert!(says.iter().any(|l| l.starts_with("POOR FIT")), "{says:?}");
+    assert_eq!(code, Some(1), "a poor fit exits 1: {stderr}");
+}
+
+#[test]
+fn a_demo_truth_that_the_fit_bounds_cannot_reach_is_refused_naming_both_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        "[input]\nlabels = {:?}\n[fit.parameters.surface_tension]\nvalue = 1e-3\n\
+         [fit.parameters.surface_tension_lateral]\nbounds = [6e-4, 1e-3]\n[demo]\ntruth = {{ lateral_over_apical = 0.5 }}\n",
+        labels.display().to_string()
+    );
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, text).unwrap();
+    let run = dir.path().join("run");
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("demo.truth.lateral_over_apical = 0.5"), "{stderr}");
+    assert!(
+        stderr.contains("fit.parameters.surface_tension_lateral.bounds")
+            && stderr.contains("fit.parameters.surface_tension.value"),
+        "{stderr}"
+    );
+    assert!(!run.exists(), "nothing run for a contradictory config");
+}
+
+#[test]
+fn lengths_and_tensions_in_the_wrong_unit_are_refused_with_a_hint() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let labels = labels.to_str().unwrap();
+    // `--voxel-size 0.235,0.15,0.15` meant µm: 0.235 m.
+    let out = dir.path().join("m.vtp");
+    let o = tissuefit(&["mesh", labels, "--voxel-size", "0.235,0.15,0.15", "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("did you mean 0.235,0.15,0.15um?"), "{stderr}");
+    let o = tissuefit(&["mesh", labels, "--l-min", "0.33", "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("did you mean 0.33um?"), "{stderr}");
+    assert!(!out.exists());
+
+    // A fit config: a voxel size in metres that was meant as µm, tension bounds typed in mN/m.
+    let fit = |body: &str| {
+        let text = format!("[observed]\nlabels = {labels:?}\n{body}");
+        FitConfig::from_toml_str(&text, "fit.toml").unwrap_err().to_string()
+    };
+    let e = fit("voxel_size = [0.31, 0.31, 0.31]\n[parameters.surface_tension]\nbounds = [1e-4, 1e-3]\n");
+    assert!(e.contains("observed.voxel_size") && e.contains("did you mean 0.31um?"), "{e}");
+    let e = fit("[parameters.surface_tension]\nbounds = [0.2, 1.0]\n");
+    assert!(e.contains("parameters.surface_tension.bounds") && e.contains("did you mean 0.2e-3 N/m?"), "{e}");
+    let e = fit("[parameters.surface_tension]\nvalue = 0.5\n[parameters.adhesion]\nbounds = [1e8, 1e9]\n");
+    assert!(e.contains("parameters.surface_tension.value") && e.contains("did you mean 0.5e-3 N/m?"), "{e}");
+
+    // A pipeline: input.voxel_size in bare metres.
+    let pipeline = dir.path().join("p.toml");
+    std::fs::write(&pipeline, format!("[input]\nlabels = {labels:?}\nvoxel_size = [0.235, 0.15, 0.15]\n")).unwrap();
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", dir.path().join("run").to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("input.voxel_size") && stderr.contains("did you mean 0.235um?"), "{stderr}");
+}
+
+#[test]
+fn voxelize_refuses_a_bare_metre_voxel_size_and_never_writes_an_empty_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    let tissue = repo().join("data/demo/cell_quartet.vtk");
+    let out = dir.path().join("labels.tif");
+    let voxelize = |size: &str| {
+        let o =
+            tissuefit(&["voxelize", tissue.to_str().unwrap(), "--voxel-size", size, "--out", out.to_str().unwrap()]);
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    // The issue's `--voxel-size 0.5`: 0.5 m.
+    let (code, stderr) = voxelize("0.5");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("did you mean 0.5um?"), "{stderr}");
+    assert!(!out.exists());
+    // A plausible voxel far coarser than the cells: no voxel centre falls inside one.
+    let (code, stderr) = voxelize("0.9mm");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("would hold no label") && stderr.contains("--voxel-size"), "{stderr}");
+    assert!(!out.exists(), "no all-background volume written");
+    // A fine voxel still works.
+    let (code, stderr) = voxelize("0.5um");
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(out.exists());
+}
