@@ -127,6 +127,8 @@ fn params(a: &Args) -> Parameters {
     p.numerics.polarity = Polarity::None;
     p.numerics.min_edge_length = a.lmin;
     p.numerics.contact_cutoff = a.cutoff;
+    // Only integration uses it (and validation checks it against the contact stiffness).
+    p.numerics.time_step = 2e-8;
     let omega = 4.0 * a.ratio * GAMMA / (a.cutoff * a.cutoff);
     let t = &mut p.cell_types[0];
     for ft in FaceType::ALL {
@@ -147,7 +149,7 @@ fn params(a: &Args) -> Parameters {
     s.max_steps = a.steps;
     s.settle_steps = a.settle;
     s.normal_relaxation = a.normal;
-    s.sample_every_steps = u64::MAX;
+    s.sample_every_steps = a.steps + 1;
     p
 }
 

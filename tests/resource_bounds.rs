@@ -117,20 +117,40 @@ struct Case {
 
 const CASES: &[Case] = &[
     Case {
-        name: "item 3: --voxel-size with one axis 10²⁰ times the others (mesh panicked: capacity overflow)",
+        name: "item 3: --voxel-size with one axis 10²⁰ times the others (mesh panicked: capacity overflow): refused as implausible",
         env: &[],
         setup: |d| {
             let mut a = args(&["mesh", &demo("doublet.tif"), "--voxel-size", "1e14,4e-7,4e-7", "--out"]);
             a.push(path(d, "out.vtp"));
             a
         },
+        says: &["--voxel-size", "1e14", "plausible range"],
+    },
+    Case {
+        name: "item 3: a plausible --voxel-size 2,500 times finer on two axes (mesh): refused as too anisotropic",
+        env: &[],
+        setup: |d| {
+            let mut a = args(&["mesh", &demo("doublet.tif"), "--voxel-size", "1e-3,4e-7,4e-7", "--out"]);
+            a.push(path(d, "out.vtp"));
+            a
+        },
         says: &["doublet.tif", "--voxel-size", "times the smallest"],
     },
     Case {
-        name: "item 3: --voxel-size with one axis 10²⁰ times the others (measure)",
+        name: "item 3: --voxel-size with one axis 10²⁰ times the others (measure): refused as implausible",
         env: &[],
         setup: |d| {
             let mut a = args(&["measure", &demo("doublet.tif"), "--voxel-size", "1e14,4e-7,4e-7", "--out"]);
+            a.push(path(d, "measured"));
+            a
+        },
+        says: &["--voxel-size", "1e14", "plausible range"],
+    },
+    Case {
+        name: "item 3: a plausible --voxel-size 2,500 times finer on two axes (measure): refused as too anisotropic",
+        env: &[],
+        setup: |d| {
+            let mut a = args(&["measure", &demo("doublet.tif"), "--voxel-size", "1e-3,4e-7,4e-7", "--out"]);
             a.push(path(d, "measured"));
             a
         },

@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 /// File name of the checkpoint inside a simulation's output folder.
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 /// Version of the payload's structure; bumped on every change to it (3: [`RunSettings`] added, and
-/// the relaxation's descent step and lowest-residual state).
+/// the relaxation's lowest-residual state).
 pub const CHECKPOINT_VERSION: u32 = 3;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;

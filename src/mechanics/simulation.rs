@@ -114,17 +114,10 @@ pub struct CellForcesState {
 /// Where in its loop the driver was saved.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub enum Phase {
-    /// Relaxation to equilibrium. `fire`: the minimiser (None: integrating, or descending after a
-    /// stall); `descent_step`: the step (m/N) of the energy-monotone descent that took over from a
-    /// stalled FIRE (None: not descending); `best`: the lowest-residual state so far; `previous`: energy and volumes of the step before (convergence
-    /// history).
-    Relax {
-        fire: Option<Box<Fire>>,
-        descent_step: Option<Real>,
-        best: Option<Box<BestState>>,
-        previous: Option<(Real, Vec<Real>)>,
-        residual: Real,
-    },
+    /// Relaxation to equilibrium. `fire`: the minimiser (None: integrating, by choice or after a
+    /// stall); `best`: the lowest-residual state since the last remeshing; `previous`: energy and
+    /// volumes of the step before (convergence history).
+    Relax { fire: Option<Box<Fire>>, best: Option<Box<BestState>>, previous: Option<(Real, Vec<Real>)>, residual: Real },
     /// Time run with growth.
     Time { residual: Real },
 }
@@ -1014,10 +1007,11 @@ impl<'p> Simulation<'p> {
     }
 
     /// Relaxation to equilibrium (no growth) with FIRE or by integrating the equations of motion.
-    /// A stalled FIRE hands over to an
-    /// energy-monotone steepest descent, whose own stall ends the run. A run that does not converge
-    /// ends at its lowest-residual state since the last remeshing (unless that state's energy lies more than
-    /// [`BEST_ENERGY_SLACK`]·(energy scale) above the last one's: then the run went on to a lower basin) and says why in [`SimulationSummary::stop_reason`].
+    /// A stalled FIRE hands over to integration, which descends with a stable step. A run that does
+    /// not converge ends at its lowest-residual state since the last remeshing (unless that state's
+    /// energy lies more than [`BEST_ENERGY_SLACK`]·(energy scale) above the last one's: then the run
+    /// went on to a lower basin), so an integration still ringing at the end does not leave its last
+    /// swing in the output, and says why in [`SimulationSummary::stop_reason`].
     fn relax(
         &mut self,
         observer: &mut dyn Observer,
@@ -1026,11 +1020,10 @@ impl<'p> Simulation<'p> {
         let s = self.params.simulation.clone();
         self.normal_only = s.normal_relaxation;
         let (mut mover, mut residual, mut previous, mut best) = match self.resume.take() {
-            Some(Phase::Relax { fire, descent_step, best, previous, residual }) => {
-                let mover = match (fire, descent_step) {
-                    (Some(fire), _) => Mover::with_fire(self, fire),
-                    (None, Some(step)) => Mover::descent(self, step),
-                    (None, None) => Mover::Integrate,
+            Some(Phase::Relax { fire, best, previous, residual }) => {
+                let mover = match fire {
+                    Some(fire) => Mover::with_fire(self, fire),
+                    None => Mover::Integrate,
                 };
                 (mover, residual, previous, best)
             }
@@ -1049,7 +1042,6 @@ impl<'p> Simulation<'p> {
                 (mover, residual, None, None)
             }
         };
-        let mut stop_reason = None;
         while self.step < s.max_steps {
             if self.relaxed(residual, previous.as_ref().map(|(e, v)| (*e, v.as_slice()))) {
                 self.sample(observer, residual)?;
@@ -1057,23 +1049,14 @@ impl<'p> Simulation<'p> {
             }
             previous = Some((self.forces.energy().total(), self.volumes()));
             if mover.step(self)? == Moved::Stalled {
-                if let Mover::Fire { .. } = mover {
-                    // Typically slivers that only remeshing would remove.
-                    tracing::warn!(
-                        "FIRE stalled at step {} (too many uphill steps in a row); continuing with energy-monotone \
-                         steepest descent",
-                        self.step
-                    );
-                    mover = Mover::descent(self, 0.0);
-                    continue;
-                }
-                stop_reason = Some(format!(
-                    "stalled at step {}: steepest descent cannot lower the energy further (residual {residual:.3e} > \
-                     force_tolerance {:.1e}); the forces are not balanced on this mesh — remeshing \
-                     (simulation.remesh_every_steps) or a finer numerics.min_edge_length may help",
-                    self.step, s.force_tolerance
-                ));
-                break;
+                // Typically slivers that only remeshing would remove.
+                tracing::warn!(
+                    "FIRE stalled (too many uphill steps in a row) at step {}; continuing with {:?} integration",
+                    self.step,
+                    self.params.numerics.dynamics
+                );
+                mover = Mover::Integrate;
+                continue;
             }
             // The last settle_steps run on a fixed mesh (see SimulationSettings::settle_steps).
             // (settle_steps = 0 keeps the remeshing at the last step when it falls due.)
@@ -1092,7 +1075,7 @@ impl<'p> Simulation<'p> {
                 best = None;
             }
             residual = self.residual();
-            if best.as_ref().is_none_or(|b: &Box<BestState>| residual < BEST_GAIN * b.residual) {
+            if best.as_deref().is_none_or(|b| residual < BEST_GAIN * b.residual) {
                 best = Some(Box::new(BestState {
                     residual,
                     energy: self.forces.energy().total(),
@@ -1104,25 +1087,26 @@ impl<'p> Simulation<'p> {
             if self.step.is_multiple_of(s.sample_every_steps) {
                 self.sample(observer, residual)?;
             }
-            self.maybe_checkpoint(observer, || {
-                let (fire, descent_step) = mover.state();
-                Phase::Relax { fire, descent_step, best: best.clone(), previous: previous.clone(), residual }
+            self.maybe_checkpoint(observer, || Phase::Relax {
+                fire: mover.state(),
+                best: best.clone(),
+                previous: previous.clone(),
+                residual,
             })?;
         }
         let converged = self.relaxed(residual, previous.as_ref().map(|(e, v)| (*e, v.as_slice())));
-        let mut ended_at_step = None;
+        let (mut ended_at_step, mut stop_reason) = (None, None);
         if !converged {
-            let mut reason = stop_reason.unwrap_or_else(|| {
-                format!(
-                    "max_steps = {} reached with residual {residual:.3e} (force_tolerance {:.1e}, energy and volume \
-                     changes against their tolerances)",
-                    s.max_steps, s.force_tolerance
-                )
-            });
+            let mut reason = format!(
+                "max_steps = {} reached with residual {residual:.3e} (force_tolerance {:.1e}, energy and volume changes \
+                 against their tolerances)",
+                s.max_steps, s.force_tolerance
+            );
             if let Some(b) = best
                 && b.residual < residual
                 && b.energy <= self.forces.energy().total() + BEST_ENERGY_SLACK * self.energy_scale
                 && b.step != self.step
+                && s.end_at_lowest_residual
             {
                 self.restore_cells(b.cells)?;
                 residual = self.residual();
@@ -1528,34 +1512,10 @@ enum Moved {
 /// (copying the meshes on every small improvement would cost more than the steps).
 const BEST_GAIN: Real = 0.8;
 
-/// Largest node displacement of one descent step, in units of l_min (as FIRE's cap).
-const DESCENT_MAX_MOVE: Real = 0.1;
-/// A descent whose trial displacement shrank below this (units of l_min) without lowering the
-/// energy has stalled.
-const DESCENT_MIN_MOVE: Real = 1e-7;
-
-/// How a relaxation moves the nodes: FIRE on packed arrays of all nodes, the equations of motion,
-/// or an energy-monotone steepest descent (after a FIRE stall).
+/// How a relaxation moves the nodes: FIRE on packed arrays of all nodes, or the equations of motion.
 enum Mover {
-    Fire {
-        fire: Box<Fire>,
-        offsets: Vec<usize>,
-        mobile: Vec<bool>,
-        x: Vec<Vec3>,
-        f: Vec<Vec3>,
-    },
+    Fire { fire: Box<Fire>, offsets: Vec<usize>, mobile: Vec<bool>, x: Vec<Vec3>, f: Vec<Vec3> },
     Integrate,
-    /// Steepest descent with backtracking: x ← x + s·F, accepted only when the energy does not rise
-    /// (s halves until it does not; grows by 1.5 after an accepted step). `step`: s (m/N; 0: not
-    /// chosen yet).
-    Descent {
-        step: Real,
-        offsets: Vec<usize>,
-        mobile: Vec<bool>,
-        x: Vec<Vec3>,
-        f: Vec<Vec3>,
-        x0: Vec<Vec3>,
-    },
 }
 
 impl Mover {
@@ -1573,28 +1533,19 @@ impl Mover {
         Mover::Fire { fire, offsets, mobile, x: zeros.clone(), f: zeros }
     }
 
-    fn descent(sim: &Simulation<'_>, step: Real) -> Self {
-        let (offsets, mobile) = sim.layout();
-        let total = *offsets.last().unwrap_or(&0);
-        let zeros = vec![Vec3::zeros(); total];
-        Mover::Descent { step, offsets, mobile, x: zeros.clone(), f: zeros.clone(), x0: zeros }
-    }
-
-    /// After remeshing: a fresh FIRE, or the descent (keeping its step) on the new layout.
+    /// After remeshing: a fresh FIRE on the new layout.
     fn relayout(&mut self, sim: &Simulation<'_>) {
         match self {
             Mover::Fire { .. } => *self = Mover::fire(sim),
-            Mover::Descent { step, .. } => *self = Mover::descent(sim, *step),
             Mover::Integrate => {}
         }
     }
 
-    /// What a checkpoint saves: (FIRE, descent step).
-    fn state(&self) -> (Option<Box<Fire>>, Option<Real>) {
+    /// What a checkpoint saves: FIRE's state (None: integrating).
+    fn state(&self) -> Option<Box<Fire>> {
         match self {
-            Mover::Fire { fire, .. } => (Some(fire.clone()), None),
-            Mover::Descent { step, .. } => (None, Some(*step)),
-            Mover::Integrate => (None, None),
+            Mover::Fire { fire, .. } => Some(fire.clone()),
+            Mover::Integrate => None,
         }
     }
 
@@ -1615,49 +1566,6 @@ impl Mover {
                 sim.coupling.average_packed(&sim.tissue, offsets, fire.velocities_mut());
             }
             Mover::Integrate => sim.advance(false)?,
-            Mover::Descent { step, offsets, mobile, x, f, x0 } => {
-                sim.pack(offsets, x, f);
-                x0.copy_from_slice(x);
-                sim.save_good();
-                let e0 = sim.forces.energy().total();
-                let f_max =
-                    f.iter().zip(mobile.iter()).filter(|(_, m)| **m).map(|(f, _)| f.norm()).fold(0.0, Real::max);
-                let l_min = sim.params.numerics.min_edge_length;
-                if f_max == 0.0 {
-                    return Ok(Moved::Stalled);
-                }
-                if *step <= 0.0 {
-                    *step = 1e-2 * l_min / f_max;
-                }
-                // Round-off of the energy sum: a step that changes nothing measurable is not uphill.
-                let tolerance = 1e-12 * sim.energy_scale;
-                loop {
-                    let s = step.min(DESCENT_MAX_MOVE * l_min / f_max);
-                    for ((x, (x0, f)), m) in x.iter_mut().zip(x0.iter().zip(f.iter())).zip(mobile.iter()) {
-                        if *m {
-                            *x = x0 + s * f;
-                        }
-                    }
-                    sim.unpack(offsets, x);
-                    let accepted = match sim.evaluate() {
-                        Ok(()) => sim.forces.energy().total() <= e0 + tolerance,
-                        // A step that folded a surface is too long, like one that went uphill.
-                        Err(SimulationError::Unhealthy { .. }) => false,
-                        Err(e) => return Err(e),
-                    };
-                    if accepted {
-                        sim.step += 1;
-                        *step = 1.5 * s;
-                        break;
-                    }
-                    *step = 0.5 * s;
-                    if *step * f_max < DESCENT_MIN_MOVE * l_min {
-                        sim.unpack(offsets, x0);
-                        sim.evaluate()?;
-                        return Ok(Moved::Stalled);
-                    }
-                }
-            }
         }
         Ok(Moved::Yes)
     }
@@ -1783,6 +1691,7 @@ mod tests {
             let (tissue, mut p) = pressed_doublet();
             p.simulation.max_steps = max_steps;
             p.simulation.force_tolerance = 1e-12;
+            p.simulation.end_at_lowest_residual = true;
             let mut sim = Simulation::new(tissue, &p).unwrap();
             let mut seen = Residuals(Vec::new());
             let summary = sim.run(&mut seen).unwrap();
@@ -1807,77 +1716,6 @@ mod tests {
             }
         }
         assert!(restored > 0, "FIRE's residual is not monotone: some of these runs end above their best");
-    }
-
-    /// Issue 20 item 4: the descent that takes over from a stalled FIRE never raises the energy and
-    /// does relax (its backtracking also refuses steps that fold a surface).
-    #[test]
-    fn the_descent_after_a_fire_stall_never_raises_the_energy() {
-        let (tissue, p) = pressed_doublet();
-        let mut sim = Simulation::new(tissue, &p).unwrap();
-        sim.save_good();
-        sim.evaluate().unwrap();
-        let (r0, mut e) = (sim.residual(), sim.forces.energy().total());
-        let mut mover = Mover::descent(&sim, 0.0);
-        let mut moved = 0;
-        for _ in 0..300 {
-            if mover.step(&mut sim).unwrap() == Moved::Stalled {
-                break;
-            }
-            moved += 1;
-            let now = sim.forces.energy().total();
-            assert!(now <= e + 1e-12 * sim.energy_scale, "step {moved}: energy {e:e} → {now:e}");
-            e = now;
-        }
-        assert!(moved > 50, "only {moved} descent steps");
-        assert!(sim.residual() < 0.3 * r0, "residual {r0:.3e} → {:.3e}", sim.residual());
-    }
-
-    /// Issue 20 item 3: the overlap of two spheres pushed into each other matches the lens between
-    /// them, and a repulsion too weak for the Laplace pressure is flagged (the default ξ·c = 200 Pa
-    /// against 2γ/R = 500 Pa for R = 4 µm) while a strong one is not.
-    #[test]
-    fn overlap_volume_matches_a_lens_and_weak_repulsion_is_flagged() {
-        let (r, h) = (3e-6, 4e-7);
-        let d = 2.0 * r - h;
-        let tissue = Tissue::from_cells(vec![
-            Cell::new(CellId(1), CellKind::Epithelial, 0, icosphere(r, 4, Vec3::zeros())),
-            Cell::new(CellId(2), CellKind::Epithelial, 0, icosphere(r, 4, Vec3::new(d, 0.0, 0.0))),
-        ])
-        .unwrap();
-        let mut p = params(2e-7);
-        p.numerics.contact_cutoff = 5e-7;
-        p.simulation.mode = SimulationMode::Equilibrium;
-        let mut sim = Simulation::new(tissue, &p).unwrap();
-        sim.save_good();
-        sim.evaluate().unwrap();
-        let lens = std::f64::consts::PI * (4.0 * r + d) * (2.0 * r - d).powi(2) / 12.0;
-        let overlaps = sim.overlap_volumes();
-        // The node columns sample the lens at the mesh's resolution (≈ 0.2 µm nodes over a 1.1 µm
-        // contact radius, and an inscribed polyhedron): 15 % covers that discretisation error.
-        for v in &overlaps {
-            assert!((v / lens - 1.0).abs() < 0.15, "overlap {v:e} vs lens {lens:e}");
-        }
-        let summary = sim.summary(false, sim.residual());
-        assert!((summary.overlap_volume / lens - 1.0).abs() < 0.15);
-        let fraction = lens / sim.forces.cells[0].geometry.volume;
-        assert!((summary.max_overlap_fraction / fraction - 1.0).abs() < 0.15);
-
-        // Defaults: c = 0.2 µm, ξ = 1e9 Pa/m (ξ·c = 200 Pa); γ = 1e-3 N/m on R = 4 µm cells.
-        let far = Tissue::from_cells(vec![
-            Cell::new(CellId(1), CellKind::Epithelial, 0, icosphere(4e-6, 2, Vec3::zeros())),
-            Cell::new(CellId(2), CellKind::Epithelial, 0, icosphere(4e-6, 2, Vec3::new(8.1e-6, 0.0, 0.0))),
-        ])
-        .unwrap();
-        let mut p = Parameters::default();
-        p.simulation.mode = SimulationMode::Equilibrium;
-        let flagged = Simulation::new(far.clone(), &p).unwrap().repulsion_shortfalls();
-        assert_eq!(flagged.len(), 1, "{flagged:?}");
-        assert!(flagged[0].contains("cell type 0") && flagged[0].contains("set repulsion"), "{flagged:?}");
-        for t in FaceType::ALL {
-            p.cell_types[0].faces.get_mut(t).repulsion = 1e11;
-        }
-        assert_eq!(Simulation::new(far, &p).unwrap().repulsion_shortfalls(), Vec::<String>::new());
     }
 
     /// A cell below V_min is removed at the next step and the removal is recorded; the others keep

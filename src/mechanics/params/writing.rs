@@ -285,6 +285,12 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
                spring contacts otherwise stream nodes out of every contact and the relaxation churns without settling.",
     },
     FieldDoc {
+        path: "simulation.end_at_lowest_residual",
+        unit: "",
+        text: "Equilibrium mode: a relaxation that does not converge ends at its lowest-residual state since the last \
+               remeshing instead of its last step (summary: ended_at_step), e.g. for an integration still ringing at the end.",
+    },
+    FieldDoc {
         path: "simulation.force_tolerance",
         unit: "",
         text: "Equilibrium when the largest nodal force is below this fraction of the typical tension force γ·l_min (γ: mean surface tension of the moving cells' faces) ...",
