@@ -20,6 +20,7 @@ use tissuefit::mechanics::{ContactModel, Observer, Parameters, Polarity, RelaxMe
 use tissuefit::mechanics::{SimulationMode, SimulationSummary};
 use tissuefit::mesh::shapes::icosphere;
 use tissuefit::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
+use tissuefit::morphology::far_field::fit_sphere;
 
 struct Quiet;
 impl Observer for Quiet {
@@ -153,22 +154,6 @@ fn params(a: &Args) -> Parameters {
     p
 }
 
-/// Least-squares sphere through points: |x|² = 2c·x + (r² − |c|²).
-fn fit_sphere(points: &[Vec3]) -> (Vec3, Real) {
-    let mut m = nalgebra::DMatrix::<Real>::zeros(points.len(), 4);
-    let mut b = nalgebra::DVector::<Real>::zeros(points.len());
-    for (i, p) in points.iter().enumerate() {
-        m[(i, 0)] = 2.0 * p.x;
-        m[(i, 1)] = 2.0 * p.y;
-        m[(i, 2)] = 2.0 * p.z;
-        m[(i, 3)] = 1.0;
-        b[i] = p.norm_squared();
-    }
-    let x = m.svd(true, true).solve(&b, 1e-40).expect("SVD solve");
-    let c = Vec3::new(x[0], x[1], x[2]);
-    (c, (x[3] + c.norm_squared()).sqrt())
-}
-
 /// Far-field half-angles of both cells: each free cap (nodes farther than `margin` from the other
 /// cell's centre side of the midplane) fitted by a sphere; cos ψ = h/ρ with h the distance from the
 /// cap's centre to the midplane (positive on its own side).
@@ -182,9 +167,9 @@ fn far_field_half_angles(t: &Tissue, margin: Real) -> [Real; 2] {
     for (k, (cell, towards)) in [(a, -axis), (b, axis)].into_iter().enumerate() {
         let cap: Vec<Vec3> =
             cell.mesh().positions().iter().copied().filter(|p| (p - mid).dot(&towards) > margin).collect();
-        let (c, r) = fit_sphere(&cap);
-        let h = (c - mid).dot(&towards);
-        out[k] = (h / r).clamp(-1.0, 1.0).acos().to_degrees();
+        let (sphere, _) = fit_sphere(&cap).expect("a free cap fixes a sphere");
+        let h = (sphere.centre - mid).dot(&towards);
+        out[k] = (h / sphere.radius).clamp(-1.0, 1.0).acos().to_degrees();
     }
     out
 }

@@ -305,6 +305,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
     let (cells, nodes) = (read.tissue.len(), read.tissue.node_count());
     // Checked before anything is written: every cell has a parameter set, something moves.
     let mut sim = Simulation::new(read.tissue, &params).with_context(|| format!("simulating {}", tissue.display()))?;
+    for line in sim.repulsion_shortfalls() {
+        tracing::warn!("{line}");
+    }
     prepare_output(out, args.force)?;
     let parameters = params.to_toml_string();
     write_bytes_atomically(&out.join("config.toml"), parameters.as_bytes())?;
@@ -532,6 +535,9 @@ fn drive(
             return Err(e).with_context(|| format!("simulating {input}"));
         }
     };
+    if let Some(warning) = summary.overlap_warning() {
+        tracing::warn!("{warning}");
+    }
     let frames = observer.recorder.frames();
     observer.recorder.finish()?;
     write_events(&out.join("events.csv"), sim.events())?;

@@ -100,6 +100,23 @@ struct Direction {
     direction: Vec<Real>,
 }
 
+/// How far a unit step along the ratio num/den moves each fitted parameter's log: +½ and −½ when
+/// both are fitted, the one fitted alone by ±1; `None` when neither is fitted.
+pub fn ratio_direction(fitted: &[impl AsRef<str>], num: &str, den: &str) -> Option<Vec<Real>> {
+    let position = |name: &str| fitted.iter().position(|f| f.as_ref() == name);
+    let mut d = vec![0.0; fitted.len()];
+    match (position(num), position(den)) {
+        (Some(i), Some(j)) => {
+            d[i] = 0.5;
+            d[j] = -0.5;
+        }
+        (Some(i), None) => d[i] = 1.0,
+        (None, Some(j)) => d[j] = -1.0,
+        (None, None) => return None,
+    }
+    Some(d)
+}
+
 /// Names and (numerator, denominator) parameter choices of the key ratios.
 pub fn ratio_parts(names: &[String]) -> Vec<(&'static str, &'static str, &'static str)> {
     let has = |n: &str| names.iter().any(|m| m == n);
@@ -152,17 +169,7 @@ pub fn profile(
     let mut all: Vec<String> = fitted.clone();
     all.extend(space.fixed.iter().map(|(k, _)| k.clone()));
     for (name, num, den) in ratio_parts(&all) {
-        let (i, j) = (fitted.iter().position(|f| f == num), fitted.iter().position(|f| f == den));
-        let mut d = vec![0.0; n];
-        match (i, j) {
-            (Some(i), Some(j)) => {
-                d[i] = 0.5;
-                d[j] = -0.5;
-            }
-            (Some(i), None) => d[i] = 1.0,
-            (None, Some(j)) => d[j] = -1.0,
-            (None, None) => continue,
-        }
+        let Some(d) = ratio_direction(&fitted, num, den) else { continue };
         // With a single fitted parameter the ratio's direction is that parameter's slice.
         if dirs.iter().any(|e| e.direction == d) {
             let twin = dirs.iter().find(|e| e.direction == d).map(|e| e.name.clone()).unwrap_or_default();

@@ -3,7 +3,7 @@
 use super::config::FitConfig;
 use super::forward::{Evaluation, ForwardModel, Observation, Status};
 use super::optimise::{Evaluator, optimise};
-use super::profile::{NoiseFloor, Slice, profile, ratio_parts};
+use super::profile::{NoiseFloor, Slice, profile, ratio_direction, ratio_parts};
 use super::result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
 use super::space::ParameterSpace;
 use super::trace::{read_trace, write_trace};
@@ -396,17 +396,8 @@ fn assemble(
         directions.push((s, vec![1.0; space.dim()]));
     }
     for (rname, num, den) in ratio_parts(&all_names) {
-        let (i, j) = (space.fitted.iter().position(|p| p.name == num), space.fitted.iter().position(|p| p.name == den));
-        let mut d = vec![0.0; space.dim()];
-        match (i, j) {
-            (Some(i), Some(j)) => {
-                d[i] = 0.5;
-                d[j] = -0.5;
-            }
-            (Some(i), None) => d[i] = 1.0,
-            (None, Some(j)) => d[j] = -1.0,
-            (None, None) => continue,
-        }
+        let fitted: Vec<&str> = space.fitted.iter().map(|p| p.name.as_str()).collect();
+        let Some(d) = ratio_direction(&fitted, num, den) else { continue };
         if let Some(s) = slice(rname) {
             directions.push((s, d));
         }

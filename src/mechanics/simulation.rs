@@ -253,6 +253,20 @@ pub struct SimulationSummary {
     pub ended_at_step: Option<u64>,
 }
 
+impl SimulationSummary {
+    /// A warning when some cell overlaps the others by more than [`OVERLAP_WARNING`] of its volume.
+    pub fn overlap_warning(&self) -> Option<String> {
+        (self.max_overlap_fraction > OVERLAP_WARNING).then(|| {
+            format!(
+                "cells overlap by up to {:.2} % of a cell's volume at the end ({:.3e} µm³ in all): the repulsion \
+                 (cell_types.faces.repulsion ξ) is too weak for the pressure; raise it",
+                100.0 * self.max_overlap_fraction,
+                self.overlap_volume * 1e18
+            )
+        })
+    }
+}
+
 /// The last healthy state of a failed run (its `Debug` is a one-line summary, not the meshes).
 pub struct LastGood(pub Box<Tissue>);
 
@@ -877,29 +891,15 @@ impl<'p> Simulation<'p> {
         self.forces.cells.iter().map(|w| w.geometry.volume).collect()
     }
 
-    /// Runs what `params.simulation` says. Warns (tracing) at the start when a cell type's
-    /// repulsion cannot hold its cells apart ([`Self::repulsion_shortfalls`]), and at the end when
-    /// cells overlap by more than [`OVERLAP_WARNING`] of their volume.
+    /// Runs what `params.simulation` says. Drivers that face a user show
+    /// [`Self::repulsion_shortfalls`] before and [`SimulationSummary::overlap_warning`] after (the
+    /// fit's forward model does not: it would repeat them at every evaluation).
     pub fn run(&mut self, observer: &mut dyn Observer) -> Result<SimulationSummary, SimulationError> {
-        if self.resume.is_none() {
-            for line in self.repulsion_shortfalls() {
-                tracing::warn!("{line}");
-            }
-        }
         let settings = &self.params.simulation;
-        let summary = match (settings.mode, settings.method) {
+        match (settings.mode, settings.method) {
             (SimulationMode::Time, _) => self.run_time(observer),
             (SimulationMode::Equilibrium, method) => self.relax(observer, method),
-        }?;
-        if summary.max_overlap_fraction > OVERLAP_WARNING {
-            tracing::warn!(
-                "cells overlap by up to {:.2} % of a cell's volume at the end ({:.3e} µm³ in all): the repulsion \
-                 (cell_types.faces.repulsion ξ) is too weak for the pressure; raise it",
-                100.0 * summary.max_overlap_fraction,
-                summary.overlap_volume * 1e18
-            );
         }
-        Ok(summary)
     }
 
     /// Volume (m³) by which each cell overlaps the others at the last evaluation: every node p of a
@@ -1075,7 +1075,8 @@ impl<'p> Simulation<'p> {
                 best = None;
             }
             residual = self.residual();
-            if best.as_deref().is_none_or(|b| residual < BEST_GAIN * b.residual) {
+            // Kept only for simulation.end_at_lowest_residual (copying the meshes costs otherwise).
+            if s.end_at_lowest_residual && best.as_deref().is_none_or(|b| residual < BEST_GAIN * b.residual) {
                 best = Some(Box::new(BestState {
                     residual,
                     energy: self.forces.energy().total(),
@@ -1106,7 +1107,6 @@ impl<'p> Simulation<'p> {
                 && b.residual < residual
                 && b.energy <= self.forces.energy().total() + BEST_ENERGY_SLACK * self.energy_scale
                 && b.step != self.step
-                && s.end_at_lowest_residual
             {
                 self.restore_cells(b.cells)?;
                 residual = self.residual();

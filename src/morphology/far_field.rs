@@ -47,8 +47,9 @@ fn centroids(mesh: &CellMesh, keep: impl Fn(usize) -> bool) -> Vec<Vec3> {
 }
 
 /// Least-squares sphere through points (|x|² = 2c·x + (ρ² − |c|²), linear in c and ρ² − |c|², on
-/// coordinates relative to the points' mean for conditioning) and its rms distance.
-fn fit_sphere(points: &[Vec3]) -> Option<(FreeCap, Real)> {
+/// coordinates relative to the points' mean for conditioning) and its rms distance; `None` when the
+/// points fix no sphere.
+pub fn fit_sphere(points: &[Vec3]) -> Option<(FreeCap, Real)> {
     let mean = points.iter().sum::<Vec3>() / points.len() as Real;
     let mut a = nalgebra::DMatrix::<Real>::zeros(points.len(), 4);
     let mut b = nalgebra::DVector::<Real>::zeros(points.len());

@@ -319,7 +319,13 @@ pub fn run_simulate(
         None
     };
     let mut sim = Simulation::new(t, &params).map_err(|e| err(format!("{}: {e}", tissue.display())))?;
+    for line in sim.repulsion_shortfalls() {
+        tracing::warn!("{line}");
+    }
     let summary = sim.run(&mut Quiet).map_err(|e| err(format!("{}: {e}", tissue.display())))?;
+    if let Some(warning) = summary.overlap_warning() {
+        tracing::warn!("{warning}");
+    }
     write_events(&out.join("events.csv"), sim.events()).map_err(|e| err(e.to_string()))?;
     let final_tissue = sim.into_tissue();
     write_tissue(&out.join("final.vtp"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
