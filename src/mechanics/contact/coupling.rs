@@ -5,10 +5,23 @@
 //! follow the same dynamics (one merged node with the summed force). A pair forms only if the local
 //! mean curvature of both surfaces lies below the threshold H_max of each cell's type (so cells can
 //! detach where the contact rim sharpens) and the two surfaces face each other (node normals
-//! opposed). Each node has at most one partner; pairs are redetermined at every force evaluation.
+//! opposed). Ties are redetermined at every force evaluation.
+//!
+//! **Junctions: tied groups, not pairs.** Where three or four cells meet (a tricellular junction
+//! line, a quadruple point), each cell has a node on the junction, and the foam's equilibrium is the
+//! balance of the three interface tensions *at one shared point*. With one partner per node (the
+//! paper's and the reference's rule) the third cell's junction node stays untied: its two lateral
+//! faces pull it into its own cell with ≈ γ_l per unit length, nothing holds it, and a channel opens
+//! along every junction line. On a tetrahedral 4-cell Surface Evolver cluster relaxed at its own
+//! tensions this moved the rim contact angle from 104° to 75° and shrank the contacts by 7 %
+//! (docs: validation, "Surface Evolver clusters"). So a node ties to at most one node *per other
+//! cell*: the ties form groups of up to one node per cell, all members within c of each other, and
+//! a group moves as one merged node with the summed force. Between two cells a group is the old
+//! pair, so doublets are unchanged.
 //!
 //! **Matching.** All candidate pairs are collected, sorted by (distance, first node, second node) and
-//! accepted greedily while both nodes are free: the nearest pairs first, and the result depends only
+//! accepted greedily, nearest first, when they join two groups (single nodes included) with no cell
+//! in common and every member of one within c of every member of the other; the result depends only
 //! on the geometry, never on the thread count or the cell order. (The reference program lets each
 //! node claim a partner from its own thread, which races; and its pairs need not be mutual.)
 //!
@@ -16,8 +29,8 @@
 //! static cell's node is pinned there: it snaps onto the static node and its force and momentum are
 //! zeroed. ECM, lumen and nuclei interact through the spring model.
 //!
-//! **Energy.** For fixed pairs the tie is a holonomic constraint r_a = r_b, and the averaged force is
-//! the projection of −∇U onto it, so equilibrium means f_a + f_b = 0 for every pair. The snap itself
+//! **Energy.** For fixed groups the tie is a holonomic constraint r_a = r_b (= r_c …), and the averaged
+//! force is the projection of −∇U onto it, so equilibrium means Σ f = 0 over every group. The snap itself
 //! is a position projection, not a force: the energy can rise when a new pair forms (documented in
 //! the paper's model; overdamped energy monotonicity holds only between pair changes).
 
@@ -26,7 +39,8 @@ use crate::mechanics::{CellForces, CellTypeParams};
 use crate::mesh::Tissue;
 use rayon::prelude::*;
 
-/// One tied node pair: (cell index, node index) of each side, `a` before `b` in tissue order.
+/// One tie between two nodes: (cell index, node index) of each side, `a` before `b` in tissue order.
+/// The ties of a group form a tree over its members; the checkpoint stores them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CoupledPair {
     pub a: (u32, u32),
@@ -43,8 +57,14 @@ pub struct CouplingWorkspace {
     normals: Vec<Vec3>,
     boxes: Vec<(Vec3, Vec3)>,
     candidates: Vec<(Real, u32, u32)>,
-    taken: Vec<bool>,
+    /// Group of each eligible node during the matching (an index into `members`).
+    group_of: Vec<u32>,
+    /// Members (eligible-node indices) of each group during the matching.
+    members: Vec<Vec<u32>>,
     pairs: Vec<CoupledPair>,
+    /// The tied groups (two or more nodes), as ranges of `group_nodes`.
+    groups: Vec<(u32, u32)>,
+    group_nodes: Vec<(u32, u32)>,
 }
 
 impl CouplingWorkspace {
@@ -53,16 +73,59 @@ impl CouplingWorkspace {
         &self.pairs
     }
 
-    /// Puts back the pairs of a saved state (a resumed run averages momenta and FIRE velocities
-    /// over the pairs of the evaluation it was saved after).
+    /// The tied groups of the last [`Self::couple`]: each a list of (cell, node), two or more.
+    pub fn groups(&self) -> impl Iterator<Item = &[(u32, u32)]> + '_ {
+        self.groups.iter().map(|&(start, len)| &self.group_nodes[start as usize..(start + len) as usize])
+    }
+
+    /// Puts back the ties of a saved state (a resumed run averages momenta and FIRE velocities
+    /// over the groups of the evaluation it was saved after).
     pub fn restore_pairs(&mut self, pairs: Vec<CoupledPair>) {
         self.pairs = pairs;
+        self.groups_from_pairs();
+    }
+
+    /// Rebuilds the groups as the connected components of the ties.
+    fn groups_from_pairs(&mut self) {
+        let mut index: std::collections::BTreeMap<(u32, u32), usize> = std::collections::BTreeMap::new();
+        for p in &self.pairs {
+            for n in [p.a, p.b] {
+                let next = index.len();
+                index.entry(n).or_insert(next);
+            }
+        }
+        let mut parent: Vec<usize> = (0..index.len()).collect();
+        fn root(parent: &mut [usize], mut i: usize) -> usize {
+            while parent[i] != i {
+                parent[i] = parent[parent[i]];
+                i = parent[i];
+            }
+            i
+        }
+        for p in &self.pairs {
+            let (ra, rb) = (root(&mut parent, index[&p.a]), root(&mut parent, index[&p.b]));
+            if ra != rb {
+                parent[ra.max(rb)] = ra.min(rb);
+            }
+        }
+        let mut by_root: std::collections::BTreeMap<usize, Vec<(u32, u32)>> = std::collections::BTreeMap::new();
+        for (&node, &i) in &index {
+            by_root.entry(root(&mut parent, i)).or_default().push(node);
+        }
+        self.groups.clear();
+        self.group_nodes.clear();
+        for list in by_root.into_values() {
+            self.groups.push((self.group_nodes.len() as u32, list.len() as u32));
+            self.group_nodes.extend(list);
+        }
     }
 
     /// Finds the node pairs of the current configuration and snaps each pair together (to the
     /// midpoint; onto the static node when one side is static). Returns the number of pairs.
     pub fn couple(&mut self, tissue: &mut Tissue, cell_params: &[&CellTypeParams], cutoff: Real) -> usize {
         self.pairs.clear();
+        self.groups.clear();
+        self.group_nodes.clear();
         let cells = tissue.cells();
         let eligible_cells = cells.iter().filter(|c| c.kind().is_cell()).count();
         if eligible_cells < 2 || cutoff.is_nan() || cutoff <= 0.0 {
@@ -148,76 +211,101 @@ impl CouplingWorkspace {
             self.candidates.extend(list);
         }
         self.candidates.par_sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
-        self.taken.clear();
-        self.taken.resize(nodes.len(), false);
+        // Greedy grouping, nearest ties first: join two groups with no cell in common whose members
+        // all lie within c of each other (a group of one node is the node itself).
+        self.group_of.clear();
+        self.group_of.extend(0..nodes.len() as u32);
+        self.members.clear();
+        self.members.extend((0..nodes.len() as u32).map(|i| vec![i]));
         for &(_, i, j) in &self.candidates {
-            let (i, j) = (i as usize, j as usize);
-            if self.taken[i] || self.taken[j] {
+            let (gi, gj) = (self.group_of[i as usize] as usize, self.group_of[j as usize] as usize);
+            if gi == gj {
                 continue;
             }
-            self.taken[i] = true;
-            self.taken[j] = true;
-            self.pairs.push(CoupledPair { a: nodes[i], b: nodes[j] });
+            let (mi, mj) = (&self.members[gi], &self.members[gj]);
+            let compatible = mi.iter().all(|&a| {
+                mj.iter().all(|&b| {
+                    nodes[a as usize].0 != nodes[b as usize].0
+                        && (positions[a as usize] - positions[b as usize]).norm_squared() < c2
+                })
+            });
+            if !compatible {
+                continue;
+            }
+            self.pairs.push(CoupledPair { a: nodes[i as usize], b: nodes[j as usize] });
+            let (keep, gone) = if mi.len() >= mj.len() { (gi, gj) } else { (gj, gi) };
+            let moved = std::mem::take(&mut self.members[gone]);
+            for &m in &moved {
+                self.group_of[m as usize] = keep as u32;
+            }
+            self.members[keep].extend(moved);
         }
-        // Snap.
+        for list in self.members.iter_mut().filter(|l| l.len() > 1) {
+            list.sort_unstable();
+            self.groups.push((self.group_nodes.len() as u32, list.len() as u32));
+            self.group_nodes.extend(list.iter().map(|&m| nodes[m as usize]));
+        }
+        // Snap every group to the mean of its members (onto the static member when one is static).
         let cells = tissue.cells_mut();
-        for pair in &self.pairs {
-            let (ca, na) = (pair.a.0 as usize, pair.a.1 as usize);
-            let (cb, nb) = (pair.b.0 as usize, pair.b.1 as usize);
-            let pa = cells[ca].mesh().positions()[na];
-            let pb = cells[cb].mesh().positions()[nb];
-            let target = match (immobile[ca], immobile[cb]) {
-                (true, _) => pa,
-                (_, true) => pb,
-                _ => 0.5 * (pa + pb),
+        for &(start, len) in &self.groups {
+            let group = &self.group_nodes[start as usize..(start + len) as usize];
+            let at = |&(c, n): &(u32, u32)| cells[c as usize].mesh().positions()[n as usize];
+            let target = match group.iter().find(|m| immobile[m.0 as usize]) {
+                Some(m) => at(m),
+                None => group.iter().map(at).sum::<Vec3>() / group.len() as Real,
             };
-            cells[ca].positions_mut()[na] = target;
-            cells[cb].positions_mut()[nb] = target;
+            for &(c, n) in group {
+                cells[c as usize].positions_mut()[n as usize] = target;
+            }
         }
         self.pairs.len()
     }
 
-    /// Replaces the forces of each pair by their average (zero for a node tied to a static cell).
+    /// The mean vector of each group's members (zero when a member is static: the group is
+    /// pinned), `value(cell, node)` giving a member's vector.
+    fn group_means(&self, tissue: &Tissue, value: impl Fn(u32, u32) -> Vec3) -> Vec<Vec3> {
+        let cells = tissue.cells();
+        self.groups()
+            .map(|group| {
+                if group.iter().any(|m| cells[m.0 as usize].kind().is_immobile()) {
+                    Vec3::zeros()
+                } else {
+                    group.iter().map(|&(c, n)| value(c, n)).sum::<Vec3>() / group.len() as Real
+                }
+            })
+            .collect()
+    }
+
+    /// Replaces the forces of each group's members by their mean (zero for a group tied to a static
+    /// cell).
     pub fn average_forces(&self, tissue: &Tissue, forces: &mut [CellForces]) {
-        for pair in &self.pairs {
-            let (ca, na) = (pair.a.0 as usize, pair.a.1 as usize);
-            let (cb, nb) = (pair.b.0 as usize, pair.b.1 as usize);
-            let mean = if pinned(tissue, pair) {
-                Vec3::zeros()
-            } else {
-                0.5 * (forces[ca].forces[na] + forces[cb].forces[nb])
-            };
-            forces[ca].forces[na] = mean;
-            forces[cb].forces[nb] = mean;
+        let means = self.group_means(tissue, |c, n| forces[c as usize].forces[n as usize]);
+        for (group, mean) in self.groups().zip(means) {
+            for &(c, n) in group {
+                forces[c as usize].forces[n as usize] = mean;
+            }
         }
     }
 
-    /// Replaces the momenta of each pair by their average (zero for a node tied to a static cell);
-    /// `momenta[c][n]` as in the integrator.
+    /// Replaces the momenta of each group's members by their mean (zero for a group tied to a static
+    /// cell); `momenta[c][n]` as in the integrator.
     pub fn average_momenta(&self, tissue: &Tissue, momenta: &mut [Vec<Vec3>]) {
-        for pair in &self.pairs {
-            let (ca, na) = (pair.a.0 as usize, pair.a.1 as usize);
-            let (cb, nb) = (pair.b.0 as usize, pair.b.1 as usize);
-            let mean = if pinned(tissue, pair) { Vec3::zeros() } else { 0.5 * (momenta[ca][na] + momenta[cb][nb]) };
-            momenta[ca][na] = mean;
-            momenta[cb][nb] = mean;
+        let means = self.group_means(tissue, |c, n| momenta[c as usize][n as usize]);
+        for (group, mean) in self.groups().zip(means) {
+            for &(c, n) in group {
+                momenta[c as usize][n as usize] = mean;
+            }
         }
     }
 
     /// The same for vectors packed over all nodes of the tissue, cell c's nodes starting at
     /// `offsets[c]` (FIRE's velocities).
     pub fn average_packed(&self, tissue: &Tissue, offsets: &[usize], values: &mut [Vec3]) {
-        for pair in &self.pairs {
-            let ia = offsets[pair.a.0 as usize] + pair.a.1 as usize;
-            let ib = offsets[pair.b.0 as usize] + pair.b.1 as usize;
-            let mean = if pinned(tissue, pair) { Vec3::zeros() } else { 0.5 * (values[ia] + values[ib]) };
-            values[ia] = mean;
-            values[ib] = mean;
+        let means = self.group_means(tissue, |c, n| values[offsets[c as usize] + n as usize]);
+        for (group, mean) in self.groups().zip(means) {
+            for &(c, n) in group {
+                values[offsets[c as usize] + n as usize] = mean;
+            }
         }
     }
-}
-
-/// Whether one side of the pair is immobile, which pins the other.
-fn pinned(tissue: &Tissue, pair: &CoupledPair) -> bool {
-    tissue.cells()[pair.a.0 as usize].kind().is_immobile() || tissue.cells()[pair.b.0 as usize].kind().is_immobile()
 }
