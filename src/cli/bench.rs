@@ -229,7 +229,12 @@ fn contact_step_times(
     for _ in 0..repeat.max(3) {
         let t = Instant::now();
         if coupled {
-            coupled_pairs = coupling.couple(&mut moving, &cell_params, params.numerics.contact_cutoff);
+            coupled_pairs = coupling.couple(
+                &mut moving,
+                &cell_params,
+                params.numerics.contact_cutoff,
+                params.numerics.coupling_junctions,
+            );
         }
         let couple = t.elapsed().as_secs_f64();
         let t = Instant::now();

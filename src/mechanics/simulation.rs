@@ -693,7 +693,12 @@ impl<'p> Simulation<'p> {
         let numerics = &self.params.numerics;
         let coupling = numerics.contact_model == ContactModel::Coupling;
         if coupling {
-            self.coupling.couple(&mut self.tissue, &self.cell_params, numerics.contact_cutoff);
+            self.coupling.couple(
+                &mut self.tissue,
+                &self.cell_params,
+                numerics.contact_cutoff,
+                numerics.coupling_junctions,
+            );
         }
         self.forces.compute(&self.tissue, &self.cell_params, TermSet::ALL);
         self.contacts.add_contacts(&self.tissue, &self.cell_params, numerics.contact_cutoff, &mut self.forces.cells);

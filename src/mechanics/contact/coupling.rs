@@ -15,13 +15,14 @@
 //! along every junction line. On a tetrahedral 4-cell Surface Evolver cluster relaxed at its own
 //! tensions this moved the rim contact angle from 104° to 75° and shrank the contacts by 7 %
 //! (docs: validation, "Surface Evolver clusters"). So a node ties to at most one node *per other
-//! cell*: the ties form groups of up to one node per cell, all members within c of each other, and
+//! cell*: the ties form groups of up to one node per cell, every two members a candidate pair, and
 //! a group moves as one merged node with the summed force. Between two cells a group is the old
 //! pair, so doublets are unchanged.
 //!
 //! **Matching.** All candidate pairs are collected, sorted by (distance, first node, second node) and
 //! accepted greedily, nearest first, when they join two groups (single nodes included) with no cell
-//! in common and every member of one within c of every member of the other; the result depends only
+//! in common and every member of one within c of every member of the other, their normals opposed
+//! (every two members of a group would be a candidate pair themselves); the result depends only
 //! on the geometry, never on the thread count or the cell order. (The reference program lets each
 //! node claim a partner from its own thread, which races; and its pairs need not be mutual.)
 //!
@@ -120,9 +121,17 @@ impl CouplingWorkspace {
         }
     }
 
-    /// Finds the node pairs of the current configuration and snaps each pair together (to the
-    /// midpoint; onto the static node when one side is static). Returns the number of pairs.
-    pub fn couple(&mut self, tissue: &mut Tissue, cell_params: &[&CellTypeParams], cutoff: Real) -> usize {
+    /// Finds the tied groups of the current configuration and snaps each together (to the mean of
+    /// its members; onto the static member when one is static). With `junctions` false a group has
+    /// at most two members (the paper's one partner per node: `numerics.coupling_junctions`).
+    /// Returns the number of ties.
+    pub fn couple(
+        &mut self,
+        tissue: &mut Tissue,
+        cell_params: &[&CellTypeParams],
+        cutoff: Real,
+        junctions: bool,
+    ) -> usize {
         self.pairs.clear();
         self.groups.clear();
         self.group_nodes.clear();
@@ -223,10 +232,15 @@ impl CouplingWorkspace {
                 continue;
             }
             let (mi, mj) = (&self.members[gi], &self.members[gj]);
+            if !junctions && mi.len() + mj.len() > 2 {
+                continue;
+            }
             let compatible = mi.iter().all(|&a| {
                 mj.iter().all(|&b| {
-                    nodes[a as usize].0 != nodes[b as usize].0
-                        && (positions[a as usize] - positions[b as usize]).norm_squared() < c2
+                    let (a, b) = (a as usize, b as usize);
+                    nodes[a].0 != nodes[b].0
+                        && (positions[a] - positions[b]).norm_squared() < c2
+                        && normals[a].dot(&normals[b]) < 0.0
                 })
             });
             if !compatible {

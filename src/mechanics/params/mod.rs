@@ -151,6 +151,10 @@ pub struct Numerics {
     pub dynamics: Dynamics,
     /// Contact model. Default [`ContactModel::Spring`].
     pub contact_model: ContactModel,
+    /// Coupling contacts tie the nodes of three or four cells where they meet (junction lines,
+    /// quadruple points) into one group, not only pairs; false: one partner per node, as in the paper
+    /// (see `contact::coupling`). Default true.
+    pub coupling_junctions: bool,
     /// Face-type assignment during the simulation. Default [`Polarity::None`].
     pub polarity: Polarity,
     /// Voxel edge h [m] of the ray-casting polarisation; 0 means 1.5·l_min (above the gaps between
@@ -183,6 +187,7 @@ impl Numerics {
             time_step: 1e-7,
             dynamics,
             contact_model: ContactModel::Spring,
+            coupling_junctions: true,
             polarity: Polarity::None,
             polarity_voxel_size: 0.0,
             polarity_interval: 100,

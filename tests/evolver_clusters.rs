@@ -1,0 +1,123 @@
+//! Outside truth (issue 19): foam-like clusters relaxed by Surface Evolver 2.70 (fixed volumes, tension
+//! 1 on cell–medium faces and T_cc on cell–cell faces; `validation/evolver/make_cluster.py`), committed
+//! as multi-material meshes in `validation/evolver/fixtures`. Our simulator, started from Evolver's
+//! equilibrium at the true tensions (γ_a = 1 mN/m, γ_l = T_cc/2), must stay there: the same measuring
+//! code on both sides, far-field contact angles within 1°, scale-free contact areas and sphericities
+//! close. And the cause found for the outside-truth fit errors is pinned: with one coupling partner
+//! per node (`numerics.coupling_junctions = false`) the tetrahedral cluster's contacts shrink and its
+//! rim angles fall far from Evolver's.
+
+use std::path::{Path, PathBuf};
+use tissuefit::geometry::{Real, Vec3};
+use tissuefit::io::{LengthScale, ReadOptions, read_tissue};
+use tissuefit::mechanics::{Observer, Parameters, Sample, Simulation};
+use tissuefit::mesh::Tissue;
+use tissuefit::morphology::{MeasureSettings, Morphology, measure_tissue};
+
+struct Quiet;
+impl Observer for Quiet {
+    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
+}
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/evolver/fixtures").join(name)
+}
+
+fn truth_ratio(name: &str) -> Real {
+    let text = std::fs::read_to_string(fixture(name).join("truth.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["lateral_over_apical"].as_f64().unwrap()
+}
+
+fn evolver_tissue(name: &str) -> Tissue {
+    let options = ReadOptions { length_scale: LengthScale(Vec3::repeat(1e-6)), orient: false };
+    read_tissue(&fixture(name).join("cluster.vtk"), &options).unwrap().tissue
+}
+
+/// One contact distance for both sides (δ = 0.05 µm, well below either mesh's edges), so the contact
+/// areas compare the shapes and not the meshes.
+fn measure(tissue: &Tissue) -> Morphology {
+    measure_tissue(tissue, &MeasureSettings { contact_distance: Some(5e-8), ..MeasureSettings::default() }).unwrap()
+}
+
+/// Relaxes the Evolver equilibrium at its own tensions with the validation model.
+fn relax(name: &str, junctions: bool, steps: u64) -> (Morphology, Morphology, Real) {
+    let tissue = evolver_tissue(name);
+    let evolver = measure(&tissue);
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/evolver/model.toml");
+    let mut params = Parameters::load(&model).unwrap();
+    params.numerics.min_edge_length = 3e-7;
+    params.numerics.contact_cutoff = 3e-7;
+    params.numerics.coupling_junctions = junctions;
+    params.simulation.max_steps = steps;
+    params.cell_types[0].faces.lateral.surface_tension = truth_ratio(name) * 1e-3;
+    let mut sim = Simulation::new(tissue, &params).unwrap();
+    let summary = sim.run(&mut Quiet).unwrap();
+    (evolver, measure(sim.tissue()), summary.residual)
+}
+
+/// Largest |Δ far-field angle| (°), largest |Δ rim angle| (°), largest relative Δ of the scale-free
+/// contact area A/V^(2/3), largest |Δ sphericity|.
+fn differences(evolver: &Morphology, ours: &Morphology) -> [Real; 4] {
+    assert_eq!(evolver.contacts.len(), ours.contacts.len(), "the contacts changed");
+    let mut worst = [0.0; 4];
+    let volume = |m: &Morphology, c: u32| m.cells.iter().find(|x| x.cell == c).unwrap().volume;
+    for (e, o) in evolver.contacts.iter().zip(&ours.contacts) {
+        assert_eq!((e.cell_a, e.cell_b), (o.cell_a, o.cell_b));
+        let (fe, fo) =
+            (e.far_field_angle_deg.expect("evolver far field"), o.far_field_angle_deg.expect("our far field"));
+        worst[0] = Real::max(worst[0], (fo - fe).abs());
+        worst[1] = Real::max(worst[1], (o.contact_angle_deg.unwrap() - e.contact_angle_deg.unwrap()).abs());
+        let scaled = |m: &Morphology, c: &tissuefit::morphology::ContactMorphology| {
+            c.area / (0.5 * (volume(m, c.cell_a) + volume(m, c.cell_b))).powf(2.0 / 3.0)
+        };
+        worst[2] = Real::max(worst[2], (scaled(ours, o) / scaled(evolver, e) - 1.0).abs());
+    }
+    for (e, o) in evolver.cells.iter().zip(&ours.cells) {
+        worst[3] = Real::max(worst[3], (o.sphericity - e.sphericity).abs());
+    }
+    worst
+}
+
+#[test]
+fn coupled_doublet_stays_at_the_evolver_equilibrium_and_young_dupre() {
+    let (evolver, ours, residual) = relax("doublet", true, 3000);
+    let d = differences(&evolver, &ours);
+    println!("doublet: {d:?}, residual {residual:.2e}");
+    let young = 2.0 * truth_ratio("doublet").acos().to_degrees();
+    let ff = ours.contacts[0].far_field_angle_deg.unwrap();
+    assert!((ff - young).abs() < 0.5, "far-field angle {ff:.2}° against Young–Dupré {young:.2}°");
+    assert!(d[0] < 0.5 && d[2] < 0.01 && d[3] < 1e-3, "{d:?}");
+}
+
+#[test]
+fn tetrahedral_cluster_stays_at_the_evolver_equilibrium_only_with_junction_groups() {
+    let (evolver, ours, residual) = relax("tetra", true, 3000);
+    let d = differences(&evolver, &ours);
+    println!("tetra, junction groups: {d:?}, residual {residual:.2e}");
+    assert!(d[0] < 1.0, "far-field angles off by {:.2}°", d[0]);
+    assert!(d[1] < 2.0, "rim angles off by {:.2}°", d[1]);
+    assert!(d[2] < 0.02, "contact areas off by {:.1} %", 100.0 * d[2]);
+    assert!(d[3] < 2e-3, "sphericity off by {:.4}", d[3]);
+    // The defect that made the outside-truth fits miss by 25 %: pairs only.
+    let (evolver, pairs, _) = relax("tetra", false, 3000);
+    let p = differences(&evolver, &pairs);
+    println!("tetra, pairs only: {p:?}");
+    assert!(p[1] > 15.0 && p[2] > 0.05, "one partner per node no longer opens the junctions: {p:?}");
+}
+
+#[test]
+fn planar_triplet_stays_near_the_evolver_equilibrium_known_gap() {
+    let (evolver, ours, residual) = relax("triplet", true, 3000);
+    let d = differences(&evolver, &ours);
+    println!("triplet: {d:?}, residual {residual:.2e}");
+    // A known gap, guarded here at its measured size (not the 1° / 1 % target): remeshing moves the
+    // triplet's junction nodes apart by more than the cutoff, so few three-cell groups survive, the
+    // junction opens and the contacts end ~9 % small, the far-field angles ~1.3° low (docs: validation,
+    // Surface Evolver clusters). Without junction groups it is worse.
+    assert!(d[0] < 2.0, "far-field angles off by {:.2}°", d[0]);
+    assert!(d[2] < 0.12, "contact areas off by {:.1} %", 100.0 * d[2]);
+    assert!(d[3] < 2e-3, "sphericity off by {:.4}", d[3]);
+}

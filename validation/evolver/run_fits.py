@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""Fit the Surface Evolver clusters through `tissuefit run`, as a user would, and tabulate the answer
+against the truth.
+
+For each cluster folder (made by make_cluster.py: cluster.vtk + truth.json) and each resolution
+(voxels per mean cell diameter), this voxelises the Evolver equilibrium with `tissuefit voxelize`
+(unless the label TIFF is already there: the committed fixtures), writes a pipeline
+(`fit-template.toml` with the labels and the truth filled in) and runs `tissuefit run` on it. The
+table gives the fitted gamma_l/gamma_a, its error, the reported range and whether the range holds the
+truth; `--markdown FILE` writes it for the docs book.
+
+    python3 validation/evolver/run_fits.py --clusters validation/evolver/fixtures \\
+        --resolutions 10,20 --work /tmp/evolver-fits --markdown docs/src/generated/evolver-fits.md
+
+The tissuefit binary is `target/release/tissuefit` (build it first) or `--tissuefit PATH`.
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+
+
+def labels_for(tissuefit, cluster_dir, truth, per_diameter, work):
+    """The label TIFF of the cluster at `per_diameter` voxels per mean cell diameter."""
+    committed = os.path.join(cluster_dir, f"labels_{per_diameter}.tif")
+    if os.path.exists(committed):
+        return committed
+    out = os.path.join(work, f"labels_{per_diameter}.tif")
+    voxel_um = truth["cell_diameter_um"] / per_diameter
+    subprocess.run([tissuefit, "voxelize", os.path.join(cluster_dir, "cluster.vtk"), "--length-unit", "um",
+                    "--voxel-size", f"{voxel_um:.6g}um", "--compress", "deflate", "--out", out, "-q"], check=True)
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--clusters", default=os.path.join(HERE, "fixtures"), help="folder of cluster folders")
+    ap.add_argument("--only", default="", help="comma-separated cluster names (default: all with a truth ratio)")
+    ap.add_argument("--resolutions", default="10,20,40", help="voxels per cell diameter, comma-separated")
+    ap.add_argument("--work", required=True, help="folder for the label volumes, pipelines and run directories")
+    ap.add_argument("--template", default=os.path.join(HERE, "fit-template.toml"))
+    ap.add_argument("--model", default=os.path.join(HERE, "model.toml"), help="the forward model (@MODEL@)")
+    ap.add_argument("--tissuefit", default=os.path.join(ROOT, "target", "release", "tissuefit"))
+    ap.add_argument("--markdown", help="write the table here (Markdown)")
+    ap.add_argument("--json", help="write the rows here (JSON)")
+    a = ap.parse_args()
+    template = open(a.template).read()
+    names = sorted(d for d in os.listdir(a.clusters) if os.path.exists(os.path.join(a.clusters, d, "truth.json")))
+    if a.only:
+        names = [n for n in names if n in a.only.split(",")]
+    rows = []
+    for name in names:
+        cdir = os.path.join(a.clusters, name)
+        truth = json.load(open(os.path.join(cdir, "truth.json")))
+        ratio = truth.get("lateral_over_apical")
+        if ratio is None:
+            print(f"{name}: heterogeneous tensions, no single ratio to fit; skipped", file=sys.stderr)
+            continue
+        for res in [int(r) for r in a.resolutions.split(",")]:
+            work = os.path.join(a.work, f"{name}_{res}")
+            os.makedirs(work, exist_ok=True)
+            labels = labels_for(a.tissuefit, cdir, truth, res, work)
+            pipeline = os.path.join(work, "pipeline.toml")
+            with open(pipeline, "w") as fh:
+                fh.write(template.replace("@LABELS@", os.path.abspath(labels)).replace("@TRUTH@", f"{ratio}")
+                         .replace("@MODEL@", os.path.abspath(a.model)))
+            started = time.time()
+            proc = subprocess.run([a.tissuefit, "run", pipeline, "--out", os.path.join(work, "run"), "--force"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            wall = time.time() - started
+            with open(os.path.join(work, "run.log"), "w") as fh:
+                fh.write(proc.stdout)
+            row = {"cluster": name, "cells": truth["cells"], "per_diameter": res, "truth": ratio, "exit": proc.returncode,
+                   "wall_s": round(wall, 1)}
+            result_path = os.path.join(work, "run", "fit", "result.json")
+            if os.path.exists(result_path):
+                r = json.load(open(result_path))
+                # the γ_lateral/γ_apical ratio of result.json (its key names the ratio)
+                key = next((k for k in r.get("ratios", {}) if "lateral" in k), None)
+                x = r["ratios"][key] if key else None
+                fitted = x["value"] if x else None
+                lo_hi = x["range"] if x else None
+                row.update({"fitted": fitted, "error_pct": None if fitted is None else 100 * (fitted - ratio) / ratio,
+                            "range": lo_hi, "holds": None if not lo_hi else lo_hi[0] <= ratio <= lo_hi[1],
+                            "determined": x.get("determined") if x else None,
+                            "evaluations": r.get("evaluations"), "objective": r.get("objective"),
+                            "poor_fit": r.get("poor_fit")})
+            rows.append(row)
+            err = row.get("error_pct")
+            print(f"{name} @ {res} vox/diam: truth {ratio}, fitted {row.get('fitted')}, "
+                  f"error {'n/a' if err is None else f'{err:+.1f} %'}, range {row.get('range')}, exit {proc.returncode}, "
+                  f"{wall:.0f} s", file=sys.stderr, flush=True)
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(rows, fh, indent=2)
+    if a.markdown:
+        with open(a.markdown, "w") as fh:
+            fh.write("| cluster | cells | vox/diam | truth | fitted | error | reported range | holds truth | evaluations | wall |\n")
+            fh.write("|---|---|---|---|---|---|---|---|---|---|\n")
+            for r in rows:
+                f, rg, err, holds = r.get("fitted"), r.get("range"), r.get("error_pct"), r.get("holds")
+                fitted = "failed" if f is None else f"{f:.3f}"
+                error = "" if err is None else f"{err:+.1f} %"
+                rng = "" if not rg else f"[{rg[0]:.3f}, {rg[1]:.3f}]"
+                held = "" if holds is None else ("yes" if holds else "no")
+                fh.write(f"| {r['cluster']} | {r['cells']} | {r['per_diameter']} | {r['truth']:.2f} | {fitted} | {error} | "
+                         f"{rng} | {held} | {r.get('evaluations', '')} | {r['wall_s']:.0f} s |\n")
+
+if __name__ == "__main__":
+    main()
