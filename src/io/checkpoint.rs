@@ -25,9 +25,10 @@ use std::path::{Path, PathBuf};
 
 /// File name of the checkpoint inside a simulation's output folder.
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
-/// Version of the payload's structure; bumped on every change to it (3: [`RunSettings`] added, and
-/// the relaxation's lowest-residual state).
-pub const CHECKPOINT_VERSION: u32 = 3;
+/// Version of the payload's structure; bumped on every change to it or to what it means (3:
+/// [`RunSettings`] added, and the relaxation's lowest-residual state; 4: the coupling ties are groups,
+/// and parameters written without `numerics.coupling_junctions` would resume with other physics).
+pub const CHECKPOINT_VERSION: u32 = 4;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;
 

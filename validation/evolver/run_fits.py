@@ -38,6 +38,22 @@ def labels_for(tissuefit, cluster_dir, truth, per_diameter, work):
     return out
 
 
+def tabulate(row, result_path, ratio):
+    """The row completed from a fit's result.json."""
+    r = json.load(open(result_path))
+    # the γ_lateral/γ_apical ratio of result.json (its key names the ratio)
+    key = next((k for k in r.get("ratios", {}) if "lateral" in k), None)
+    x = r["ratios"][key] if key else None
+    fitted = x["value"] if x else None
+    lo_hi = x["range"] if x else None
+    row.update({"fitted": fitted, "error_pct": None if fitted is None else 100 * (fitted - ratio) / ratio,
+                "range": lo_hi, "holds": None if not lo_hi else lo_hi[0] <= ratio <= lo_hi[1],
+                "determined": x.get("determined") if x else None,
+                "evaluations": r.get("evaluations"), "objective": r.get("objective"),
+                "poor_fit": r.get("poor_fit")})
+    return row
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--clusters", default=os.path.join(HERE, "fixtures"), help="folder of cluster folders")
@@ -49,6 +65,8 @@ def main():
     ap.add_argument("--tissuefit", default=os.path.join(ROOT, "target", "release", "tissuefit"))
     ap.add_argument("--markdown", help="write the table here (Markdown)")
     ap.add_argument("--json", help="write the rows here (JSON)")
+    ap.add_argument("--collect", action="store_true",
+                    help="run nothing: tabulate the runs already in --work (those with a fit/result.json)")
     a = ap.parse_args()
     template = open(a.template).read()
     names = sorted(d for d in os.listdir(a.clusters) if os.path.exists(os.path.join(a.clusters, d, "truth.json")))
@@ -65,6 +83,21 @@ def main():
         for res in [int(r) for r in a.resolutions.split(",")]:
             work = os.path.join(a.work, f"{name}_{res}")
             os.makedirs(work, exist_ok=True)
+            if a.collect:
+                if not os.path.exists(os.path.join(work, "run", "fit", "result.json")):
+                    continue
+                log = os.path.join(work, "run.log")
+                proc = subprocess.CompletedProcess([], returncode=None, stdout="")
+                wall = float("nan")
+                manifest = os.path.join(work, "run", "manifest.json")
+                if os.path.exists(manifest):
+                    stages = json.load(open(manifest)).get("stages", [])
+                    wall = sum(st.get("wall_seconds") or 0 for st in stages)
+                row = {"cluster": name, "cells": truth["cells"], "per_diameter": res, "truth": ratio,
+                       "exit": None, "wall_s": round(wall, 1)}
+                result_path = os.path.join(work, "run", "fit", "result.json")
+                rows.append(tabulate(row, result_path, ratio))
+                continue
             labels = labels_for(a.tissuefit, cdir, truth, res, work)
             pipeline = os.path.join(work, "pipeline.toml")
             with open(pipeline, "w") as fh:
@@ -80,17 +113,7 @@ def main():
                    "wall_s": round(wall, 1)}
             result_path = os.path.join(work, "run", "fit", "result.json")
             if os.path.exists(result_path):
-                r = json.load(open(result_path))
-                # the γ_lateral/γ_apical ratio of result.json (its key names the ratio)
-                key = next((k for k in r.get("ratios", {}) if "lateral" in k), None)
-                x = r["ratios"][key] if key else None
-                fitted = x["value"] if x else None
-                lo_hi = x["range"] if x else None
-                row.update({"fitted": fitted, "error_pct": None if fitted is None else 100 * (fitted - ratio) / ratio,
-                            "range": lo_hi, "holds": None if not lo_hi else lo_hi[0] <= ratio <= lo_hi[1],
-                            "determined": x.get("determined") if x else None,
-                            "evaluations": r.get("evaluations"), "objective": r.get("objective"),
-                            "poor_fit": r.get("poor_fit")})
+                row = tabulate(row, result_path, ratio)
             rows.append(row)
             err = row.get("error_pct")
             print(f"{name} @ {res} vox/diam: truth {ratio}, fitted {row.get('fitted')}, "

@@ -221,17 +221,20 @@ impl CouplingWorkspace {
         }
         self.candidates.par_sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
         // Greedy grouping, nearest ties first: join two groups with no cell in common whose members
-        // all lie within c of each other (a group of one node is the node itself).
+        // all lie within c of each other (a node in no group is a group of one; groups are made only
+        // for the nodes of accepted ties).
+        const NONE: u32 = u32::MAX;
         self.group_of.clear();
-        self.group_of.extend(0..nodes.len() as u32);
+        self.group_of.resize(nodes.len(), NONE);
         self.members.clear();
-        self.members.extend((0..nodes.len() as u32).map(|i| vec![i]));
         for &(_, i, j) in &self.candidates {
-            let (gi, gj) = (self.group_of[i as usize] as usize, self.group_of[j as usize] as usize);
-            if gi == gj {
+            let (gi, gj) = (self.group_of[i as usize], self.group_of[j as usize]);
+            if gi != NONE && gi == gj {
                 continue;
             }
-            let (mi, mj) = (&self.members[gi], &self.members[gj]);
+            let (single_i, single_j) = ([i], [j]);
+            let mi: &[u32] = if gi == NONE { &single_i } else { &self.members[gi as usize] };
+            let mj: &[u32] = if gj == NONE { &single_j } else { &self.members[gj as usize] };
             if !junctions && mi.len() + mj.len() > 2 {
                 continue;
             }
@@ -247,12 +250,30 @@ impl CouplingWorkspace {
                 continue;
             }
             self.pairs.push(CoupledPair { a: nodes[i as usize], b: nodes[j as usize] });
-            let (keep, gone) = if mi.len() >= mj.len() { (gi, gj) } else { (gj, gi) };
-            let moved = std::mem::take(&mut self.members[gone]);
-            for &m in &moved {
-                self.group_of[m as usize] = keep as u32;
+            match (gi, gj) {
+                (NONE, NONE) => {
+                    self.group_of[i as usize] = self.members.len() as u32;
+                    self.group_of[j as usize] = self.members.len() as u32;
+                    self.members.push(vec![i, j]);
+                }
+                (g, NONE) | (NONE, g) => {
+                    let single = if gi == NONE { i } else { j };
+                    self.group_of[single as usize] = g;
+                    self.members[g as usize].push(single);
+                }
+                (gi, gj) => {
+                    let (keep, gone) = if self.members[gi as usize].len() >= self.members[gj as usize].len() {
+                        (gi, gj)
+                    } else {
+                        (gj, gi)
+                    };
+                    let moved = std::mem::take(&mut self.members[gone as usize]);
+                    for &m in &moved {
+                        self.group_of[m as usize] = keep;
+                    }
+                    self.members[keep as usize].extend(moved);
+                }
             }
-            self.members[keep].extend(moved);
         }
         for list in self.members.iter_mut().filter(|l| l.len() > 1) {
             list.sort_unstable();
