@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 /// Version of the payload's structure; bumped on every change to it (3: [`RunSettings`] added, and
 /// the relaxation's lowest-residual state).
-pub const CHECKPOINT_VERSION: u32 = 3;
+pub const CHECKPOINT_VERSION: u32 = 4;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;
 
@@ -72,6 +72,8 @@ pub struct RunInfo {
     pub threads: u64,
     /// Wall time (s) spent before this checkpoint, over all earlier sessions.
     pub wall_seconds: f64,
+    /// The numerics derived from the input mesh at the start (summary.json reports them).
+    pub mesh_defaults: crate::mechanics::MeshFit,
     pub output: OutputState,
     pub settings: RunSettings,
 }
