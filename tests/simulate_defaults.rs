@@ -135,15 +135,15 @@ fn a_config_whose_l_min_and_cutoff_contradict_the_mesh_is_warned_about_with_the_
     assert_eq!((config.numerics.min_edge_length, config.numerics.contact_cutoff), (2e-7, 2e-7), "kept");
 
     // Values that agree with the mesh: no warning.
-    std::fs::write(&config_path(dir.path()), format!("[numerics]\nmin_edge_length = {l:e}\ncontact_cutoff = {l:e}\n"))
-        .unwrap();
+    let agreeing = dir.path().join("agreeing.toml");
+    std::fs::write(&agreeing, format!("[numerics]\nmin_edge_length = {l:e}\ncontact_cutoff = {l:e}\n")).unwrap();
     let out = dir.path().join("sim2");
     let o = tissuefit(
         &[
             "simulate",
             tissue.to_str().unwrap(),
             "--config",
-            config_path(dir.path()).to_str().unwrap(),
+            agreeing.to_str().unwrap(),
             "--max-steps",
             "2",
             "--out",
@@ -154,10 +154,6 @@ fn a_config_whose_l_min_and_cutoff_contradict_the_mesh_is_warned_about_with_the_
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!stderr.contains("the input mesh's l_min"), "{stderr}");
     assert!(json(&out.join("summary.json"))["mesh_defaults"]["warnings"].as_array().unwrap().is_empty());
-}
-
-fn config_path(dir: &Path) -> PathBuf {
-    dir.join("agreeing.toml")
 }
 
 #[test]
