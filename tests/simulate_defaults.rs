@@ -223,3 +223,37 @@ fn a_simulation_with_stderr_in_a_file_logs_progress_lines_at_a_bounded_rate() {
     let (stderr, _) = run("quiet", &["-q"], &[("TISSUEFIT_PROGRESS_SECONDS", "0")]);
     assert!(progress_lines(&stderr).is_empty(), "{stderr}");
 }
+
+#[test]
+fn a_cell_whose_centre_lies_inside_another_is_found_and_nuclei_are_not() {
+    use tissuefit::geometry::Vec3;
+    use tissuefit::mechanics::{CellInside, cells_inside_others, passage_warning};
+    use tissuefit::mesh::shapes::icosphere;
+    use tissuefit::mesh::{Cell, CellId, CellKind, Tissue};
+    let sphere = |id: u32, kind: CellKind, r: f64, x: f64| {
+        Cell::new(CellId(id), kind, 0, icosphere(r, 2, Vec3::new(x, 0.0, 0.0)))
+    };
+    // Two touching cells: nothing. (Radii in m, 5 µm cells.)
+    let apart = Tissue::from_cells(vec![
+        sphere(1, CellKind::Epithelial, 5e-6, 0.0),
+        sphere(2, CellKind::Epithelial, 5e-6, 9.9e-6),
+    ])
+    .unwrap();
+    assert!(cells_inside_others(&apart).is_empty());
+    assert_eq!(passage_warning(&[]), None);
+    // A doublet that went through itself (centres 0.03 µm apart): each centre inside the other.
+    let merged = Tissue::from_cells(vec![
+        sphere(1, CellKind::Epithelial, 5e-6, 0.0),
+        sphere(2, CellKind::Epithelial, 5e-6, 3e-8),
+    ])
+    .unwrap();
+    let inside = cells_inside_others(&merged);
+    assert_eq!(inside, [CellInside { cell: 1, host: 2 }, CellInside { cell: 2, host: 1 }]);
+    let warning = passage_warning(&inside).unwrap();
+    assert!(warning.contains("cell 1 inside cell 2") && warning.contains("raise the repulsion"), "{warning}");
+    // A nucleus inside its cell is where it belongs.
+    let nucleated =
+        Tissue::from_cells(vec![sphere(1, CellKind::Epithelial, 5e-6, 0.0), sphere(2, CellKind::Nucleus, 2e-6, 0.0)])
+            .unwrap();
+    assert!(cells_inside_others(&nucleated).is_empty());
+}

@@ -52,7 +52,7 @@ pub enum Command {
     /// tissue instead, re-triangulate its cells. Exits with 2 when no cell could be meshed.
     Mesh(mesh::MeshArgs),
     /// Simulate a tissue: relax it to mechanical equilibrium, or run it for a time span with growth.
-    /// Exits with 1 when an equilibrium run ends unconverged.
+    /// Exits with 1 when an equilibrium run ends unconverged or cells passed through each other.
     Simulate(simulate::SimulateArgs),
     /// Type the faces of the epithelial and static cells (apical, lateral, basal) by ray casting
     /// (paper mode 2) or from contacts (mode 1) → a .vtp to colour by face_type in ParaView; prints

@@ -16,8 +16,8 @@ use crate::io::{
     read_tissue, write_bytes_atomically, write_checkpoint, write_events, write_simucell3d,
 };
 use crate::mechanics::{
-    CheckpointRequest, ExplicitNumerics, MeshFit, MeshScale, Observer, Parameters, RelaxMethod, Sample, Simulation,
-    SimulationError, SimulationMode, SimulationState, SimulationSummary,
+    CellInside, CheckpointRequest, ExplicitNumerics, MeshFit, MeshScale, Observer, Parameters, RelaxMethod, Sample,
+    Simulation, SimulationError, SimulationMode, SimulationState, SimulationSummary,
 };
 use crate::pipeline::{PipelineConfig, is_pipeline_file, run_simulate};
 use anyhow::{Context, bail};
@@ -117,6 +117,9 @@ struct Summary<'a> {
     /// The numerics derived from the input mesh (l_min, contact cutoff, time step) where the config
     /// leaves them unset, and the config's values that contradict the mesh.
     mesh_defaults: &'a MeshFit,
+    /// Cells whose centre lies inside another cell at the end: they passed through each other (the
+    /// run then exits 1).
+    cells_inside_others: &'a [CellInside],
 }
 
 const OUTPUTS: [&str; 11] = [
@@ -569,6 +572,10 @@ fn drive(
     if let Some(warning) = summary.overlap_warning() {
         tracing::warn!("{warning}");
     }
+    let inside = crate::mechanics::cells_inside_others(sim.tissue());
+    if let Some(warning) = crate::mechanics::passage_warning(&inside) {
+        tracing::warn!("{input}: {warning}");
+    }
     let frames = observer.recorder.frames();
     observer.recorder.finish()?;
     write_events(&out.join("events.csv"), sim.events())?;
@@ -607,6 +614,7 @@ fn drive(
         removals: summary.topology.removals,
         topology: summary.topology,
         mesh_defaults: &mesh_defaults,
+        cells_inside_others: &inside,
     };
     write_bytes_atomically(&out.join("summary.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
     // The run is complete: its checkpoint could only restart finished work.
@@ -627,7 +635,7 @@ fn drive(
         frames,
         out.display()
     );
-    Ok(if s.mode == SimulationMode::Equilibrium && !summary.converged {
+    Ok(if (s.mode == SimulationMode::Equilibrium && !summary.converged) || !inside.is_empty() {
         Outcome::CheckFailed
     } else {
         Outcome::Success

@@ -16,6 +16,7 @@ mod forces;
 mod growth;
 mod motion;
 mod params;
+mod passage;
 mod polarity;
 mod pressure;
 mod settings;
@@ -39,6 +40,7 @@ pub use params::{
     FaceTypeParams, MEAN_EDGE_PER_MIN_EDGE, MIN_CUTOFF_FRACTION, MIN_EDGE_MISMATCH, MeshFit, MeshScale, Numerics,
     ParamError, Parameters, Polarity, SPHERE_ISOPERIMETRIC_RATIO, TimeStepLimit,
 };
+pub use passage::{CellInside, cells_inside_others, passage_warning};
 pub use polarity::{
     RayCastError, RayCastReport, RayCastSettings, Region, polarize_by_ray_casting, polarize_from_contacts,
 };

@@ -302,6 +302,8 @@ struct SimulationRecord<'a> {
     /// The numerics derived from the input mesh (l_min, contact cutoff, time step) where the model
     /// leaves them unset, and the model's values that contradict the mesh.
     mesh_defaults: &'a MeshFit,
+    /// Cells whose centre lies inside another cell at the end: they passed through each other.
+    cells_inside_others: &'a [crate::mechanics::CellInside],
 }
 
 /// How the nucleus-free reference relaxation of `chi_without_nuclei` went.
@@ -361,6 +363,10 @@ pub fn run_simulate(
     }
     write_events(&out.join("events.csv"), sim.events()).map_err(|e| err(e.to_string()))?;
     let final_tissue = sim.into_tissue();
+    let inside = crate::mechanics::cells_inside_others(&final_tissue);
+    if let Some(warning) = crate::mechanics::passage_warning(&inside) {
+        tracing::warn!("{}: {warning}", tissue.display());
+    }
     write_tissue(&out.join("final.vtp"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
     write_simucell3d(&out.join("final.vtk"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
     write_bytes_atomically(&out.join("config.toml"), params.to_toml_string().as_bytes())
@@ -390,6 +396,7 @@ pub fn run_simulate(
         topology: &summary.topology,
         reference: None,
         mesh_defaults: &mesh_defaults,
+        cells_inside_others: &inside,
     };
     let mut m = measure_tissue(&final_tissue, &settings(measure)).map_err(|e| err(format!("measuring: {e}")))?;
     let mut record = record;
@@ -430,6 +437,14 @@ pub fn run_simulate(
         format!("NOT converged ({})", summary.stop_reason.as_deref().unwrap_or("no reason recorded"))
     };
     let layers = m.summary.layers.map_or(String::new(), |n| format!(", {n} layers"));
+    let passed = if inside.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; CELLS PASSED THROUGH EACH OTHER ({} inside another; simulation.json, cells_inside_others)",
+            inside.len()
+        )
+    };
     let derived: Vec<String> = mesh_defaults
         .derived
         .iter()
@@ -461,12 +476,12 @@ pub fn run_simulate(
     };
     Ok((
         format!(
-            "{} steps, {how}, residual {:.3e}; final {}{layers}{chi}{derived}",
+            "{} steps, {how}, residual {:.3e}; final {}{layers}{chi}{passed}{derived}",
             summary.steps,
             summary.residual,
             describe(&m)
         ),
-        (time_run || summary.converged) && reference_converged,
+        (time_run || summary.converged) && reference_converged && inside.is_empty(),
     ))
 }
 
