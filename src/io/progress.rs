@@ -114,11 +114,12 @@ impl Progress {
     }
 
     fn write(&mut self, position: u64, message: &str) {
+        // Past the total (a fit's profile evaluations after its budget): the count alone.
+        let of = if position <= self.len { format!("/{}", self.len) } else { String::new() };
         eprintln!(
-            "{}: {} {position}/{}, {message}; {:.1} s",
+            "{}: {} {position}{of}, {message}; {:.1} s",
             self.label,
             self.unit,
-            self.len,
             self.started.elapsed().as_secs_f64()
         );
         self.last = Some(Instant::now());
