@@ -73,6 +73,12 @@ fn a_fit_whose_every_evaluation_fails_exits_non_zero_with_the_reasons_and_never_
     assert!(!out.join("result.json").exists(), "no result for a fit that has none");
     let trace = std::fs::read_to_string(out.join("trace.csv")).unwrap();
     assert_eq!(trace.lines().count(), 3, "header and the two evaluations:\n{trace}");
+    // stderr is not a terminal here (as in `2>log` or a cluster job): one progress line per
+    // evaluation, with how it ended (issue 22, item 5).
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("fit: evaluation ")).collect();
+    assert_eq!(lines.len(), 2, "{stderr}");
+    assert!(lines[0].starts_with("fit: evaluation 1/2, unconverged (not converged within 1 steps"), "{stderr}");
+    assert!(lines[1].starts_with("fit: evaluation 2/2, ") && lines[1].contains("best objective"), "{stderr}");
 
     // The library says the same with its own error kind.
     let config = FitConfig::load(&config).unwrap();
@@ -119,36 +125,41 @@ fn fitting_a_lateral_tension_that_no_face_can_have_is_refused_before_the_fit_sta
 }
 
 /// The demo's fit (γ_lateral of the coupled doublet, truth 0.5e-3) with `lateral` bounds and
-/// `objective` lines; a short search and a one-point profile.
-fn write_demo_fit(dir: &Path, bounds: &str, objective: &str) -> PathBuf {
+/// `objective` lines; a short search and a one-point profile. `prefix`: "" for a fit config, "fit."
+/// for a pipeline's `[fit]`.
+fn demo_fit_body(prefix: &str, bounds: &str, objective: &str) -> String {
     let model = repo().join("data/demo/doublet_truth.toml");
-    let labels = repo().join("data/demo/doublet.tif");
-    let text = format!(
-        r#"model = {:?}
-[model_overrides.simulation]
+    format!(
+        r#"
+{prefix}model = {:?}
+[{prefix}model_overrides.simulation]
 max_steps = 1000
-[observed]
-labels = {:?}
-[observed.meshing]
-target_nodes = 100
-[parameters.surface_tension]
+[{prefix}parameters.surface_tension]
 value = 1e-3
-[parameters.surface_tension_lateral]
+[{prefix}parameters.surface_tension_lateral]
 bounds = {bounds}
-[objective]
+[{prefix}objective]
 contact_fraction = 0.0
 coordination = 0.0
 contact_angle = 0.0
 {objective}
-[optimizer]
+[{prefix}optimizer]
 max_evaluations = 4
-[forward]
+[{prefix}forward]
 accept_residual = 1e9
-[profile]
+[{prefix}profile]
 points = 1
 span = 1.3
 "#,
         model.display().to_string(),
+    )
+}
+
+fn write_demo_fit(dir: &Path, bounds: &str, objective: &str) -> PathBuf {
+    let labels = repo().join("data/demo/doublet.tif");
+    let text = format!(
+        "{}[observed]\nlabels = {:?}\n[observed.meshing]\ntarget_nodes = 100\n",
+        demo_fit_body("", bounds, objective),
         labels.display().to_string()
     );
     let path = dir.join("fit.toml");
@@ -290,4 +301,112 @@ fn voxelize_refuses_a_bare_metre_voxel_size_and_never_writes_an_empty_volume() {
     let (code, stderr) = voxelize("0.5um");
     assert_eq!(code, Some(0), "{stderr}");
     assert!(out.exists());
+}
+
+#[test]
+fn the_pipeline_fit_line_says_a_value_is_at_its_search_bound_as_tissuefit_fit_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    // The truth (0.5e-3) lies below the bounds: the search ends at the lower bound. Plus a short
+    // relaxation with the default model, whose l_min and cutoff then come from the mesh (item 4).
+    let text = format!(
+        "{}[input]\nlabels = {:?}\n[mesh]\ntarget_nodes = 100\n[simulate.model_overrides.simulation]\nmax_steps = 200\n",
+        demo_fit_body("fit.", "[6e-4, 1e-3]", ""),
+        labels.display().to_string()
+    );
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, text).unwrap();
+    let run = dir.path().join("run");
+    let o = tissuefit(&["--threads", "2", "run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let (stdout, stderr) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{stdout}{stderr}");
+    let line = stdout.lines().find(|l| l.starts_with("fit: done in ")).unwrap_or_else(|| panic!("{stdout}"));
+    assert!(
+        line.contains("surface_tension_lateral = 6.0000e-4") && line.contains("AT THE LOWER SEARCH BOUND"),
+        "{line}"
+    );
+    assert!(line.contains("lateral_over_apical = ") && !line.contains("(determined)"), "{line}");
+    let result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("fit/result.json")).unwrap()).unwrap();
+    assert_eq!(result["parameters"]["surface_tension_lateral"]["at_bound"].as_str(), Some("lower"));
+    // The fit's progress, one line per evaluation, in the run's stderr (not a terminal here), and
+    // the relaxation's first line.
+    let evaluations = stderr.lines().filter(|l| l.starts_with("fit: evaluation ")).count();
+    assert!(evaluations >= result["evaluations"].as_u64().unwrap() as usize, "{stderr}");
+    assert!(stderr.lines().any(|l| l.starts_with("simulate: step 16/200, residual ")), "{stderr}");
+    // The simulate stage derived the mesh-dependent numerics, said so in its line and recorded them.
+    let line = stdout.lines().find(|l| l.starts_with("simulate: done in ")).unwrap_or_else(|| panic!("{stdout}"));
+    assert!(line.contains("from the mesh's mean edge length") && line.contains("min_edge_length"), "{line}");
+    let simulation: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("simulate/simulation.json")).unwrap()).unwrap();
+    let derived = simulation["mesh_defaults"]["derived"].as_array().unwrap();
+    let keys: Vec<&str> = derived.iter().map(|d| d["key"].as_str().unwrap()).collect();
+    assert_eq!(keys, ["numerics.min_edge_length", "numerics.contact_cutoff"], "{simulation}");
+    let l_mesh: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("mesh/report.json")).unwrap()).unwrap();
+    let (l_min, l_mesh) = (derived[0]["value"].as_f64().unwrap(), l_mesh["l_min"].as_f64().unwrap());
+    assert!((l_min / l_mesh - 1.0).abs() < 0.05, "derived {l_min:e}, meshing {l_mesh:e}");
+}
+
+/// A label volume of `n` slabs along x filling the whole box: every label touches the image border.
+fn write_border_labels(path: &Path, n: usize) {
+    use tissuefit::imaging::{LabelVolume, LabelWriteOptions, write_label_tiff};
+    let (nz, ny, nx) = (14, 14, 12 * n);
+    let labels = ndarray::Array3::from_shape_fn((nz, ny, nx), |(_, _, x)| (x / 12 + 1) as u32);
+    let volume = LabelVolume::new(labels, [0.5e-6; 3], tissuefit::geometry::Vec3::zeros()).unwrap();
+    write_label_tiff(path, &volume, &LabelWriteOptions::default()).unwrap();
+}
+
+#[test]
+fn a_fit_of_a_volume_whose_every_label_touches_the_border_is_refused_with_the_reason_and_the_remedy() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = dir.path().join("border.tif");
+    write_border_labels(&labels, 2);
+    let says_why = |e: &str| {
+        assert!(e.contains("no cell the simulation moves (2 static)"), "{e}");
+        assert!(e.contains("border = \"static\"") && e.contains("all 2 of them touch it"), "{e}");
+        assert!(e.contains("border = \"keep\"") && e.contains("crop the volume"), "{e}");
+        assert!(e.contains("some cells do not touch the border"), "{e}");
+    };
+    // `tissuefit fit`, meshing with border = "static": refused before any evaluation.
+    let text = format!(
+        "{}[observed]\nlabels = {:?}\n[observed.meshing]\ntarget_nodes = 60\nborder = \"static\"\n",
+        fit_body("", ""),
+        labels.display().to_string()
+    );
+    let config = dir.path().join("fit.toml");
+    std::fs::write(&config, text).unwrap();
+    let out = dir.path().join("out");
+    let o = tissuefit(&["--threads", "2", "fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    says_why(&stderr);
+    assert!(!out.join("trace.csv").exists(), "nothing simulated");
+
+    // The same as a pipeline's [fit] (the real-ovule case): the fit stage fails saying so.
+    let text = format!(
+        "{}[input]\nlabels = {:?}\n[mesh]\ntarget_nodes = 60\nborder = \"static\"\n[measure]\ninclude_static = true\n",
+        fit_body("fit.", ""),
+        labels.display().to_string()
+    );
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, text).unwrap();
+    let run = dir.path().join("run");
+    let o = tissuefit(&["--threads", "2", "run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    says_why(&stderr);
+    // With border = "keep" the same volume has free cells, and the fit gets past that check.
+    let observation = tissuefit::inference::load_observation(
+        &FitConfig::from_toml_str(
+            &format!(
+                "{}[observed]\nlabels = {:?}\n[observed.meshing]\ntarget_nodes = 60\nborder = \"keep\"\n",
+                fit_body("", ""),
+                labels.display().to_string()
+            ),
+            "keep.toml",
+        )
+        .unwrap(),
+    );
+    assert!(observation.is_ok(), "{:?}", observation.err().map(|e| e.to_string()));
 }

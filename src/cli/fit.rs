@@ -72,56 +72,11 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         }
         Err(e) => return Err(e).with_context(|| format!("fitting {}", args.config.display())),
     };
-    // The word for a fitted quantity: a value at a search bound is never "determined".
-    let state = |at_bound: &Option<String>, determined: Option<bool>| match (at_bound, determined) {
-        (Some(side), _) => format!("AT THE {} SEARCH BOUND: widen it and fit again", side.to_uppercase()),
-        (None, Some(true)) => "determined".to_string(),
-        (None, Some(false)) => "NOT determined".to_string(),
-        (None, None) => "no profile".to_string(),
-    };
-    let params: Vec<String> = result
-        .parameters
-        .iter()
-        .filter(|(_, p)| p.fitted)
-        .map(|(n, p)| {
-            format!(
-                "{n} = {:.4e} [{:.3e}, {:.3e}] ({})",
-                p.si,
-                p.range[0],
-                p.range[1],
-                state(&p.at_bound, p.determined)
-            )
-        })
-        .collect();
-    let ratios: Vec<String> = result
-        .ratios
-        .iter()
-        .map(|(n, r)| {
-            format!(
-                "{n} = {:.4e} [{:.3e}, {:.3e}] ({})",
-                r.value,
-                r.range[0],
-                r.range[1],
-                state(&r.at_bound, r.determined)
-            )
-        })
-        .collect();
     eprintln!(
-        "{}: {}objective {:.4e} after {} evaluations ({}), {:.1} s; {}{}{}; outputs in {}",
+        "{}: {}; {:.1} s; outputs in {}",
         args.config.display(),
-        if result.poor_fit {
-            "POOR FIT (the objective lies far above the forward model's noise: the model does not describe these data; \
-             see result.json, identifiability): "
-        } else {
-            ""
-        },
-        result.objective,
-        result.evaluations,
-        if result.converged { "converged".to_string() } else { format!("NOT converged: {}", result.stop_reason) },
+        result.summary_line(),
         result.wall_seconds,
-        params.join("; "),
-        if ratios.is_empty() { "" } else { "; " },
-        ratios.join("; "),
         args.out.display()
     );
     // A poor fit completed but found a problem, like an unconverged one: exit code 1.

@@ -52,7 +52,7 @@ pub enum Command {
     /// tissue instead, re-triangulate its cells. Exits with 2 when no cell could be meshed.
     Mesh(mesh::MeshArgs),
     /// Simulate a tissue: relax it to mechanical equilibrium, or run it for a time span with growth.
-    /// Exits with 1 when an equilibrium run ends unconverged.
+    /// Exits with 1 when an equilibrium run ends unconverged or cells passed through each other.
     Simulate(simulate::SimulateArgs),
     /// Type the faces of the epithelial and static cells (apical, lateral, basal) by ray casting
     /// (paper mode 2) or from contacts (mode 1) → a .vtp to colour by face_type in ParaView; prints
@@ -76,7 +76,7 @@ pub enum Command {
     Generate(generate::GenerateCommand),
     /// Run a pipeline file: mesh → measure → (simulate) → (fit) into a run directory with a manifest
     /// (input hashes, resolved config, timings); unchanged stages are skipped. Exits with 1 when the fit
-    /// did not converge or a `[demo]` truth was not recovered.
+    /// did not converge or is a poor fit, or a `[demo]` truth was not recovered.
     Run(run::RunArgs),
     /// Draw a tissue into a PNG picture (software rendering; colour by cell, kind or face type).
     Render(render::RenderArgs),
@@ -135,6 +135,7 @@ fn capped_threads(asked: usize) -> usize {
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
     init_logging(cli.verbose, cli.quiet);
+    crate::io::set_quiet(cli.quiet);
     // The command runs inside the pool, on one of its workers: every parallel loop then starts by
     // work stealing instead of waking the pool from outside (a futex round trip per loop, which
     // dominated small simulations).

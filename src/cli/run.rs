@@ -59,6 +59,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
         println!("fit: the optimiser stopped on its budget, not converged (see {}/fit/result.json)", out.display());
         ok = false;
     }
+    if outcome.fit_poor == Some(true) {
+        println!(
+            "fit: POOR FIT: the objective lies far above the forward model's noise (see {}/fit/result.json, \
+             identifiability)",
+            out.display()
+        );
+        ok = false;
+    }
     if outcome.simulate_converged == Some(false) {
         println!("simulate: the relaxation ended unconverged (see {}/simulate/simulation.json)", out.display());
     }

@@ -12,16 +12,15 @@
 
 use super::{InputArgs, Outcome};
 use crate::io::{
-    CHECKPOINT_FILE, OutputPolicy, RunInfo, RunSettings, SimulationRecorder, checksum, read_checkpoint, read_tissue,
-    write_bytes_atomically, write_checkpoint, write_events, write_simucell3d,
+    CHECKPOINT_FILE, OutputPolicy, Progress, RunInfo, RunSettings, SimulationRecorder, checksum, read_checkpoint,
+    read_tissue, write_bytes_atomically, write_checkpoint, write_events, write_simucell3d,
 };
 use crate::mechanics::{
-    CheckpointRequest, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationError, SimulationMode,
-    SimulationState, SimulationSummary,
+    CellInside, CheckpointRequest, ExplicitNumerics, MeshFit, MeshScale, Observer, Parameters, RelaxMethod, Sample,
+    Simulation, SimulationError, SimulationMode, SimulationState, SimulationSummary,
 };
 use crate::pipeline::{PipelineConfig, is_pipeline_file, run_simulate};
 use anyhow::{Context, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -115,6 +114,12 @@ struct Summary<'a> {
     removals: u64,
     /// Division and remeshing counts (skipped operations, discarded passes, failed cuts).
     topology: crate::mechanics::TopologyStats,
+    /// The numerics derived from the input mesh (l_min, contact cutoff, time step) where the config
+    /// leaves them unset, and the config's values that contradict the mesh.
+    mesh_defaults: &'a MeshFit,
+    /// Cells whose centre lies inside another cell at the end: they passed through each other (the
+    /// run then exits 1).
+    cells_inside_others: &'a [CellInside],
 }
 
 const OUTPUTS: [&str; 11] = [
@@ -131,11 +136,13 @@ const OUTPUTS: [&str; 11] = [
     "events.csv",
 ];
 
-/// Applies the command-line overrides (CLI > config file > defaults) and validates.
-fn resolve_parameters(args: &SimulateArgs) -> anyhow::Result<Parameters> {
-    let mut params = match &args.config {
-        Some(path) => Parameters::load(path)?,
-        None => Parameters::default(),
+/// Applies the command-line overrides (CLI > config file > defaults); also says which
+/// mesh-dependent numerics the config sets. Validated by [`fit_and_validate`] once the input mesh's
+/// defaults are in.
+fn resolve_parameters(args: &SimulateArgs) -> anyhow::Result<(Parameters, ExplicitNumerics)> {
+    let (mut params, explicit) = match &args.config {
+        Some(path) => Parameters::load_explicit(path)?,
+        None => (Parameters::default(), ExplicitNumerics::default()),
     };
     let s = &mut params.simulation;
     if let Some(m) = &args.mode {
@@ -150,11 +157,32 @@ fn resolve_parameters(args: &SimulateArgs) -> anyhow::Result<Parameters> {
     if let Some(d) = args.duration {
         s.duration = d;
     }
-    let origin = args.config.as_ref().map_or("parameters".to_string(), |p| p.display().to_string());
-    for w in params.validate().with_context(|| format!("checking {origin}"))? {
+    Ok((params, explicit))
+}
+
+/// Derives the mesh-dependent numerics the config leaves unset from `tissue` (each printed as a
+/// note), warns where the config's contradict it, then validates.
+fn fit_and_validate(
+    params: &mut Parameters,
+    explicit: &ExplicitNumerics,
+    tissue: &crate::mesh::Tissue,
+    origin: &str,
+) -> anyhow::Result<MeshFit> {
+    let fit = match MeshScale::of(tissue) {
+        Some(scale) => params.fit_to_mesh(explicit, &scale),
+        None => MeshFit::default(),
+    };
+    for line in fit.lines() {
+        eprintln!("note: {line}");
+    }
+    for w in &fit.warnings {
         tracing::warn!("{origin}: {w}");
     }
-    Ok(params)
+    let derived = if fit.derived.is_empty() { "" } else { " (with the values derived from the input mesh)" };
+    for w in params.validate().with_context(|| format!("checking {origin}{derived}"))? {
+        tracing::warn!("{origin}: {w}");
+    }
+    Ok(fit)
 }
 
 fn prepare_output(dir: &Path, force: bool) -> anyhow::Result<()> {
@@ -225,14 +253,15 @@ struct Checkpoints {
     saved_step: Option<u64>,
 }
 
-/// Recorder plus a progress bar on stderr (hidden when stderr is not a terminal), plus checkpoints.
-struct Progress {
+/// Recorder plus progress on stderr (a bar on a terminal, a line every 30 s otherwise: see
+/// [`Progress`]), plus checkpoints.
+struct RunObserver {
     recorder: SimulationRecorder,
-    bar: ProgressBar,
+    progress: Progress,
     checkpoints: Checkpoints,
 }
 
-impl Observer for Progress {
+impl Observer for RunObserver {
     fn sample(&mut self, sample: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         self.recorder.sample(sample)
     }
@@ -269,8 +298,7 @@ impl Observer for Progress {
 
     fn progress(&mut self, step: u64, residual: f64) {
         if step.is_multiple_of(16) {
-            self.bar.set_position(step);
-            self.bar.set_message(format!("residual {residual:.3e}"));
+            self.progress.update(step, || format!("residual {residual:.3e}"));
         }
     }
 }
@@ -295,12 +323,14 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
     if let Some(pipeline) = args.config.as_deref().filter(|p| is_pipeline_file(p)) {
         return run_stage(args, tissue, pipeline, out);
     }
-    let params = resolve_parameters(args)?;
+    let (mut params, explicit) = resolve_parameters(args)?;
     let read =
         read_tissue(tissue, &args.input.read_options()).with_context(|| format!("reading {}", tissue.display()))?;
     for w in &read.warnings {
         tracing::warn!("{}: {w}", tissue.display());
     }
+    let origin = args.config.as_ref().map_or("parameters".to_string(), |p| p.display().to_string());
+    let mesh_defaults = fit_and_validate(&mut params, &explicit, &read.tissue, &origin)?;
     let input_hash = checksum(&std::fs::read(tissue).with_context(|| format!("reading {}", tissue.display()))?);
     let (cells, nodes) = (read.tissue.len(), read.tissue.node_count());
     // Checked before anything is written: every cell has a parameter set, something moves.
@@ -321,6 +351,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         initial_nodes: nodes as u64,
         threads: rayon::current_num_threads() as u64,
         wall_seconds: 0.0,
+        mesh_defaults,
         output: crate::io::OutputState { frames: Vec::new(), stats_bytes: 0 },
         settings: RunSettings {
             checkpoint_every_steps: args.checkpoint_every_steps.unwrap_or(params.simulation.checkpoint_every_steps),
@@ -363,7 +394,7 @@ fn run_stage(args: &SimulateArgs, tissue: &Path, pipeline: &Path, out: &Path) ->
     };
     prepare_output(out, args.force)?;
     let started = Instant::now();
-    let (line, converged) = run_simulate(tissue, section, &config.measure, out)?;
+    let (line, converged) = run_simulate(tissue, section, &config.measure, out, true)?;
     println!(
         "simulate ({}): {line}; {:.2} s; outputs in {}",
         pipeline.display(),
@@ -464,10 +495,12 @@ fn drive(
         SimulationMode::Equilibrium => s.max_steps,
         SimulationMode::Time => (s.duration / params.numerics.time_step).round() as u64,
     };
-    let bar = ProgressBar::with_draw_target(Some(total_steps), indicatif::ProgressDrawTarget::stderr());
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}")
-            .expect("valid template"),
+    let progress = Progress::new(
+        format!("simulate {}", info.input),
+        total_steps,
+        "step",
+        "{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}",
+        true,
     );
     let settings = info.settings.clone();
     let every_seconds = settings.checkpoint_every_seconds;
@@ -475,6 +508,7 @@ fn drive(
         bail!("--checkpoint-every-seconds must be a finite number ≥ 0 (0: not by time), got {every_seconds}");
     }
     let (input, wall_before) = (info.input.clone(), info.wall_seconds);
+    let mesh_defaults = info.mesh_defaults.clone();
     let (cells, nodes) = (info.initial_cells as usize, info.initial_nodes as usize);
     let checkpoints = Checkpoints {
         path: out.join(CHECKPOINT_FILE),
@@ -487,12 +521,12 @@ fn drive(
         wall_before,
         saved_step: None,
     };
-    let mut observer = Progress { recorder, bar, checkpoints };
+    let mut observer = RunObserver { recorder, progress, checkpoints };
 
     let started = Instant::now();
     let result = sim.run(&mut observer);
     let wall = wall_before + started.elapsed().as_secs_f64();
-    observer.bar.finish_and_clear();
+    observer.progress.finish();
     let checkpoint = out.join(CHECKPOINT_FILE);
     let summary: SimulationSummary = match result {
         Ok(summary) => summary,
@@ -538,6 +572,10 @@ fn drive(
     if let Some(warning) = summary.overlap_warning() {
         tracing::warn!("{warning}");
     }
+    let inside = crate::mechanics::cells_inside_others(sim.tissue());
+    if let Some(warning) = crate::mechanics::passage_warning(&inside) {
+        tracing::warn!("{input}: {warning}");
+    }
     let frames = observer.recorder.frames();
     observer.recorder.finish()?;
     write_events(&out.join("events.csv"), sim.events())?;
@@ -575,6 +613,8 @@ fn drive(
         divisions: summary.topology.divisions,
         removals: summary.topology.removals,
         topology: summary.topology,
+        mesh_defaults: &mesh_defaults,
+        cells_inside_others: &inside,
     };
     write_bytes_atomically(&out.join("summary.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
     // The run is complete: its checkpoint could only restart finished work.
@@ -595,7 +635,7 @@ fn drive(
         frames,
         out.display()
     );
-    Ok(if s.mode == SimulationMode::Equilibrium && !summary.converged {
+    Ok(if (s.mode == SimulationMode::Equilibrium && !summary.converged) || !inside.is_empty() {
         Outcome::CheckFailed
     } else {
         Outcome::Success

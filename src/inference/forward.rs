@@ -191,12 +191,12 @@ impl Observation {
         meshing: Option<LabelMeshingOptions>,
     ) -> Result<Self, super::InferenceError> {
         let l_min = meshing.as_ref().and_then(|m| m.l_min);
-        let (metrics, contact_distance) = Metrics::measure(&tissue, None).map_err(super::InferenceError::Observed)?;
         let moving: Vec<&crate::mesh::Cell> =
             tissue.cells().iter().filter(|c| c.kind().is_cell() && !c.kind().is_immobile()).collect();
         if moving.is_empty() {
-            return Err(super::InferenceError::Observed("the observed tissue has no moving cell to fit".into()));
+            return Err(super::InferenceError::Observed(no_moving_cell(&tissue, meshing.as_ref())));
         }
+        let (metrics, contact_distance) = Metrics::measure(&tissue, None).map_err(super::InferenceError::Observed)?;
         let mean_volume = moving.iter().map(|c| c.mesh().signed_volume()).sum::<Real>() / moving.len() as Real;
         if mean_volume.is_nan() || mean_volume <= 0.0 {
             return Err(super::InferenceError::Observed(format!(
@@ -214,6 +214,42 @@ impl Observation {
             meshing,
             contact_distance,
         })
+    }
+}
+
+/// Why an observed tissue without a moving cell cannot be fitted, and what to do (issue 22, item 6:
+/// a crop whose every label touches the image border, meshed with `border = "static"`).
+fn no_moving_cell(tissue: &Tissue, meshing: Option<&LabelMeshingOptions>) -> String {
+    let mut kinds: Vec<(crate::mesh::CellKind, usize)> = Vec::new();
+    for cell in tissue.cells() {
+        match kinds.iter_mut().find(|(k, _)| *k == cell.kind()) {
+            Some((_, n)) => *n += 1,
+            None => kinds.push((cell.kind(), 1)),
+        }
+    }
+    let counts: Vec<String> = kinds.iter().map(|(k, n)| format!("{n} {}", k.name())).collect();
+    let head = format!(
+        "the observed tissue has no cell the simulation moves ({}), so no parameter can change its shape and there \
+         is nothing to fit",
+        counts.join(", ")
+    );
+    let statics = kinds.iter().find(|(k, _)| *k == crate::mesh::CellKind::Static).map_or(0, |(_, n)| *n);
+    match meshing {
+        Some(m) if m.border == crate::meshing::BorderPolicy::Static && statics > 0 => format!(
+            "{head}: the labels were meshed with border = \"static\", which makes every label touching the image \
+             border a static cell, and all {statics} of them touch it (the field of view cuts every cell). To fit, \
+             (a) keep the border cells as free cells (border = \"keep\" in [mesh] or observed.meshing; their cut \
+             faces then count as free surface, which biases the metrics), (b) crop the volume to a region that \
+             holds whole cells away from its border, or (c) use a mask in which some cells do not touch the border"
+        ),
+        Some(_) => format!(
+            "{head}: no meshed label became a moving cell; check the mesh report (kept/static/dropped per label) \
+             and the meshing options (border, lumen_labels)"
+        ),
+        None => format!(
+            "{head}: give a tissue with epithelial cells (cell kind 0), or one whose border cells are not all \
+             static; static, ECM and nucleus cells never move"
+        ),
     }
 }
 

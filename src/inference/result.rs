@@ -92,3 +92,54 @@ pub struct FitResult {
     /// [`POOR_FIT_OBJECTIVE`]): the model does not describe the data.
     pub poor_fit: bool,
 }
+
+impl FitResult {
+    /// One line for people: a poor fit said first, the objective, the evaluations, whether the
+    /// optimiser converged, and every fitted parameter and ratio with its acceptable range and its
+    /// state (determined, NOT determined, or AT A SEARCH BOUND: never "determined" there). `tissuefit
+    /// fit` and the pipeline's fit stage print it.
+    pub fn summary_line(&self) -> String {
+        let state = |at_bound: &Option<String>, determined: Option<bool>| match (at_bound, determined) {
+            (Some(side), _) => format!("AT THE {} SEARCH BOUND: widen it and fit again", side.to_uppercase()),
+            (None, Some(true)) => "determined".to_string(),
+            (None, Some(false)) => "NOT determined".to_string(),
+            (None, None) => "no profile".to_string(),
+        };
+        let mut quantities: Vec<String> = self
+            .parameters
+            .iter()
+            .filter(|(_, p)| p.fitted)
+            .map(|(n, p)| {
+                format!(
+                    "{n} = {:.4e} [{:.3e}, {:.3e}] ({})",
+                    p.si,
+                    p.range[0],
+                    p.range[1],
+                    state(&p.at_bound, p.determined)
+                )
+            })
+            .collect();
+        quantities.extend(self.ratios.iter().map(|(n, r)| {
+            format!(
+                "{n} = {:.4e} [{:.3e}, {:.3e}] ({})",
+                r.value,
+                r.range[0],
+                r.range[1],
+                state(&r.at_bound, r.determined)
+            )
+        }));
+        format!(
+            "{}objective {:.4e} after {} evaluations ({}); {}",
+            if self.poor_fit {
+                "POOR FIT (the objective lies far above the forward model's noise: the model does not describe \
+                 these data; see result.json, identifiability): "
+            } else {
+                ""
+            },
+            self.objective,
+            self.evaluations,
+            if self.converged { "converged".to_string() } else { format!("NOT converged: {}", self.stop_reason) },
+            quantities.join("; ")
+        )
+    }
+}

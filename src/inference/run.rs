@@ -10,11 +10,10 @@ use super::trace::{read_trace, write_trace};
 use super::{InferenceError, plot};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
-use crate::io::{LengthScale, ReadOptions, read_tissue, write_bytes_atomically};
+use crate::io::{LengthScale, Progress, ReadOptions, read_tissue, write_bytes_atomically};
 use crate::mechanics::{ContactModel, Polarity};
 use crate::mesh::{CellKind, FaceType};
 use crate::meshing::mesh_labels;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Mutex;
@@ -27,7 +26,8 @@ pub struct FitOptions {
     /// optimiser asks for them again, which it does in the same order, so the result is the same.
     /// Without a trace there is nothing to resume: an error.
     pub resume: bool,
-    /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
+    /// Show progress on stderr: a bar on a terminal, otherwise one line per evaluation
+    /// ([`crate::io::Progress`]).
     pub progress: bool,
     /// Write the PNG plots. Default false here; the CLI turns them on.
     pub plots: bool,
@@ -125,15 +125,17 @@ pub fn run_fit_observed(
     write_bytes_atomically(&out.join("model.toml"), model_toml.as_bytes()).map_err(|e| output_err(out, &e))?;
 
     let budget = config.optimizer.max_evaluations;
-    let bar = if options.progress {
-        ProgressBar::with_draw_target(Some(budget as u64), ProgressDrawTarget::stderr())
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {pos}/{len} evaluations, {msg}")
-            .expect("valid template"),
-    );
+    // One line per evaluation when stderr is not a terminal (the rows of a resumed trace included).
+    let progress = Mutex::new((
+        Progress::new(
+            "fit",
+            budget as u64,
+            "evaluation",
+            "{elapsed_precise} [{wide_bar}] {pos}/{len} evaluations, {msg}",
+            options.progress,
+        ),
+        0usize,
+    ));
     let write_error: Mutex<Option<InferenceError>> = Mutex::new(None);
     let space_ref = &model.space;
     let on_record = |trace: &[Evaluation]| {
@@ -141,10 +143,22 @@ pub fn run_fit_observed(
             tracing::warn!("{e}");
             *write_error.lock().expect("lock") = Some(e);
         }
-        bar.set_position(trace.len().min(budget) as u64);
-        if let Some(b) = best_of(trace) {
-            bar.set_message(format!("best objective {:.4e}", b.objective));
+        let mut guard = progress.lock().expect("lock");
+        let (bar, shown) = &mut *guard;
+        for (i, e) in trace.iter().enumerate().skip(*shown) {
+            let best = best_of(&trace[..=i]).map_or(Real::NAN, |b| b.objective);
+            let what = if e.status.usable() {
+                format!("objective {:.4e}", e.objective)
+            } else {
+                format!("{} ({})", e.status.name(), e.reason)
+            };
+            let profile = if i >= budget { " (profile)" } else { "" };
+            bar.line(
+                (i + 1) as u64,
+                &format!("{what}{profile}, {} steps, {:.1} s; best objective {best:.4e}", e.steps, e.wall_seconds),
+            );
         }
+        *shown = trace.len();
     };
     let evaluator = Evaluator::new(&model, budget, preloaded, Box::new(on_record));
     let outcome = optimise(&evaluator, &config.optimizer)?;
@@ -154,18 +168,18 @@ pub fn run_fit_observed(
     if !best.status.usable() {
         // Every evaluation was penalised: the "optimum" is a penalty, not a fit (the simplex of equal
         // penalties even looks converged). The trace stays, with every evaluation's reason.
-        bar.finish_and_clear();
+        progress.lock().expect("lock").0.finish();
         write_trace(&trace_path, &model.space, &trace)?;
         return Err(InferenceError::Failed(describe_failures(&trace, config)));
     }
-    bar.set_message(format!("best objective {:.4e}; profiling", best.objective));
+    progress.lock().expect("lock").0.set_message(format!("best objective {:.4e}; profiling", best.objective));
     let (slices, noise) = if best.status.usable() {
         let (slices, noise) = profile(&evaluator, &best.x, best.objective, &config.profile);
         (slices, Some(noise))
     } else {
         (Vec::new(), None)
     };
-    bar.finish_and_clear();
+    progress.lock().expect("lock").0.finish();
     let full_trace = evaluator.trace();
     write_trace(&trace_path, &model.space, &full_trace)?;
     if let Some(e) = write_error.lock().expect("lock").take() {

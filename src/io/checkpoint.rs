@@ -26,8 +26,9 @@ use std::path::{Path, PathBuf};
 /// File name of the checkpoint inside a simulation's output folder.
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 /// Version of the payload's structure; bumped on every change to it or to what it means (3:
-/// [`RunSettings`] added, and the relaxation's lowest-residual state; 4: the coupling ties are groups,
-/// and parameters written without `numerics.coupling_junctions` would resume with other physics).
+/// [`RunSettings`] added, and the relaxation's lowest-residual state; 4: the mesh-derived numerics of
+/// a simulate run, and coupling ties are groups: parameters written without
+/// `numerics.coupling_junctions` would resume with other physics).
 pub const CHECKPOINT_VERSION: u32 = 4;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;
@@ -73,6 +74,8 @@ pub struct RunInfo {
     pub threads: u64,
     /// Wall time (s) spent before this checkpoint, over all earlier sessions.
     pub wall_seconds: f64,
+    /// The numerics derived from the input mesh at the start (summary.json reports them).
+    pub mesh_defaults: crate::mechanics::MeshFit,
     pub output: OutputState,
     pub settings: RunSettings,
 }

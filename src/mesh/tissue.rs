@@ -280,6 +280,26 @@ impl Tissue {
         Ok(std::mem::replace(&mut self.cells[index], cell))
     }
 
+    /// The mean edge length (m), each triangle's three edges counted (every edge of a closed surface
+    /// twice, so this is the mean over edges), nuclei left out; `None` without faces. The length
+    /// scale of a mesh: measurement's default contact distance and the simulation's mesh-dependent
+    /// defaults derive from it.
+    pub fn mean_edge_length(&self) -> Option<Real> {
+        let (sum, count) = self
+            .cells
+            .iter()
+            .filter(|c| c.kind() != CellKind::Nucleus)
+            .flat_map(|c| {
+                let p = c.mesh().positions();
+                c.mesh().triangles().iter().map(move |t| {
+                    let [a, b, d] = t.map(|i| p[i as usize]);
+                    (a - b).norm() + (b - d).norm() + (d - a).norm()
+                })
+            })
+            .fold((0.0, 0usize), |(s, n), l| (s + l, n + 3));
+        (count > 0).then(|| sum / count as Real)
+    }
+
     /// The id [`Self::allocate_id`] hands out next.
     pub fn next_id(&self) -> CellId {
         CellId(self.next_id)

@@ -64,22 +64,9 @@ struct BodyMeasure {
     rims: Vec<RimEdge>,
 }
 
-/// The tissue's mean edge length (m), each triangle's three edges counted (every edge of a closed
-/// surface twice, so this is the mean over edges), nuclei left out; `None` without faces.
+/// The tissue's mean edge length (m), nuclei left out: [`Tissue::mean_edge_length`].
 pub fn mean_edge_length(tissue: &Tissue) -> Option<Real> {
-    let (sum, count) = tissue
-        .cells()
-        .iter()
-        .filter(|c| c.kind() != CellKind::Nucleus)
-        .flat_map(|c| {
-            let p = c.mesh().positions();
-            c.mesh().triangles().iter().map(move |t| {
-                let [a, b, d] = t.map(|i| p[i as usize]);
-                (a - b).norm() + (b - d).norm() + (d - a).norm()
-            })
-        })
-        .fold((0.0, 0usize), |(s, n), l| (s + l, n + 3));
-    (count > 0).then(|| sum / count as Real)
+    tissue.mean_edge_length()
 }
 
 /// Measures a meshed tissue: see the module docs of [`super`] for every definition.

@@ -8,7 +8,7 @@ use super::PipelineError;
 use crate::geometry::Real;
 use crate::inference::{FitConfig, MeshingConfig, ObservedConfig};
 use crate::io::LengthScale;
-use crate::mechanics::Parameters;
+use crate::mechanics::{ExplicitNumerics, Parameters};
 use crate::meshing::{BorderPolicy, TissueKind, TissueSpec};
 use crate::morphology::DEFAULT_EXTERIOR_FREE_FRACTION;
 use schemars::JsonSchema;
@@ -381,18 +381,25 @@ impl PipelineConfig {
 }
 
 impl SimulateSection {
-    /// The model: `model` (or the defaults) with `model_overrides` applied, validated.
-    pub fn parameters(&self) -> Result<Parameters, PipelineError> {
-        let origin = match &self.model {
-            Some(p) => format!("model {} + model_overrides", p.display()),
-            None => "model_overrides".to_string(),
-        };
-        let params = Parameters::load_with_overrides(self.model.as_deref(), self.model_overrides.as_ref())
-            .map_err(|e| PipelineError::Config(e.to_string()))?;
+    /// The model: `model` (or the defaults) with `model_overrides` applied, validated; and which
+    /// mesh-dependent numerics they set (the stage derives the others from the tissue).
+    pub fn parameters(&self) -> Result<(Parameters, ExplicitNumerics), PipelineError> {
+        let origin = self.origin();
+        let (params, explicit) =
+            Parameters::load_with_overrides_explicit(self.model.as_deref(), self.model_overrides.as_ref())
+                .map_err(|e| PipelineError::Config(e.to_string()))?;
         for w in params.validate().map_err(|e| PipelineError::Config(format!("{origin}: {e}")))? {
             tracing::warn!("{origin}: {w}");
         }
-        Ok(params)
+        Ok((params, explicit))
+    }
+
+    /// Where the model comes from, for messages.
+    pub fn origin(&self) -> String {
+        match &self.model {
+            Some(p) => format!("model {} + model_overrides", p.display()),
+            None => "model_overrides".to_string(),
+        }
     }
 }
 

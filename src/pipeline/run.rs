@@ -98,6 +98,8 @@ pub struct PipelineOutcome {
     pub manifest: Manifest,
     /// `Some(converged)` when a fit stage is configured.
     pub fit_converged: Option<bool>,
+    /// `Some(poor_fit)` when a fit stage is configured (result.json's `poor_fit`).
+    pub fit_poor: Option<bool>,
     /// `Some(converged)` when a simulate stage is configured.
     pub simulate_converged: Option<bool>,
     /// The `[demo]` truths against the fit (empty without `[demo]`).
@@ -240,8 +242,9 @@ fn run_locked(
     if let Some(section) = &config.simulate {
         let text = toml_of(section)? + &toml_of(&config.measure)?;
         let key = stage_key("simulate", &text, &[&tissue_hash, &simulate_model_hash]);
-        let record =
-            runner.stage("simulate", key, false, |dir, _| run_simulate(&tissue, section, &config.measure, dir))?;
+        let record = runner.stage("simulate", key, false, |dir, _| {
+            run_simulate(&tissue, section, &config.measure, dir, options.progress)
+        })?;
         let run = read_json(&out.join("simulate").join("simulation.json"))?;
         let time_run = run["mode"] == "time";
         let reference_ok =
@@ -252,6 +255,7 @@ fn run_locked(
 
     // fit
     let mut fit_converged = None;
+    let mut fit_poor = None;
     let mut demo = Vec::new();
     if let Some(section) = &config.fit {
         let text = toml_of(section)? + &mesh_section;
@@ -260,23 +264,12 @@ fn run_locked(
         let mesh_dir = out.join("mesh");
         runner.stage("fit", key, true, |dir, resume| {
             let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, resume, options.progress)?;
-            let fitted: Vec<String> = r
-                .parameters
-                .iter()
-                .filter(|(_, p)| p.fitted)
-                .map(|(n, p)| format!("{n} = {:.4e} [{:.3e}, {:.3e}]", p.si, p.range[0], p.range[1]))
-                .collect();
-            let line = format!(
-                "objective {:.4e} after {} evaluations ({}); {}",
-                r.objective,
-                r.evaluations,
-                if r.converged { "converged".to_string() } else { format!("NOT converged: {}", r.stop_reason) },
-                fitted.join("; ")
-            );
+            let line = r.summary_line();
             Ok((line, r.converged))
         })?;
         let result = read_json(&out.join("fit").join("result.json"))?;
         fit_converged = Some(result["converged"].as_bool().unwrap_or(false));
+        fit_poor = Some(result["poor_fit"].as_bool().unwrap_or(false));
         if let Some(d) = &config.demo {
             for (name, &truth) in &d.truth {
                 let fitted =
@@ -293,7 +286,7 @@ fn run_locked(
             }
         }
     }
-    Ok(PipelineOutcome { manifest, fit_converged, simulate_converged, demo })
+    Ok(PipelineOutcome { manifest, fit_converged, fit_poor, simulate_converged, demo })
 }
 
 /// What the mesh stage's key covers besides the input file's bytes: the input's kind and options

@@ -11,7 +11,7 @@ use crate::io::{
     LengthScale, OutputGroup, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d,
     write_tissue,
 };
-use crate::mechanics::{Observer, RelaxMethod, Sample, Simulation, SimulationMode};
+use crate::mechanics::{MeshFit, MeshScale, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationMode};
 use crate::mesh::{CellKind, Tissue};
 use crate::meshing::{LabelReport, LabelStatus, generate_tissue, mesh_labels};
 use crate::morphology::{MeasureSettings, Morphology, compare_tissues, measure_tissue};
@@ -231,11 +231,36 @@ pub fn run_measure(tissue: &Path, measure: &MeasureSection, out: &Path) -> Resul
     Ok(describe(&m))
 }
 
-struct Quiet;
+/// The stage's observer: no samples, progress on stderr (a bar on a terminal, a line every 30 s
+/// otherwise; nothing in a sweep).
+struct StageProgress(crate::io::Progress);
 
-impl Observer for Quiet {
+impl Observer for StageProgress {
     fn sample(&mut self, _sample: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         Ok(())
+    }
+
+    fn progress(&mut self, step: u64, residual: Real) {
+        if step.is_multiple_of(16) {
+            self.0.update(step, || format!("residual {residual:.3e}"));
+        }
+    }
+}
+
+impl StageProgress {
+    fn new(label: String, params: &Parameters, enabled: bool) -> Self {
+        let s = &params.simulation;
+        let total = match s.mode {
+            SimulationMode::Equilibrium => s.max_steps,
+            SimulationMode::Time => (s.duration / params.numerics.time_step).round() as u64,
+        };
+        Self(crate::io::Progress::new(
+            label,
+            total,
+            "step",
+            "{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}",
+            enabled,
+        ))
     }
 }
 
@@ -274,6 +299,11 @@ struct SimulationRecord<'a> {
     /// The relaxation without nuclei of `chi_without_nuclei`.
     #[serde(skip_serializing_if = "Option::is_none")]
     reference: Option<ReferenceRecord>,
+    /// The numerics derived from the input mesh (l_min, contact cutoff, time step) where the model
+    /// leaves them unset, and the model's values that contradict the mesh.
+    mesh_defaults: &'a MeshFit,
+    /// Cells whose centre lies inside another cell at the end: they passed through each other.
+    cells_inside_others: &'a [crate::mechanics::CellInside],
 }
 
 /// How the nucleus-free reference relaxation of `chi_without_nuclei` went.
@@ -292,16 +322,18 @@ struct ReferenceRecord {
 /// `simulation.mode` says) → `final.vtp`, `final.vtk` (SimuCell3D legacy), `simulation.json`,
 /// `events.csv`, `config.toml`, and the morphology of the final tissue as the measure stage writes it
 /// (`cells.csv`, `contacts.csv`, `summary.json`). Returns the summary line and whether the run
-/// reached what it was asked for (an equilibrium run converged; a time run always).
+/// reached what it was asked for (an equilibrium run converged; a time run always). `progress`:
+/// show the relaxations' progress on stderr.
 pub fn run_simulate(
     tissue: &Path,
     section: &SimulateSection,
     measure: &MeasureSection,
     out: &Path,
+    progress: bool,
 ) -> Result<(String, bool), PipelineError> {
     let err = stage_err("simulate");
-    let params = section.parameters().map_err(|e| err(e.to_string()))?;
     let t = read_meshed(tissue, "simulate")?;
+    let (params, mesh_defaults) = fit_model_to_mesh(section, &t).map_err(&err)?;
     let (cells, nodes) = (t.len(), t.node_count());
     // The nucleus-free input of `chi_without_nuclei`, taken before the run consumes the tissue.
     let without_nuclei = if section.chi_without_nuclei {
@@ -322,12 +354,19 @@ pub fn run_simulate(
     for line in sim.repulsion_shortfalls() {
         tracing::warn!("{line}");
     }
-    let summary = sim.run(&mut Quiet).map_err(|e| err(format!("{}: {e}", tissue.display())))?;
+    let mut observer = StageProgress::new("simulate".to_string(), &params, progress);
+    let result = sim.run(&mut observer);
+    observer.0.finish();
+    let summary = result.map_err(|e| err(format!("{}: {e}", tissue.display())))?;
     if let Some(warning) = summary.overlap_warning() {
         tracing::warn!("{warning}");
     }
     write_events(&out.join("events.csv"), sim.events()).map_err(|e| err(e.to_string()))?;
     let final_tissue = sim.into_tissue();
+    let inside = crate::mechanics::cells_inside_others(&final_tissue);
+    if let Some(warning) = crate::mechanics::passage_warning(&inside) {
+        tracing::warn!("{}: {warning}", tissue.display());
+    }
     write_tissue(&out.join("final.vtp"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
     write_simucell3d(&out.join("final.vtk"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
     write_bytes_atomically(&out.join("config.toml"), params.to_toml_string().as_bytes())
@@ -356,6 +395,8 @@ pub fn run_simulate(
         removals: summary.topology.removals,
         topology: &summary.topology,
         reference: None,
+        mesh_defaults: &mesh_defaults,
+        cells_inside_others: &inside,
     };
     let mut m = measure_tissue(&final_tissue, &settings(measure)).map_err(|e| err(format!("measuring: {e}")))?;
     let mut record = record;
@@ -363,7 +404,10 @@ pub fn run_simulate(
     if let Some((reference, nuclei_removed)) = without_nuclei {
         let mut rsim = Simulation::new(reference, &params)
             .map_err(|e| err(format!("{} without nuclei: {e}", tissue.display())))?;
-        let rsummary = rsim.run(&mut Quiet).map_err(|e| err(format!("{} without nuclei: {e}", tissue.display())))?;
+        let mut observer = StageProgress::new("simulate (without nuclei)".to_string(), &params, progress);
+        let result = rsim.run(&mut observer);
+        observer.0.finish();
+        let rsummary = result.map_err(|e| err(format!("{} without nuclei: {e}", tissue.display())))?;
         let reference = rsim.into_tissue();
         write_tissue(&out.join("reference.vtp"), &reference, &[]).map_err(|e| err(e.to_string()))?;
         let voxel = section.chi_voxel_size.unwrap_or(params.numerics.min_edge_length / 4.0);
@@ -393,6 +437,35 @@ pub fn run_simulate(
         format!("NOT converged ({})", summary.stop_reason.as_deref().unwrap_or("no reason recorded"))
     };
     let layers = m.summary.layers.map_or(String::new(), |n| format!(", {n} layers"));
+    let passed = if inside.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; CELLS PASSED THROUGH EACH OTHER ({} inside another; simulation.json, cells_inside_others)",
+            inside.len()
+        )
+    };
+    let derived: Vec<String> = mesh_defaults
+        .derived
+        .iter()
+        .map(|d| {
+            let name = d.key.trim_start_matches("numerics.");
+            if d.key == "numerics.time_step" {
+                format!("{name} {:.3e} s", d.value)
+            } else {
+                format!("{name} {:.4} µm", d.value * 1e6)
+            }
+        })
+        .collect();
+    let derived = if derived.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; from the mesh's mean edge length {:.4} µm: {} (see simulation.json, mesh_defaults)",
+            mesh_defaults.mesh_mean_edge.unwrap_or(Real::NAN) * 1e6,
+            derived.join(", ")
+        )
+    };
     let chi = match (&record.reference, m.summary.mean_chi) {
         (Some(r), Some(chi)) => format!(
             "; without nuclei {} steps{}, mean χ {chi:.4}",
@@ -403,13 +476,38 @@ pub fn run_simulate(
     };
     Ok((
         format!(
-            "{} steps, {how}, residual {:.3e}; final {}{layers}{chi}",
+            "{} steps, {how}, residual {:.3e}; final {}{layers}{chi}{passed}{derived}",
             summary.steps,
             summary.residual,
             describe(&m)
         ),
-        (time_run || summary.converged) && reference_converged,
+        (time_run || summary.converged) && reference_converged && inside.is_empty(),
     ))
+}
+
+/// The stage's model with the mesh-dependent numerics it leaves unset derived from the tissue `t`
+/// ([`Parameters::fit_to_mesh`]), validated. Logs the warnings of the contradictions, and those of
+/// validation that the model alone did not raise (the pipeline's loading logged those).
+fn fit_model_to_mesh(section: &SimulateSection, t: &Tissue) -> Result<(Parameters, MeshFit), String> {
+    let origin = section.origin();
+    let (mut params, explicit) =
+        Parameters::load_with_overrides_explicit(section.model.as_deref(), section.model_overrides.as_ref())
+            .map_err(|e| e.to_string())?;
+    let before = params.validate().map_err(|e| format!("{origin}: {e}"))?;
+    let fit = match MeshScale::of(t) {
+        Some(scale) => params.fit_to_mesh(&explicit, &scale),
+        None => MeshFit::default(),
+    };
+    for w in &fit.warnings {
+        tracing::warn!("{origin}: {w}");
+    }
+    let after = params.validate().map_err(|e| {
+        format!("{origin} with the numerics derived from the input mesh ({}): {e}", fit.lines().join("; "))
+    })?;
+    for w in after.iter().filter(|w| !before.contains(w)) {
+        tracing::warn!("{origin}: {w}");
+    }
+    Ok((params, fit))
 }
 
 /// The fit of `tissuefit fit` with observed = the input labels meshed like `[mesh]`. The meshed

@@ -29,12 +29,16 @@ use std::f64::consts::PI;
 use std::path::Path;
 use toml::Table;
 
+mod mesh_defaults;
 mod reading;
 #[cfg(test)]
 mod tests;
 mod validate;
 mod writing;
 
+pub use mesh_defaults::{
+    DerivedValue, ExplicitNumerics, MEAN_EDGE_PER_MIN_EDGE, MIN_CUTOFF_FRACTION, MIN_EDGE_MISMATCH, MeshFit, MeshScale,
+};
 use reading::resolve;
 pub use validate::TimeStepLimit;
 use writing::write_toml;
@@ -479,6 +483,14 @@ fn merge_tables(base: &mut Table, over: &Table) {
     }
 }
 
+/// A parameter file's TOML table.
+fn read_table(path: &Path) -> Result<Table, ParamError> {
+    let origin = path.display().to_string();
+    let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+        .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
+    toml::from_str::<Table>(&text).map_err(|e| ParamError::Syntax { origin, message: e.to_string() })
+}
+
 fn prefixed_lines(origin: &str, problems: &[String]) -> String {
     problems.iter().map(|problem| format!("{origin}: {problem}")).collect::<Vec<_>>().join("\n")
 }
@@ -488,13 +500,17 @@ impl Parameters {
     /// merged, other values replaced), then read like [`Parameters::from_toml_str`]. Errors name the
     /// file and say that the overrides took part. This is how the fit and the pipeline take a model.
     pub fn load_with_overrides(model: Option<&Path>, overrides: Option<&Table>) -> Result<Self, ParamError> {
+        Self::load_with_overrides_explicit(model, overrides).map(|(params, _)| params)
+    }
+
+    /// [`Parameters::load_with_overrides`], also saying which mesh-dependent numerics the model and
+    /// its overrides set themselves ([`Parameters::fit_to_mesh`] derives the others).
+    pub fn load_with_overrides_explicit(
+        model: Option<&Path>,
+        overrides: Option<&Table>,
+    ) -> Result<(Self, ExplicitNumerics), ParamError> {
         let mut table = match model {
-            Some(path) => {
-                let origin = path.display().to_string();
-                let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
-                    .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
-                toml::from_str::<Table>(&text).map_err(|e| ParamError::Syntax { origin, message: e.to_string() })?
-            }
+            Some(path) => read_table(path)?,
             None => Table::new(),
         };
         if let Some(over) = overrides {
@@ -506,16 +522,24 @@ impl Parameters {
         };
         let text = toml::to_string(&table)
             .map_err(|e| ParamError::Syntax { origin: origin.clone(), message: e.to_string() })?;
-        Self::from_toml_str(&text, &origin)
+        Ok((Self::from_toml_str(&text, &origin)?, ExplicitNumerics::of_table(&table)))
     }
 
     /// Reads and validates a TOML parameter file (partial files allowed: see the module doc).
     /// The result passed [`Parameters::validate`]; call it again for the warnings.
     pub fn load(path: &Path) -> Result<Self, ParamError> {
+        Self::load_explicit(path).map(|(params, _)| params)
+    }
+
+    /// [`Parameters::load`], also saying which mesh-dependent numerics the file sets itself.
+    pub fn load_explicit(path: &Path) -> Result<(Self, ExplicitNumerics), ParamError> {
         let origin = path.display().to_string();
         let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
             .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
-        Self::from_toml_str(&text, &origin)
+        let params = Self::from_toml_str(&text, &origin)?;
+        // It parsed as TOML just now.
+        let table: Table = toml::from_str(&text).map_err(|e| ParamError::Syntax { origin, message: e.to_string() })?;
+        Ok((params, ExplicitNumerics::of_table(&table)))
     }
 
     /// Parses and validates TOML text; `origin` (usually the file path) prefixes every error.

@@ -341,3 +341,33 @@ fn lengths_and_tensions_typed_in_the_wrong_unit_are_warned_with_a_hint() {
     assert!(says("numerics.min_edge_length = 3e-1 m") && says("did you mean 0.3um?"), "{warnings:?}");
     assert!(says("cell_types[0].faces.lateral.surface_tension") && says("did you mean 0.5e-3 N/m?"), "{warnings:?}");
 }
+
+#[test]
+fn the_mesh_dependent_numerics_a_model_and_its_overrides_set_are_told_apart_from_defaults() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("model.toml");
+    std::fs::write(&model, "[numerics]\nmin_edge_length = 5e-7\ncontact_cutoff = 5e-7\n").unwrap();
+    let (params, explicit) = Parameters::load_explicit(&model).unwrap();
+    assert_eq!(params.numerics.min_edge_length, 5e-7);
+    assert_eq!(explicit, ExplicitNumerics { min_edge_length: true, contact_cutoff: true, time_step: false });
+    // A value equal to its default still counts as set: it is the user's choice.
+    let overrides: Table = toml::from_str("[numerics]\ntime_step = 1e-7\n[simulation]\nmax_steps = 10\n").unwrap();
+    let (_, explicit) = Parameters::load_with_overrides_explicit(None, Some(&overrides)).unwrap();
+    assert_eq!(explicit, ExplicitNumerics { min_edge_length: false, contact_cutoff: false, time_step: true });
+    let (_, explicit) = Parameters::load_with_overrides_explicit(Some(&model), Some(&overrides)).unwrap();
+    assert_eq!(explicit, ExplicitNumerics::ALL);
+    // Nothing set: everything is derived from the mesh; the cutoff follows l_min.
+    let mut params = Parameters::default();
+    let scale = MeshScale { mean_edge: 1.4e-6, min_edge_length: 1e-6 };
+    let fit = params.fit_to_mesh(&ExplicitNumerics::default(), &scale);
+    assert_eq!((params.numerics.min_edge_length, params.numerics.contact_cutoff), (1e-6, 1e-6));
+    assert!(fit.warnings.is_empty() && fit.lines().len() == 2, "{fit:?}");
+    assert!(fit.lines()[0].contains("1.000 µm (default 0.200 µm)"), "{:?}", fit.lines());
+    // Everything set: nothing changes, whatever the mesh.
+    let mut params = Parameters::default();
+    let before = params.clone();
+    let fit = params.fit_to_mesh(&ExplicitNumerics::ALL, &scale);
+    assert_eq!(params, before);
+    assert!(fit.derived.is_empty());
+    assert_eq!(fit.warnings.len(), 2, "Table 2's 0.2 µm on a 1 µm mesh: {fit:?}");
+}

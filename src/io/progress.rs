@@ -1,0 +1,132 @@
+//! Progress of long work on stderr: an `indicatif` bar when stderr is a terminal, plain lines when it
+//! is not (a `2>log` run, a cluster job's log), so that a log shows what a run is doing and how far
+//! it got (issue 22, item 5: cluster logs stayed empty).
+//!
+//! Lines come at a sane rate: [`Progress::update`] (called as often as a loop likes, e.g. every 16
+//! steps) writes a line at its first call and then at most one per [`line_interval`] (default
+//! [`DEFAULT_LINE_SECONDS`] s; the environment variable `TISSUEFIT_PROGRESS_SECONDS` sets another, 0
+//! for every update); [`Progress::line`] writes one at once (one per fit evaluation). `-q` turns the
+//! lines off ([`set_quiet`]).
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Seconds between two progress lines of [`Progress::update`] by default.
+pub const DEFAULT_LINE_SECONDS: f64 = 30.0;
+
+/// The environment variable that sets the seconds between two progress lines.
+pub const LINE_SECONDS_VARIABLE: &str = "TISSUEFIT_PROGRESS_SECONDS";
+
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// Turns the progress lines (not the bars, which `-q` users on a terminal still see) off or on for
+/// this process (`-q`).
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::SeqCst);
+}
+
+/// The least time between two lines of [`Progress::update`]: `TISSUEFIT_PROGRESS_SECONDS` when it
+/// holds a number ≥ 0 (a warning and the default otherwise), else [`DEFAULT_LINE_SECONDS`].
+pub fn line_interval() -> Duration {
+    let Ok(text) = std::env::var(LINE_SECONDS_VARIABLE) else {
+        return Duration::from_secs_f64(DEFAULT_LINE_SECONDS);
+    };
+    match text.trim().parse::<f64>() {
+        Ok(s) if s.is_finite() && s >= 0.0 => Duration::from_secs_f64(s),
+        _ => {
+            tracing::warn!(
+                "{LINE_SECONDS_VARIABLE}={text:?} is not a number of seconds ≥ 0; progress lines every \
+                 {DEFAULT_LINE_SECONDS} s"
+            );
+            Duration::from_secs_f64(DEFAULT_LINE_SECONDS)
+        }
+    }
+}
+
+/// A progress display: a bar on a terminal, lines otherwise, nothing when disabled.
+pub struct Progress {
+    bar: ProgressBar,
+    /// Write lines (stderr is not a terminal, progress is wanted, not `-q`).
+    lines: bool,
+    /// What the lines start with, e.g. "simulate tissue.vtp".
+    label: String,
+    /// Total (steps, evaluations) for the lines.
+    len: u64,
+    unit: &'static str,
+    every: Duration,
+    last: Option<Instant>,
+    started: Instant,
+}
+
+impl Progress {
+    /// A display of `len` `unit`s (e.g. "steps") labelled `label`; `template` is the bar's
+    /// `indicatif` template. `enabled = false` shows nothing at all.
+    pub fn new(label: impl Into<String>, len: u64, unit: &'static str, template: &str, enabled: bool) -> Self {
+        let terminal = std::io::stderr().is_terminal();
+        let bar = if enabled && terminal {
+            let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+            bar.set_style(ProgressStyle::with_template(template).expect("valid template"));
+            bar
+        } else {
+            ProgressBar::hidden()
+        };
+        Self {
+            bar,
+            lines: enabled && !terminal && !QUIET.load(Ordering::SeqCst),
+            label: label.into(),
+            len,
+            unit,
+            every: line_interval(),
+            last: None,
+            started: Instant::now(),
+        }
+    }
+
+    /// Moves to `position`, with `message` (built only when shown) on the bar and in a line when one
+    /// is due.
+    pub fn update(&mut self, position: u64, message: impl FnOnce() -> String) {
+        let due = self.lines && self.last.is_none_or(|t| t.elapsed() >= self.every);
+        if self.bar.is_hidden() && !due {
+            return;
+        }
+        let message = message();
+        if due {
+            self.write(position, &message);
+        }
+        self.bar.set_position(position);
+        self.bar.set_message(message);
+    }
+
+    /// Moves to `position` and writes a line now (when lines are on), e.g. after each evaluation.
+    pub fn line(&mut self, position: u64, message: &str) {
+        if self.lines {
+            self.write(position, message);
+        }
+        self.bar.set_position(position.min(self.len));
+        self.bar.set_message(message.to_string());
+    }
+
+    /// Sets the bar's message only (no line).
+    pub fn set_message(&self, message: String) {
+        self.bar.set_message(message);
+    }
+
+    fn write(&mut self, position: u64, message: &str) {
+        // Past the total (a fit's profile evaluations after its budget): the count alone.
+        let of = if position <= self.len { format!("/{}", self.len) } else { String::new() };
+        eprintln!(
+            "{}: {} {position}{of}, {message}; {:.1} s",
+            self.label,
+            self.unit,
+            self.started.elapsed().as_secs_f64()
+        );
+        self.last = Some(Instant::now());
+    }
+
+    /// Removes the bar (lines stay in the log).
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}

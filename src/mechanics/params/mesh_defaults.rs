@@ -1,0 +1,233 @@
+//! Mesh-dependent numerics derived from the input tissue (issue 22, item 4).
+//!
+//! Table 2's l_min = c = 0.2 µm suits SimuCell3D's own meshes, not a tissue meshed from a label
+//! volume at its voxel size: on a mesh of 1–2 µm edges a 0.2 µm cutoff leaves the gaps between
+//! neighbouring surfaces unseen (no adhesion, no repulsion: the cells round up and part), and the
+//! residual max|f|/(γ·l_min) is scaled by the wrong length. So a simulation of a given tissue takes
+//! l_min from the tissue's mesh when its config does not set `numerics.min_edge_length`:
+//! l_min = ⟨edge⟩ / [`MEAN_EDGE_PER_MIN_EDGE`], the l_min `tissuefit mesh` would have used for that
+//! mesh. The contact cutoff follows l_min (c = l_min, as in Table 2 and the fit's
+//! `forward.match_mesh_length`) when the config does not set it, and when l_min was derived and the
+//! config sets no time step, the step is lowered to a quarter of the largest stable one (stability
+//! ratio 0.5) when the estimate ([`super::TimeStepLimit`]) at the new l_min puts the default above
+//! half the limit. What a config sets is kept, but contradictions with the mesh are warned about
+//! with the numbers and the change to make.
+
+use super::writing::fmt_real_short;
+use super::*;
+use crate::mesh::Tissue;
+use toml::Value;
+
+/// Mean edge length over l_min of tissues meshed by `tissuefit mesh` (Poisson-disk sampling at
+/// spacing l_min, then ball pivoting): 1.35 to 1.42 on `data/demo/doublet.tif` from 90 to 1000
+/// nodes per cell (the shortest edge is l_min, the median 1.37·l_min). On SimuCell3D's own meshes
+/// ⟨edge⟩/1.4 lands at their 5th edge-length percentile, the edges remeshing would collapse first.
+pub const MEAN_EDGE_PER_MIN_EDGE: Real = 1.4;
+
+/// A set l_min this many times the mesh's (or less than its inverse) contradicts the mesh.
+pub const MIN_EDGE_MISMATCH: Real = 2.0;
+
+/// A set cutoff below this fraction of the mesh's l_min leaves the gaps between meshed neighbours
+/// unseen.
+pub const MIN_CUTOFF_FRACTION: Real = 0.5;
+
+/// Which of the mesh-dependent numerics a config sets itself (the others take their defaults, or
+/// values derived from the mesh).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ExplicitNumerics {
+    pub min_edge_length: bool,
+    pub contact_cutoff: bool,
+    pub time_step: bool,
+}
+
+impl ExplicitNumerics {
+    /// Everything set: nothing is derived (a resumed run keeps its resolved parameters).
+    pub const ALL: Self = Self { min_edge_length: true, contact_cutoff: true, time_step: true };
+
+    /// The keys a user's TOML table (a parameter file, with any overrides merged in) sets.
+    pub fn of_table(table: &Table) -> Self {
+        let numerics = table.get("numerics").and_then(Value::as_table);
+        let set = |key: &str| numerics.is_some_and(|n| n.contains_key(key));
+        Self {
+            min_edge_length: set("min_edge_length"),
+            contact_cutoff: set("contact_cutoff"),
+            time_step: set("time_step"),
+        }
+    }
+}
+
+/// The length scale of an input mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct MeshScale {
+    /// Mean edge length (m) of the non-nucleus cells ([`Tissue::mean_edge_length`]).
+    pub mean_edge: Real,
+    /// l_min (m) of the mesh: mean_edge / [`MEAN_EDGE_PER_MIN_EDGE`].
+    pub min_edge_length: Real,
+}
+
+impl MeshScale {
+    /// The scale of `tissue`; `None` without faces or with a degenerate mean edge.
+    pub fn of(tissue: &Tissue) -> Option<Self> {
+        let mean_edge = tissue.mean_edge_length().filter(|h| h.is_finite() && *h > 0.0)?;
+        Some(Self { mean_edge, min_edge_length: mean_edge / MEAN_EDGE_PER_MIN_EDGE })
+    }
+}
+
+/// One value derived from the input mesh instead of taking its default.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DerivedValue {
+    /// TOML path, e.g. `numerics.min_edge_length`.
+    pub key: String,
+    /// SI (m or s).
+    pub value: Real,
+    /// The default it replaces.
+    pub default: Real,
+    /// Where it came from, in words.
+    pub from: String,
+}
+
+/// What [`Parameters::fit_to_mesh`] did: written into summary.json / simulation.json
+/// (`mesh_defaults`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshFit {
+    /// Mean edge length (m) of the input mesh; `None` when it has no faces (nothing derived).
+    pub mesh_mean_edge: Option<Real>,
+    /// l_min (m) of the input mesh, mean edge / [`MEAN_EDGE_PER_MIN_EDGE`].
+    pub mesh_min_edge_length: Option<Real>,
+    /// The values derived from the mesh (absent keys: set by the config, or their default kept).
+    pub derived: Vec<DerivedValue>,
+    /// Where the config's values contradict the mesh (each also logged as a warning).
+    pub warnings: Vec<String>,
+}
+
+impl MeshFit {
+    /// One line per derived value, e.g. "numerics.min_edge_length = 0.95 µm (default 0.2 µm): from the
+    /// input mesh's mean edge length 1.33 µm / 1.4; set it in the config to choose another".
+    pub fn lines(&self) -> Vec<String> {
+        self.derived
+            .iter()
+            .map(|d| {
+                let show = |v: Real| {
+                    if d.key == "numerics.time_step" { format!("{} s", fmt_real_short(v)) } else { um(v) }
+                };
+                format!(
+                    "{} = {} (default {}): {}; set it in the config to choose another",
+                    d.key,
+                    show(d.value),
+                    show(d.default),
+                    d.from
+                )
+            })
+            .collect()
+    }
+
+    /// The value derived for `key`, if any.
+    pub fn derived_value(&self, key: &str) -> Option<Real> {
+        self.derived.iter().find(|d| d.key == key).map(|d| d.value)
+    }
+}
+
+/// A length in µm for messages, 3 significant digits.
+fn um(metres: Real) -> String {
+    format!("{} µm", fmt_real_short(metres * 1e6))
+}
+
+impl Parameters {
+    /// Fills the mesh-dependent numerics the config leaves unset (`explicit`) from the input mesh's
+    /// `scale`, and collects warnings where the set ones contradict it (see the module doc). Call
+    /// [`Parameters::validate`] afterwards.
+    pub fn fit_to_mesh(&mut self, explicit: &ExplicitNumerics, scale: &MeshScale) -> MeshFit {
+        let defaults = Numerics::default_for(self.numerics.dynamics);
+        let l = scale.min_edge_length;
+        let mesh_words =
+            format!("the input mesh's mean edge length {} / {MEAN_EDGE_PER_MIN_EDGE}", um(scale.mean_edge));
+        let mut derived = Vec::new();
+        let mut warnings = Vec::new();
+        let n = &mut self.numerics;
+        if explicit.min_edge_length {
+            let ratio = n.min_edge_length / l;
+            if !(1.0 / MIN_EDGE_MISMATCH..=MIN_EDGE_MISMATCH).contains(&ratio) {
+                let effect = if ratio > 1.0 {
+                    "remeshing would collapse most of its edges and the residual max|f|/(γ·l_min) reads small"
+                } else {
+                    "remeshing would split most of its edges (many more nodes, a slower run) and the residual \
+                     max|f|/(γ·l_min) reads large"
+                };
+                warnings.push(format!(
+                    "numerics.min_edge_length = {} is {:.2}× the input mesh's l_min ≈ {} ({mesh_words}): {effect}; \
+                     set min_edge_length = {:.3e} (or delete the key to derive it from the mesh)",
+                    um(n.min_edge_length),
+                    ratio,
+                    um(l),
+                    l
+                ));
+            }
+        } else {
+            n.min_edge_length = l;
+            derived.push(DerivedValue {
+                key: "numerics.min_edge_length".to_string(),
+                value: l,
+                default: defaults.min_edge_length,
+                from: format!("from {mesh_words}"),
+            });
+        }
+        if explicit.contact_cutoff {
+            if n.contact_cutoff < MIN_CUTOFF_FRACTION * l {
+                warnings.push(format!(
+                    "numerics.contact_cutoff = {} is below {MIN_CUTOFF_FRACTION} × the input mesh's l_min ≈ {} \
+                     ({mesh_words}): neighbouring cells meshed at this resolution lie farther apart than the cutoff \
+                     in places, so they neither adhere nor repel there, round up and drift apart; set \
+                     contact_cutoff = {:.3e} (or delete the key to use min_edge_length)",
+                    um(n.contact_cutoff),
+                    um(l),
+                    l
+                ));
+            }
+        } else {
+            n.contact_cutoff = n.min_edge_length;
+            let from = if explicit.min_edge_length {
+                "equal to numerics.min_edge_length (the config's), as Table 2 ties them".to_string()
+            } else {
+                "equal to the derived numerics.min_edge_length, as Table 2 and the fit's forward.match_mesh_length tie them"
+                    .to_string()
+            };
+            derived.push(DerivedValue {
+                key: "numerics.contact_cutoff".to_string(),
+                value: n.contact_cutoff,
+                default: defaults.contact_cutoff,
+                from,
+            });
+        }
+        // Only a derived l_min moves the stability estimate away from what validating the config saw.
+        if !explicit.time_step && !explicit.min_edge_length {
+            // The largest stable step over the moving cell types, and how close the default is.
+            let limits: Vec<TimeStepLimit> = self.time_step_limits().into_iter().filter(|t| !t.immobile).collect();
+            let worst = limits
+                .iter()
+                .map(|t| match self.numerics.dynamics {
+                    Dynamics::Dynamic => t.damping_ratio.max(t.oscillation_ratio),
+                    Dynamics::Overdamped => t.overdamped_ratio,
+                })
+                .fold(0.0, Real::max);
+            let max_step = limits.iter().map(|t| t.max_time_step).fold(Real::INFINITY, Real::min);
+            if worst > TimeStepLimit::LIMIT / 2.0 && max_step.is_finite() && max_step > 0.0 {
+                let dt = max_step / 4.0;
+                self.numerics.time_step = dt;
+                derived.push(DerivedValue {
+                    key: "numerics.time_step".to_string(),
+                    value: dt,
+                    default: defaults.time_step,
+                    from: format!(
+                        "a quarter of the largest stable step {} s estimated at min_edge_length = {} (the default's \
+                         stability ratio {:.2} is above half the limit {})",
+                        fmt_real_short(max_step),
+                        um(self.numerics.min_edge_length),
+                        worst,
+                        TimeStepLimit::LIMIT
+                    ),
+                });
+            }
+        }
+        MeshFit { mesh_mean_edge: Some(scale.mean_edge), mesh_min_edge_length: Some(l), derived, warnings }
+    }
+}
