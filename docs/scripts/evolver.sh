@@ -15,7 +15,7 @@ if [ "$what" = relax ] || [ "$what" = all ]; then
     {
         echo "| cluster, γ_l/γ_a | far-field angle | rim angle | contact area (A/V^⅔) | sphericity | residual |"
         echo "|---|---|---|---|---|---|"
-        cargo test --release --test evolver_clusters -- --nocapture --test-threads 1 2>/dev/null | grep '^| '
+        cargo test --release --test evolver_clusters -- --nocapture --test-threads 1 2>/dev/null | grep -o '| .*|$'
     } > "$out/evolver-relax.md"
 fi
 if [ "$what" = fits ] || [ "$what" = all ]; then

@@ -89,8 +89,8 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         text: "Coupling contacts only: where three or four cells meet (junction lines, quadruple points), tie one node of \
                each into one group that moves as one node, so the interface tensions balance at a shared point as in a \
                foam. false: at most one partner per node, as in the paper, which leaves the third cell's junction node \
-               free and opens a channel along every junction (a tetrahedral Surface Evolver cluster lost 30° of rim \
-               angle and 7 % of its contact area). The dynamic vesicle model keeps false (see the docs book).",
+               free and opens a channel along every junction (a tetrahedral Surface Evolver cluster lost 31° of rim \
+               angle and 19 % of its contact area). The dynamic vesicle model keeps false (see the docs book).",
     },
     FieldDoc {
         path: "numerics.polarity",
