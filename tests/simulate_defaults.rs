@@ -103,19 +103,7 @@ fn a_config_whose_l_min_and_cutoff_contradict_the_mesh_is_warned_about_with_the_
     let config = dir.path().join("model.toml");
     std::fs::write(&config, "[numerics]\nmin_edge_length = 2e-7\ncontact_cutoff = 2e-7\n").unwrap();
     let out = dir.path().join("sim");
-    let o = tissuefit(
-        &[
-            "simulate",
-            tissue.to_str().unwrap(),
-            "--config",
-            config.to_str().unwrap(),
-            "--max-steps",
-            "2",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = simulate_two_steps(&tissue, &config, &out);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(matches!(o.status.code(), Some(0 | 1)), "{stderr}");
     assert!(!stderr.contains("note: numerics.min_edge_length"), "nothing derived: {stderr}");
@@ -138,19 +126,7 @@ fn a_config_whose_l_min_and_cutoff_contradict_the_mesh_is_warned_about_with_the_
     let agreeing = dir.path().join("agreeing.toml");
     std::fs::write(&agreeing, format!("[numerics]\nmin_edge_length = {l:e}\ncontact_cutoff = {l:e}\n")).unwrap();
     let out = dir.path().join("sim2");
-    let o = tissuefit(
-        &[
-            "simulate",
-            tissue.to_str().unwrap(),
-            "--config",
-            agreeing.to_str().unwrap(),
-            "--max-steps",
-            "2",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = simulate_two_steps(&tissue, &agreeing, &out);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!stderr.contains("the input mesh's l_min"), "{stderr}");
     assert!(json(&out.join("summary.json"))["mesh_defaults"]["warnings"].as_array().unwrap().is_empty());
@@ -256,4 +232,21 @@ fn a_cell_whose_centre_lies_inside_another_is_found_and_nuclei_are_not() {
         Tissue::from_cells(vec![sphere(1, CellKind::Epithelial, 5e-6, 0.0), sphere(2, CellKind::Nucleus, 2e-6, 0.0)])
             .unwrap();
     assert!(cells_inside_others(&nucleated).is_empty());
+}
+
+/// `tissuefit simulate TISSUE --config CONFIG --max-steps 2 --out OUT`.
+fn simulate_two_steps(tissue: &Path, config: &Path, out: &Path) -> Output {
+    tissuefit(
+        &[
+            "simulate",
+            tissue.to_str().unwrap(),
+            "--config",
+            config.to_str().unwrap(),
+            "--max-steps",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    )
 }
