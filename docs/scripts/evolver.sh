@@ -22,6 +22,6 @@ if [ "$what" = fits ] || [ "$what" = all ]; then
     cargo build --release
     work=$(mktemp -d)
     python3 validation/evolver/run_fits.py --only "${CLUSTERS:-doublet,triplet,tetra,ball12}" \
-        --resolutions "${RESOLUTIONS:-10,20}" --work "$work" --markdown "$out/evolver-fits.md" \
+        --resolutions "${RESOLUTIONS:-10,20,40}" --work "$work" --markdown "$out/evolver-fits.md" \
         --json "$out/evolver-fits.json"
 fi
