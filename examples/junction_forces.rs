@@ -31,27 +31,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let summary = sim.run(&mut Quiet)?;
     println!("steps {} residual {:.3e}", summary.steps, summary.residual);
     let scale = sim.force_scale();
-    let mut group_size: HashMap<(u32, u32), usize> = HashMap::new();
-    // group sizes from the ties: count the members of each connected component
-    let pairs = sim.coupled_pairs().to_vec();
-    let mut adj: HashMap<(u32, u32), Vec<(u32, u32)>> = HashMap::new();
-    for p in &pairs {
-        adj.entry(p.a).or_default().push(p.b);
-        adj.entry(p.b).or_default().push(p.a);
-    }
-    for &start in adj.keys() {
-        let mut seen = vec![start];
-        let mut i = 0;
-        while i < seen.len() {
-            for &n in &adj[&seen[i]] {
-                if !seen.contains(&n) {
-                    seen.push(n);
-                }
-            }
-            i += 1;
-        }
-        group_size.insert(start, seen.len());
-    }
+    let group_size: HashMap<(u32, u32), usize> =
+        sim.coupled_groups().flat_map(|g| g.iter().map(move |&n| (n, g.len()))).collect();
     let tissue = sim.tissue();
     // Junction candidates: nodes with a node of two other cells within the cutoff.
     let cutoff = params.numerics.contact_cutoff;

@@ -687,6 +687,12 @@ impl<'p> Simulation<'p> {
         self.coupling.pairs()
     }
 
+    /// The groups of nodes tied by the coupling contact model at the last evaluation, each a list of
+    /// (cell, node) (pairs, and three or four nodes at junctions; empty with springs).
+    pub fn coupled_groups(&self) -> impl Iterator<Item = &[(u32, u32)]> + '_ {
+        self.coupling.groups()
+    }
+
     /// Forces at the current positions: node coupling (which snaps tied pairs together), internal
     /// forces, contacts, and the averaging of tied pairs' forces.
     fn compute_forces(&mut self) {

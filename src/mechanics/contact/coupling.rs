@@ -13,8 +13,8 @@
 //! paper's and the reference's rule) the third cell's junction node stays untied: its two lateral
 //! faces pull it into its own cell with ≈ γ_l per unit length, nothing holds it, and a channel opens
 //! along every junction line. On a tetrahedral 4-cell Surface Evolver cluster relaxed at its own
-//! tensions this moved the rim contact angle from 104° to 75° and shrank the contacts by 7 %
-//! (docs: validation, "Surface Evolver clusters"). So a node ties to at most one node *per other
+//! tensions this moved the rim contact angle by 31° and shrank the contacts by 19 %
+//! (`tests/evolver_clusters.rs`; docs: validation, "Surface Evolver clusters"). So a node ties to at most one node *per other
 //! cell*: the ties form groups of up to one node per cell, every two members a candidate pair, and
 //! a group moves as one merged node with the summed force. Between two cells a group is the old
 //! pair, so doublets are unchanged.
@@ -58,10 +58,7 @@ pub struct CouplingWorkspace {
     normals: Vec<Vec3>,
     boxes: Vec<(Vec3, Vec3)>,
     candidates: Vec<(Real, u32, u32)>,
-    /// Group of each eligible node during the matching (an index into `members`).
-    group_of: Vec<u32>,
-    /// Members (eligible-node indices) of each group during the matching.
-    members: Vec<Vec<u32>>,
+    grouping: Grouping,
     pairs: Vec<CoupledPair>,
     /// The tied groups (two or more nodes), as ranges of `group_nodes`.
     groups: Vec<(u32, u32)>,
@@ -88,37 +85,15 @@ impl CouplingWorkspace {
 
     /// Rebuilds the groups as the connected components of the ties.
     fn groups_from_pairs(&mut self) {
-        let mut index: std::collections::BTreeMap<(u32, u32), usize> = std::collections::BTreeMap::new();
+        let mut nodes: Vec<(u32, u32)> = self.pairs.iter().flat_map(|p| [p.a, p.b]).collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        let local = |n: (u32, u32)| nodes.binary_search(&n).expect("a tied node") as u32;
+        self.grouping.reset(nodes.len());
         for p in &self.pairs {
-            for n in [p.a, p.b] {
-                let next = index.len();
-                index.entry(n).or_insert(next);
-            }
+            self.grouping.join(local(p.a), local(p.b));
         }
-        let mut parent: Vec<usize> = (0..index.len()).collect();
-        fn root(parent: &mut [usize], mut i: usize) -> usize {
-            while parent[i] != i {
-                parent[i] = parent[parent[i]];
-                i = parent[i];
-            }
-            i
-        }
-        for p in &self.pairs {
-            let (ra, rb) = (root(&mut parent, index[&p.a]), root(&mut parent, index[&p.b]));
-            if ra != rb {
-                parent[ra.max(rb)] = ra.min(rb);
-            }
-        }
-        let mut by_root: std::collections::BTreeMap<usize, Vec<(u32, u32)>> = std::collections::BTreeMap::new();
-        for (&node, &i) in &index {
-            by_root.entry(root(&mut parent, i)).or_default().push(node);
-        }
-        self.groups.clear();
-        self.group_nodes.clear();
-        for list in by_root.into_values() {
-            self.groups.push((self.group_nodes.len() as u32, list.len() as u32));
-            self.group_nodes.extend(list);
-        }
+        self.grouping.emit(&nodes, &mut self.groups, &mut self.group_nodes);
     }
 
     /// Finds the tied groups of the current configuration and snaps each together (to the mean of
@@ -221,21 +196,13 @@ impl CouplingWorkspace {
         }
         self.candidates.par_sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
         // Greedy grouping, nearest ties first: join two groups with no cell in common whose members
-        // all lie within c of each other (a node in no group is a group of one; groups are made only
-        // for the nodes of accepted ties).
-        const NONE: u32 = u32::MAX;
-        self.group_of.clear();
-        self.group_of.resize(nodes.len(), NONE);
-        self.members.clear();
+        // all lie within c of each other, normals opposed (a node in no group is a group of one).
+        self.grouping.reset(nodes.len());
         for &(_, i, j) in &self.candidates {
-            let (gi, gj) = (self.group_of[i as usize], self.group_of[j as usize]);
-            if gi != NONE && gi == gj {
-                continue;
-            }
             let (single_i, single_j) = ([i], [j]);
-            let mi: &[u32] = if gi == NONE { &single_i } else { &self.members[gi as usize] };
-            let mj: &[u32] = if gj == NONE { &single_j } else { &self.members[gj as usize] };
-            if !junctions && mi.len() + mj.len() > 2 {
+            let mi = self.grouping.group(i).unwrap_or(&single_i);
+            let mj = self.grouping.group(j).unwrap_or(&single_j);
+            if std::ptr::eq(mi, mj) || (!junctions && mi.len() + mj.len() > 2) {
                 continue;
             }
             let compatible = mi.iter().all(|&a| {
@@ -246,40 +213,12 @@ impl CouplingWorkspace {
                         && normals[a].dot(&normals[b]) < 0.0
                 })
             });
-            if !compatible {
-                continue;
-            }
-            self.pairs.push(CoupledPair { a: nodes[i as usize], b: nodes[j as usize] });
-            match (gi, gj) {
-                (NONE, NONE) => {
-                    self.group_of[i as usize] = self.members.len() as u32;
-                    self.group_of[j as usize] = self.members.len() as u32;
-                    self.members.push(vec![i, j]);
-                }
-                (g, NONE) | (NONE, g) => {
-                    let single = if gi == NONE { i } else { j };
-                    self.group_of[single as usize] = g;
-                    self.members[g as usize].push(single);
-                }
-                (gi, gj) => {
-                    let (keep, gone) = if self.members[gi as usize].len() >= self.members[gj as usize].len() {
-                        (gi, gj)
-                    } else {
-                        (gj, gi)
-                    };
-                    let moved = std::mem::take(&mut self.members[gone as usize]);
-                    for &m in &moved {
-                        self.group_of[m as usize] = keep;
-                    }
-                    self.members[keep as usize].extend(moved);
-                }
+            if compatible {
+                self.pairs.push(CoupledPair { a: nodes[i as usize], b: nodes[j as usize] });
+                self.grouping.join(i, j);
             }
         }
-        for list in self.members.iter_mut().filter(|l| l.len() > 1) {
-            list.sort_unstable();
-            self.groups.push((self.group_nodes.len() as u32, list.len() as u32));
-            self.group_nodes.extend(list.iter().map(|&m| nodes[m as usize]));
-        }
+        self.grouping.emit(nodes, &mut self.groups, &mut self.group_nodes);
         // Snap every group to the mean of its members (onto the static member when one is static).
         let cells = tissue.cells_mut();
         for &(start, len) in &self.groups {
@@ -341,6 +280,77 @@ impl CouplingWorkspace {
             for &(c, n) in group {
                 values[offsets[c as usize] + n as usize] = mean;
             }
+        }
+    }
+}
+
+/// Disjoint groups of nodes (local indices 0..n) joined one tie at a time; groups exist only for
+/// joined nodes (a node in none is a group of one).
+#[derive(Default)]
+struct Grouping {
+    /// Group of each node (an index into `members`), [`Grouping::NONE`] for none.
+    group_of: Vec<u32>,
+    /// Members of each group (emptied when merged into another).
+    members: Vec<Vec<u32>>,
+}
+
+impl Grouping {
+    const NONE: u32 = u32::MAX;
+
+    fn reset(&mut self, nodes: usize) {
+        self.group_of.clear();
+        self.group_of.resize(nodes, Self::NONE);
+        self.members.clear();
+    }
+
+    /// The members of `node`'s group, `None` when it is in none.
+    fn group(&self, node: u32) -> Option<&[u32]> {
+        match self.group_of[node as usize] {
+            Self::NONE => None,
+            g => Some(&self.members[g as usize]),
+        }
+    }
+
+    /// Joins the groups of `i` and `j` (the smaller group moves into the larger).
+    fn join(&mut self, i: u32, j: u32) {
+        let (gi, gj) = (self.group_of[i as usize], self.group_of[j as usize]);
+        match (gi, gj) {
+            (Self::NONE, Self::NONE) => {
+                let g = self.members.len() as u32;
+                self.group_of[i as usize] = g;
+                self.group_of[j as usize] = g;
+                self.members.push(vec![i, j]);
+            }
+            (g, Self::NONE) | (Self::NONE, g) => {
+                let single = if gi == Self::NONE { i } else { j };
+                self.group_of[single as usize] = g;
+                self.members[g as usize].push(single);
+            }
+            _ if gi == gj => {}
+            _ => {
+                let (keep, gone) = if self.members[gi as usize].len() >= self.members[gj as usize].len() {
+                    (gi, gj)
+                } else {
+                    (gj, gi)
+                };
+                let moved = std::mem::take(&mut self.members[gone as usize]);
+                for &m in &moved {
+                    self.group_of[m as usize] = keep;
+                }
+                self.members[keep as usize].extend(moved);
+            }
+        }
+    }
+
+    /// Writes the groups of two or more as ranges of `group_nodes`, members sorted, `id[m]` the
+    /// (cell, node) of local node m.
+    fn emit(&mut self, id: &[(u32, u32)], groups: &mut Vec<(u32, u32)>, group_nodes: &mut Vec<(u32, u32)>) {
+        groups.clear();
+        group_nodes.clear();
+        for list in self.members.iter_mut().filter(|l| l.len() > 1) {
+            list.sort_unstable();
+            groups.push((group_nodes.len() as u32, list.len() as u32));
+            group_nodes.extend(list.iter().map(|&m| id[m as usize]));
         }
     }
 }
