@@ -297,9 +297,7 @@ impl Observer for RunObserver {
     }
 
     fn progress(&mut self, step: u64, residual: f64) {
-        if step.is_multiple_of(16) {
-            self.progress.update(step, || format!("residual {residual:.3e}"));
-        }
+        self.progress.step(step, residual);
     }
 }
 
@@ -491,17 +489,7 @@ fn drive(
     info: RunInfo,
 ) -> anyhow::Result<Outcome> {
     let s = &params.simulation;
-    let total_steps = match s.mode {
-        SimulationMode::Equilibrium => s.max_steps,
-        SimulationMode::Time => (s.duration / params.numerics.time_step).round() as u64,
-    };
-    let progress = Progress::new(
-        format!("simulate {}", info.input),
-        total_steps,
-        "step",
-        "{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}",
-        true,
-    );
+    let progress = Progress::of_steps(format!("simulate {}", info.input), params.planned_steps(), true);
     let settings = info.settings.clone();
     let every_seconds = settings.checkpoint_every_seconds;
     if !(every_seconds.is_finite() && every_seconds >= 0.0) {

@@ -84,6 +84,19 @@ impl Progress {
         }
     }
 
+    /// A display of a simulation's `len` steps.
+    pub fn of_steps(label: impl Into<String>, len: u64, enabled: bool) -> Self {
+        Self::new(label, len, "step", "{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}", enabled)
+    }
+
+    /// A simulation's per-step report ([`crate::mechanics::Observer::progress`]): every 16th step
+    /// moves the display, with the residual.
+    pub fn step(&mut self, step: u64, residual: f64) {
+        if step.is_multiple_of(16) {
+            self.update(step, || format!("residual {residual:.3e}"));
+        }
+    }
+
     /// Moves to `position`, with `message` (built only when shown) on the bar and in a line when one
     /// is due.
     pub fn update(&mut self, position: u64, message: impl FnOnce() -> String) {

@@ -10,7 +10,7 @@
 //! another body (winding number > ½) went through it. Nuclei (inside their cells by design) and ECM
 //! are left out.
 
-use crate::geometry::Vec3;
+use crate::geometry::{Vec3, bounding_box};
 use crate::mesh::{CellKind, Tissue};
 use rayon::prelude::*;
 
@@ -27,17 +27,7 @@ pub struct CellInside {
 pub fn cells_inside_others(tissue: &Tissue) -> Vec<CellInside> {
     let bodies: Vec<_> =
         tissue.cells().iter().filter(|c| !matches!(c.kind(), CellKind::Nucleus | CellKind::Ecm)).collect();
-    let boxes: Vec<(Vec3, Vec3)> = bodies
-        .iter()
-        .map(|c| {
-            c.mesh()
-                .positions()
-                .iter()
-                .fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| {
-                    (lo.inf(p), hi.sup(p))
-                })
-        })
-        .collect();
+    let boxes: Vec<Option<(Vec3, Vec3)>> = bodies.iter().map(|c| bounding_box(c.mesh().positions())).collect();
     let centroids: Vec<Option<Vec3>> = bodies.iter().map(|c| c.mesh().volume_centroid()).collect();
     let per_cell: Vec<Vec<CellInside>> = (0..bodies.len())
         .into_par_iter()
@@ -46,8 +36,8 @@ pub fn cells_inside_others(tissue: &Tissue) -> Vec<CellInside> {
             (0..bodies.len())
                 .filter(|&j| j != i)
                 .filter(|&j| {
-                    let (lo, hi) = boxes[j];
-                    (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]) && bodies[j].mesh().winding_number(&p) > 0.5
+                    boxes[j].is_some_and(|(lo, hi)| (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]))
+                        && bodies[j].mesh().winding_number(&p) > 0.5
                 })
                 .map(|j| CellInside { cell: bodies[i].id().0, host: bodies[j].id().0 })
                 .collect()

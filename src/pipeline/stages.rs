@@ -241,26 +241,13 @@ impl Observer for StageProgress {
     }
 
     fn progress(&mut self, step: u64, residual: Real) {
-        if step.is_multiple_of(16) {
-            self.0.update(step, || format!("residual {residual:.3e}"));
-        }
+        self.0.step(step, residual);
     }
 }
 
 impl StageProgress {
     fn new(label: String, params: &Parameters, enabled: bool) -> Self {
-        let s = &params.simulation;
-        let total = match s.mode {
-            SimulationMode::Equilibrium => s.max_steps,
-            SimulationMode::Time => (s.duration / params.numerics.time_step).round() as u64,
-        };
-        Self(crate::io::Progress::new(
-            label,
-            total,
-            "step",
-            "{elapsed_precise} [{wide_bar}] {pos}/{len} steps, {msg}, ETA {eta}",
-            enabled,
-        ))
+        Self(crate::io::Progress::of_steps(label, params.planned_steps(), enabled))
     }
 }
 

@@ -570,6 +570,15 @@ impl Parameters {
         self.cell_types.get(index as usize)
     }
 
+    /// Steps a run makes at most: `simulation.max_steps` for a relaxation, duration / Δt for a time run.
+    pub fn planned_steps(&self) -> u64 {
+        let s = &self.simulation;
+        match s.mode {
+            SimulationMode::Equilibrium => s.max_steps,
+            SimulationMode::Time => (s.duration / self.numerics.time_step).round() as u64,
+        }
+    }
+
     /// The time-step stability estimate of every cell type, in list order (see [`TimeStepLimit`]).
     pub fn time_step_limits(&self) -> Vec<TimeStepLimit> {
         self.cell_types
