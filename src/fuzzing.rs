@@ -91,6 +91,55 @@ pub fn fit_config(bytes: &[u8]) -> Result<(), String> {
     }
 }
 
+/// A simulation checkpoint ([`crate::io::decode_checkpoint`], then what `simulate --resume` does with
+/// it: the saved parameters parsed and the state restored by [`crate::mechanics::Simulation::restore`]).
+///
+/// Bytes that begin with the checkpoint magic are read as a file. Others are taken as the payload
+/// and framed with a valid header and checksum first ([`crate::io::frame_checkpoint`]), so that
+/// mutations reach the decoder and the restore, which a byte mutation of a whole file almost never
+/// does past the checksum.
+pub fn checkpoint(bytes: &[u8]) -> Result<(), String> {
+    use crate::io::{decode_checkpoint, frame_checkpoint, is_checkpoint};
+    let framed;
+    let file = if is_checkpoint(bytes) {
+        bytes
+    } else {
+        framed = frame_checkpoint(bytes);
+        &framed
+    };
+    let path = Path::new("fuzzed.ckpt");
+    let (info, state) = match decode_checkpoint(file, path) {
+        Ok(read) => read,
+        Err(e) => return names_file(&e.to_string()),
+    };
+    let Ok(params) = Parameters::from_toml_str(&info.parameters, "fuzzed.ckpt") else {
+        return Ok(());
+    };
+    if params.validate().is_err() {
+        return Ok(());
+    }
+    // A restored simulation evaluates its forces once; the state must be refused or made whole.
+    let _ = crate::mechanics::Simulation::restore(state, &params);
+    Ok(())
+}
+
+/// Length units ([`crate::io::LengthScale`] and [`crate::io::parse_lengths`], the `--units`,
+/// `--voxel-size` and `units`/`voxel_size` keys): what parses is finite and positive.
+pub fn units(bytes: &[u8]) -> Result<(), String> {
+    let text = String::from_utf8_lossy(bytes);
+    if let Ok(lengths) = crate::io::parse_lengths(&text)
+        && let Some(bad) = lengths.iter().find(|l| !(l.is_finite() && **l > 0.0))
+    {
+        return Err(format!("parse_lengths accepted {bad} from {text:?}"));
+    }
+    if let Ok(scale) = text.parse::<crate::io::LengthScale>()
+        && !scale.0.iter().all(|l| l.is_finite() && *l > 0.0)
+    {
+        return Err(format!("LengthScale accepted {:?} from {text:?}", scale.0));
+    }
+    Ok(())
+}
+
 /// One entry point: the bytes in, `Err` with what is wrong out.
 pub type Target = fn(&[u8]) -> Result<(), String>;
 
@@ -102,4 +151,6 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("params", params),
     ("pipeline", pipeline),
     ("fit_config", fit_config),
+    ("checkpoint", checkpoint),
+    ("units", units),
 ];

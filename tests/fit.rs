@@ -284,6 +284,16 @@ fn resumes_exactly(dir: &Path, out: &Path, full: &FitResult) {
     std::fs::write(resumed_dir.join("trace.csv"), cut.join("\n") + "\n").unwrap();
     let resumed = fit(&dir.join("fit.toml"), &resumed_dir, true);
     assert_eq!(resumed.simulated_here, trace.len() - k, "only the evaluations after the cut are simulated");
+    // The wall time goes on from the earlier session's last recorded row.
+    let before = trace[k - 1].elapsed_seconds;
+    assert!(before > 0.0, "the trace records the fit's elapsed time: {before}");
+    assert!(
+        resumed.wall_seconds >= before + resumed.session_wall_seconds
+            && resumed.wall_seconds < before + resumed.session_wall_seconds + 1.0,
+        "wall_seconds {} counts only this session ({} s; earlier {before} s)",
+        resumed.wall_seconds,
+        resumed.session_wall_seconds
+    );
     let again = read_trace(&resumed_dir.join("trace.csv"), &space).unwrap();
     assert_eq!(again.len(), trace.len());
     for (a, b) in trace.iter().zip(&again) {
@@ -369,14 +379,15 @@ fn same_seed_gives_the_same_trace_whatever_the_thread_count() {
             let out = dir.path().join(format!("out{threads}"));
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| fit(&config, &out, false));
-            // Everything but the wall time.
+            // Everything but the wall times.
             let text = std::fs::read_to_string(out.join("trace.csv")).unwrap();
             let mut rdr = csv::Reader::from_reader(text.as_bytes());
-            let wall = rdr.headers().unwrap().iter().position(|h| h == "wall_seconds").unwrap();
+            let header = rdr.headers().unwrap().clone();
+            let wall = |i: usize| matches!(&header[i], "wall_seconds" | "elapsed_seconds");
             rdr.records()
                 .map(|r| {
                     let r = r.unwrap();
-                    r.iter().enumerate().filter(|(i, _)| *i != wall).map(|(_, v)| v).collect::<Vec<_>>().join(",")
+                    r.iter().enumerate().filter(|(i, _)| !wall(*i)).map(|(_, v)| v).collect::<Vec<_>>().join(",")
                 })
                 .collect::<Vec<_>>()
                 .join("\n")
@@ -468,6 +479,7 @@ fn trace_round_trips_exactly_including_missing_metrics_and_failures() {
             steps: 1000,
             residual: 0.0123,
             wall_seconds: 0.5,
+            elapsed_seconds: 12.25,
         },
         Evaluation {
             x: vec![(1e10 as Real).ln()],
@@ -478,6 +490,7 @@ fn trace_round_trips_exactly_including_missing_metrics_and_failures() {
             steps: 0,
             residual: Real::NAN,
             wall_seconds: 0.01,
+            elapsed_seconds: 13.0,
         },
     ];
     let dir = tempfile::tempdir().unwrap();

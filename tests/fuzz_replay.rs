@@ -47,6 +47,17 @@ fn the_plain_seeds_parse() {
     }
     let params = std::fs::read_to_string(root.join("params/defaults.toml")).unwrap();
     tissuefit::mechanics::Parameters::from_toml_str(&params, "defaults.toml").unwrap();
+    // The checkpoint seeds: a whole file, and its payload (which the target frames itself). A change of
+    // the checkpoint format refuses them: make them again with `tissuefit generate mesh --kind sphere
+    // --cell-size 8um --min-edge-length 2um --out s.vtp; tissuefit simulate s.vtp --out run --max-steps
+    // 20 --stop-at-step 3`, then run/checkpoint.bin and its bytes after the 28-byte header.
+    let file = std::fs::read(root.join("checkpoint/sphere_42_nodes.ckpt")).unwrap();
+    let payload = std::fs::read(root.join("checkpoint/sphere_42_nodes.payload")).unwrap();
+    assert_eq!(tissuefit::io::frame_checkpoint(&payload), file, "the payload seed is the file's payload");
+    let (info, state) = tissuefit::io::decode_checkpoint(&file, Path::new("sphere_42_nodes.ckpt"))
+        .unwrap_or_else(|e| panic!("{e}: make the checkpoint seeds again (see above)"));
+    let params = tissuefit::mechanics::Parameters::from_toml_str(&info.parameters, "saved").unwrap();
+    tissuefit::mechanics::Simulation::restore(state, &params).unwrap();
     let pipeline = std::fs::read_to_string(root.join("pipeline/demo.toml")).unwrap();
     tissuefit::pipeline::PipelineConfig::from_toml_str(&pipeline, Path::new("demo.toml")).unwrap();
 }

@@ -2,6 +2,10 @@
 //! thread-count reproducibility, resume after an interruption) and pipeline-file errors (exit 2,
 //! naming the file and the key).
 
+#[path = "support/run_dirs.rs"]
+mod run_dirs;
+
+use run_dirs::{data_hashes, normalised_hash, read_json, strip_wall_times};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -26,61 +30,6 @@ fn demo_pipeline(dir: &Path, edit: impl Fn(String) -> String) -> PathBuf {
     let path = dir.join("demo.toml");
     std::fs::write(&path, text).unwrap();
     path
-}
-
-fn read_json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-fn strip_wall_times(v: &mut serde_json::Value) {
-    match v {
-        serde_json::Value::Object(map) => {
-            map.remove("wall_seconds");
-            map.remove("threads");
-            map.values_mut().for_each(strip_wall_times);
-        }
-        serde_json::Value::Array(items) => items.iter_mut().for_each(strip_wall_times),
-        _ => {}
-    }
-}
-
-/// blake3 of a data file with its wall times taken out (JSON keys `wall_seconds` and `threads`, CSV
-/// columns `wall_seconds`); everything else byte for byte.
-fn normalised_hash(path: &Path) -> String {
-    let name = path.file_name().unwrap().to_string_lossy().into_owned();
-    let bytes = std::fs::read(path).unwrap();
-    let data = if name.ends_with(".json") {
-        let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
-        strip_wall_times(&mut v);
-        serde_json::to_vec(&v).unwrap()
-    } else if name.ends_with(".csv") {
-        let mut r = csv::Reader::from_reader(bytes.as_slice());
-        let header = r.headers().unwrap().clone();
-        let keep: Vec<usize> = (0..header.len()).filter(|&i| &header[i] != "wall_seconds").collect();
-        let mut w = csv::Writer::from_writer(Vec::new());
-        w.write_record(keep.iter().map(|&i| &header[i])).unwrap();
-        for rec in r.records() {
-            let rec = rec.unwrap();
-            w.write_record(keep.iter().map(|&i| &rec[i])).unwrap();
-        }
-        w.into_inner().unwrap()
-    } else {
-        bytes
-    };
-    blake3::hash(&data).to_hex().to_string()
-}
-
-/// [`normalised_hash`] of every file of the stage folders of a run directory.
-fn data_hashes(run: &Path) -> BTreeMap<String, String> {
-    let mut out = BTreeMap::new();
-    for stage in ["mesh", "measure", "simulate", "fit"] {
-        for entry in std::fs::read_dir(run.join(stage)).unwrap() {
-            let path = entry.unwrap().path();
-            let name = path.file_name().unwrap().to_string_lossy().into_owned();
-            out.insert(format!("{stage}/{name}"), normalised_hash(&path));
-        }
-    }
-    out
 }
 
 fn statuses(run: &Path) -> Vec<(String, String)> {
@@ -665,4 +614,13 @@ fn a_pipeline_fit_killed_with_sigkill_resumes_from_its_trace_to_the_uninterrupte
     let rows: Vec<&str> = trace.lines().collect();
     assert!(rows.len() > killed_rows.len());
     assert_eq!(rows[..killed_rows.len()], killed_rows[..]);
+    // The time that made the fit counts the killed session's recorded part too; result.json's
+    // wall_seconds likewise.
+    let manifest = read_json(&run.join("manifest.json"));
+    let fit = manifest["stages"].as_array().unwrap().iter().find(|s| s["name"] == "fit").unwrap();
+    let (ran, wall) = (fit["ran_seconds"].as_f64().unwrap(), fit["wall_seconds"].as_f64().unwrap());
+    assert!(ran > wall, "ran_seconds {ran} counts only the last session ({wall} s)");
+    let result = read_json(&run.join("fit/result.json"));
+    let (total, session) = (result["wall_seconds"].as_f64().unwrap(), result["session_wall_seconds"].as_f64().unwrap());
+    assert!(total > session, "wall_seconds {total} counts only the last session ({session} s)");
 }

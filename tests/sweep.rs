@@ -164,6 +164,28 @@ fn a_two_by_two_grid_runs_lists_reproduces_skips_and_collects() {
     let (_, rows) = csv_rows(&alone.join("results.csv"));
     let statuses: Vec<&str> = rows.iter().map(|r| r[col("status")].as_str()).collect();
     assert_eq!(statuses, ["missing", "missing", "complete", "missing"]);
+
+    // A run folder whose lock another process holds (a run into it) is reported running, not read.
+    let held = std::fs::File::create(out.join("run-0001/.tissuefit.lock")).unwrap();
+    held.lock().unwrap();
+    let o = tissuefit(&["sweep", s, "--out", out.to_str().unwrap(), "--collect"]);
+    assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+    let (_, rows) = csv_rows(&out.join("results.csv"));
+    assert_eq!(rows[1][col("status")], "running", "{:?}", rows[1]);
+    assert!(rows[1][col("reason")].contains("run-0001"), "{:?}", rows[1]);
+    assert_eq!(rows.iter().filter(|r| r[col("status")] == "complete").count(), 3);
+    drop(held);
+    // A whole sweep (exclusive) or a job-array task (shared) working in the sweep folder: --collect
+    // refuses (exit 2), naming the folder, and leaves results.csv as it was.
+    let before = std::fs::read(out.join("results.csv")).unwrap();
+    for shared in [false, true] {
+        let holder = std::fs::File::options().write(true).open(out.join(".tissuefit.lock")).unwrap();
+        if shared { holder.lock_shared() } else { holder.lock() }.unwrap();
+        let o = tissuefit(&["sweep", s, "--out", out.to_str().unwrap(), "--collect"]);
+        assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
+        assert!(text(&o).1.contains(out.to_str().unwrap()), "{:?}", text(&o));
+        assert_eq!(std::fs::read(out.join("results.csv")).unwrap(), before, "results.csv untouched");
+    }
 }
 
 fn sweep_error(dir: &Path, body: &str) -> (Option<i32>, String) {

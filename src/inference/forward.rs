@@ -159,6 +159,9 @@ pub struct Evaluation {
     /// Final residual (max force / γ̄·l_min); NaN when the run failed before ending.
     pub residual: Real,
     pub wall_seconds: Real,
+    /// Seconds of the whole fit (every session of a resumed fit) when this evaluation was recorded in
+    /// the trace; NaN until the evaluator records it, and in traces written before this column.
+    pub elapsed_seconds: Real,
 }
 
 /// The observed data the forward model compares against.
@@ -351,6 +354,7 @@ impl ForwardModel {
             steps,
             residual,
             wall_seconds: started.elapsed().as_secs_f64(),
+            elapsed_seconds: Real::NAN,
         };
         if let Err(e) = params.validate() {
             return (failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default()), None);
@@ -386,6 +390,7 @@ impl ForwardModel {
             steps: summary.steps,
             residual: summary.residual,
             wall_seconds: started.elapsed().as_secs_f64(),
+            elapsed_seconds: Real::NAN,
         };
         (evaluation, Some(tissue))
     }

@@ -36,7 +36,7 @@ pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};
 pub use result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
 pub use run::{FitOptions, load_observation, run_fit, run_fit_observed};
 pub use space::{FittedParameter, PARAMETER_NAMES, ParameterSpace};
-pub use trace::{read_trace, write_trace};
+pub use trace::{read_trace, recorded_elapsed_seconds, write_trace};
 
 /// Why a fit could not run (a failed evaluation is not an error: it is penalised and recorded).
 #[derive(Debug, thiserror::Error)]

@@ -22,6 +22,7 @@ use rand_xoshiro::rand_core::SeedableRng;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::Mutex;
+use std::time::Instant;
 
 /// Objective charged per squared log-unit a Nelder–Mead point lies outside the bounds.
 pub const BOUND_PENALTY: Real = 100.0;
@@ -57,17 +58,41 @@ pub struct Evaluator<'a> {
     store: Mutex<Store>,
     /// Called after each batch with the whole trace (writes trace.csv, updates progress).
     on_record: RecordHook<'a>,
+    /// When this session began, and the fit's wall time before it (earlier sessions of a resumed fit):
+    /// each new evaluation's `elapsed_seconds`.
+    clock: (Instant, Real),
 }
 
 impl<'a> Evaluator<'a> {
-    pub fn new(model: &'a ForwardModel, budget: usize, preloaded: Vec<Evaluation>, on_record: RecordHook<'a>) -> Self {
+    /// `preloaded`: the evaluations of a trace being resumed; the fit's wall time before this session
+    /// is taken as the latest `elapsed_seconds` among them. `session`: when this session began.
+    pub fn new(
+        model: &'a ForwardModel,
+        budget: usize,
+        preloaded: Vec<Evaluation>,
+        on_record: RecordHook<'a>,
+        session: Instant,
+    ) -> Self {
+        let before = elapsed_before(&preloaded);
         let preloaded = preloaded.into_iter().map(|e| (key(&e.x), e)).collect();
         Self {
             model,
             budget,
             store: Mutex::new(Store { trace: Vec::new(), index: HashMap::new(), preloaded, simulated: 0 }),
             on_record,
+            clock: (session, before),
         }
+    }
+
+    /// Seconds of the fit before this session (the earlier sessions of a resumed fit).
+    pub fn earlier_seconds(&self) -> Real {
+        self.clock.1
+    }
+
+    /// Seconds of the whole fit so far: the earlier sessions' (up to their last recorded evaluation)
+    /// and this one's.
+    pub fn elapsed_seconds(&self) -> Real {
+        self.clock.1 + self.clock.0.elapsed().as_secs_f64()
     }
 
     pub fn model(&self) -> &ForwardModel {
@@ -125,7 +150,9 @@ impl<'a> Evaluator<'a> {
         let out = {
             let mut store = self.store.lock().expect("evaluator lock");
             store.simulated += results.len();
-            for e in results {
+            let now = self.elapsed_seconds();
+            for mut e in results {
+                e.elapsed_seconds = now;
                 let n = store.trace.len();
                 store.index.insert(key(&e.x), n);
                 store.trace.push(e);
@@ -283,4 +310,10 @@ pub fn optimise(evaluator: &Evaluator<'_>, config: &OptimizerConfig) -> Result<O
             }
         }
     }
+}
+
+/// The fit's wall time recorded by earlier sessions: the latest `elapsed_seconds` of a resumed
+/// trace (0 for a fresh fit, and for a trace written before the column existed).
+fn elapsed_before(preloaded: &[Evaluation]) -> Real {
+    preloaded.iter().map(|e| e.elapsed_seconds).filter(|s| s.is_finite()).fold(0.0, Real::max)
 }

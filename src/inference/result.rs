@@ -60,9 +60,12 @@ pub struct FitResult {
     pub evaluations: usize,
     /// Whether the optimiser met its own criterion (not only the budget).
     pub converged: bool,
-    /// Seconds of this process. A resumed fit counts its own session only (the trace's rows keep
-    /// the wall time of each earlier evaluation).
+    /// Seconds of the whole fit: a resumed fit adds the earlier sessions' wall time up to their last
+    /// recorded evaluation (the trace's `elapsed_seconds`; work in flight when a session was killed is
+    /// not counted).
     pub wall_seconds: Real,
+    /// Seconds of this process alone.
+    pub session_wall_seconds: Real,
     /// Key ratios (γ_lateral/γ_apical, ω/γ) and whether the data determine them.
     pub ratios: BTreeMap<String, RatioResult>,
     /// Plain statements of what is and is not identifiable.

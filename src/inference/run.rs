@@ -160,7 +160,7 @@ pub fn run_fit_observed(
         }
         *shown = trace.len();
     };
-    let evaluator = Evaluator::new(&model, budget, preloaded, Box::new(on_record));
+    let evaluator = Evaluator::new(&model, budget, preloaded, Box::new(on_record), started);
     let outcome = optimise(&evaluator, &config.optimizer)?;
     let trace = evaluator.trace();
     let evaluations = trace.len();
@@ -629,12 +629,14 @@ fn assemble(
             best.metrics
         ));
     }
+    let session = started.elapsed().as_secs_f64();
     FitResult {
         parameters,
         objective: best.objective,
         evaluations,
         converged: outcome.converged,
-        wall_seconds: started.elapsed().as_secs_f64(),
+        wall_seconds: evaluator.earlier_seconds() + session,
+        session_wall_seconds: session,
         ratios,
         identifiability: statements,
         optimizer: format!("{:?}", config.optimizer.method),

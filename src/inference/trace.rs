@@ -4,7 +4,11 @@
 //! fit bit for bit.
 //!
 //! Columns: `evaluation, x_<p>…, <p>… (SI), sphericity, contact_fraction, coordination,
-//! contact_angle, shape, objective, status, converged, steps, residual, wall_seconds, reason`.
+//! contact_angle, shape, objective, status, converged, steps, residual, wall_seconds, elapsed_seconds,
+//! reason`. `wall_seconds` is the evaluation's own run; `elapsed_seconds` the fit's wall time (all
+//! sessions of a resumed fit) when the row was recorded, so a resumed fit's total wall time goes on
+//! from the last row of the sessions before it. Traces written before `elapsed_seconds` existed are
+//! read too (the column is then NaN).
 
 use super::InferenceError;
 use super::forward::{Evaluation, Metrics, Status};
@@ -20,7 +24,7 @@ pub fn header(space: &ParameterSpace) -> Vec<String> {
     h.extend(space.fitted.iter().map(|p| p.name.clone()));
     h.extend(Metrics::NAMES.iter().map(|s| s.to_string()));
     h.extend(
-        ["objective", "status", "converged", "steps", "residual", "wall_seconds", "reason"]
+        ["objective", "status", "converged", "steps", "residual", "wall_seconds", "elapsed_seconds", "reason"]
             .iter()
             .map(|s| s.to_string()),
     );
@@ -49,6 +53,7 @@ pub fn write_trace(path: &Path, space: &ParameterSpace, evaluations: &[Evaluatio
             row.push(e.steps.to_string());
             row.push(e.residual.to_string());
             row.push(e.wall_seconds.to_string());
+            row.push(e.elapsed_seconds.to_string());
             row.push(e.reason.clone());
             w.write_record(&row).map_err(io)?;
         }
@@ -63,7 +68,10 @@ pub fn read_trace(path: &Path, space: &ParameterSpace) -> Result<Vec<Evaluation>
     let mut r = csv::Reader::from_path(path).map_err(|e| bad(e.to_string()))?;
     let expected = header(space);
     let found: Vec<String> = r.headers().map_err(|e| bad(e.to_string()))?.iter().map(str::to_string).collect();
-    if found != expected {
+    // A trace of an earlier version has no elapsed_seconds column.
+    let without_elapsed: Vec<String> = expected.iter().filter(|c| *c != "elapsed_seconds").cloned().collect();
+    let has_elapsed = found != without_elapsed;
+    if has_elapsed && found != expected {
         return Err(bad(format!(
             "its columns ({}) do not match this fit's ({}); was it written by another config?",
             found.join(","),
@@ -95,8 +103,24 @@ pub fn read_trace(path: &Path, space: &ParameterSpace) -> Result<Vec<Evaluation>
             steps: rec[o + 3].parse().map_err(|_| bad(format!("row {row}: steps `{}`", &rec[o + 3])))?,
             residual: parse(&rec[o + 4], "residual", row)?,
             wall_seconds: parse(&rec[o + 5], "wall_seconds", row)?,
-            reason: rec[o + 6].to_string(),
+            elapsed_seconds: if has_elapsed { parse(&rec[o + 6], "elapsed_seconds", row)? } else { Real::NAN },
+            reason: rec[o + if has_elapsed { 7 } else { 6 }].to_string(),
         });
     }
     Ok(out)
+}
+
+/// The fit's wall time recorded in a trace (its latest `elapsed_seconds`): what the sessions that
+/// wrote it had spent, up to their last recorded evaluation. 0 for an unreadable trace or one
+/// without the column.
+pub fn recorded_elapsed_seconds(path: &Path) -> Real {
+    let Ok(mut r) = csv::Reader::from_path(path) else { return 0.0 };
+    let Some(column) = r.headers().ok().and_then(|h| h.iter().position(|c| c == "elapsed_seconds")) else {
+        return 0.0;
+    };
+    r.records()
+        .flatten()
+        .filter_map(|rec| rec.get(column)?.parse::<Real>().ok())
+        .filter(|s| s.is_finite())
+        .fold(0.0, Real::max)
 }

@@ -29,6 +29,17 @@ fn is_temporary(name: &str) -> bool {
 /// Removes the temporaries of [`write_atomically`] that a killed process left in `dir` (not its
 /// subfolders); returns how many. A missing `dir` has none.
 pub fn remove_stale_temporaries(dir: &Path) -> Result<usize, IoError> {
+    remove_temporaries_where(dir, |_| true)
+}
+
+/// [`remove_stale_temporaries`] for the files named `names` only (`manifest.json` →
+/// `manifest.json.tmp-<process id>`): for a folder that also holds the user's files.
+pub fn remove_stale_temporaries_of(dir: &Path, names: &[&str]) -> Result<usize, IoError> {
+    remove_temporaries_where(dir, |file| names.contains(&file))
+}
+
+/// Removes the temporaries in `dir` whose target file name passes `target`.
+fn remove_temporaries_where(dir: &Path, target: impl Fn(&str) -> bool) -> Result<usize, IoError> {
     let entries = match std::fs::read_dir(dir) {
         Ok(entries) => entries,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
@@ -37,7 +48,10 @@ pub fn remove_stale_temporaries(dir: &Path) -> Result<usize, IoError> {
     let mut removed = 0;
     for entry in entries.flatten() {
         let path = entry.path();
-        if path.is_file() && entry.file_name().to_str().is_some_and(is_temporary) {
+        let name = entry.file_name();
+        let ours =
+            name.to_str().is_some_and(|n| is_temporary(n) && n.rsplit_once(".tmp-").is_some_and(|(f, _)| target(f)));
+        if ours && path.is_file() {
             std::fs::remove_file(&path).map_err(|source| IoError::Write { path: path.clone(), source })?;
             removed += 1;
         }
@@ -66,5 +80,10 @@ mod tests {
         left.sort();
         assert_eq!(left, [".tmp-12", "b.tmp-", "frame_000001.vtp", "notes.tmp-x"]);
         assert_eq!(remove_stale_temporaries(&dir.path().join("missing")).unwrap(), 0);
+        for name in ["manifest.json.tmp-7", "notes.txt.tmp-7", "manifest.json"] {
+            std::fs::write(dir.path().join(name), b"x").unwrap();
+        }
+        assert_eq!(remove_stale_temporaries_of(dir.path(), &["manifest.json", "results.csv"]).unwrap(), 1);
+        assert!(dir.path().join("notes.txt.tmp-7").exists() && dir.path().join("manifest.json").exists());
     }
 }

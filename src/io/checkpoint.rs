@@ -124,15 +124,26 @@ pub fn checksum(bytes: &[u8]) -> u64 {
 pub fn write_checkpoint(path: &Path, info: &RunInfo, state: &SimulationState) -> Result<u64, CheckpointError> {
     let payload = postcard::to_stdvec(&(info, state))
         .map_err(|e| CheckpointError::Encode { path: path.to_path_buf(), message: e.to_string() })?;
-    write_atomically(path, |w| {
-        w.write_all(&MAGIC)?;
-        w.write_all(&CHECKPOINT_VERSION.to_le_bytes())?;
-        w.write_all(&(payload.len() as u64).to_le_bytes())?;
-        w.write_all(&checksum(&payload).to_le_bytes())?;
-        w.write_all(&payload)
-    })
-    .map_err(|e| CheckpointError::Write { path: path.to_path_buf(), source: Box::new(e) })?;
-    Ok((HEADER + payload.len()) as u64)
+    let bytes = frame_checkpoint(&payload);
+    write_atomically(path, |w| w.write_all(&bytes))
+        .map_err(|e| CheckpointError::Write { path: path.to_path_buf(), source: Box::new(e) })?;
+    Ok(bytes.len() as u64)
+}
+
+/// A checkpoint file's bytes around an encoded payload: magic, version, length, checksum, payload.
+pub fn frame_checkpoint(payload: &[u8]) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(HEADER + payload.len());
+    bytes.extend_from_slice(&MAGIC);
+    bytes.extend_from_slice(&CHECKPOINT_VERSION.to_le_bytes());
+    bytes.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(&checksum(payload).to_le_bytes());
+    bytes.extend_from_slice(payload);
+    bytes
+}
+
+/// Whether `bytes` begin like a checkpoint file (its magic number).
+pub fn is_checkpoint(bytes: &[u8]) -> bool {
+    bytes.starts_with(&MAGIC)
 }
 
 /// Reads and checks a checkpoint written by [`write_checkpoint`].

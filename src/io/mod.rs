@@ -19,11 +19,11 @@ mod simulation_output;
 mod units;
 mod vtp;
 
-pub use atomic::{remove_stale_temporaries, write_atomically, write_bytes_atomically};
+pub use atomic::{remove_stale_temporaries, remove_stale_temporaries_of, write_atomically, write_bytes_atomically};
 pub use bounded::{MAX_CONFIG_FILE, MAX_TISSUE_FILE, UNSIZED_CAP, read_capped, read_text_capped};
 pub use checkpoint::{
     CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, RunSettings, checksum,
-    decode_checkpoint, read_checkpoint, write_checkpoint,
+    decode_checkpoint, frame_checkpoint, is_checkpoint, read_checkpoint, write_checkpoint,
 };
 pub use error::IoError;
 pub use legacy_tissue::TissueFormat;

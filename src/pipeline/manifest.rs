@@ -58,7 +58,8 @@ pub struct StageRecord {
     pub key: String,
     /// Seconds the stage ran (0 when skipped: see `ran_seconds` for the run that made the outputs).
     pub wall_seconds: f64,
-    /// Seconds of the run that made the outputs.
+    /// Seconds of the run that made the outputs (a resumed fit's earlier sessions included, up to
+    /// their last recorded evaluation).
     pub ran_seconds: f64,
     /// Output file (relative to the stage folder, `/`-separated) → blake3. These are the files the
     /// program owns in the stage folder, whatever the status: a re-run replaces or removes only them,

@@ -149,6 +149,9 @@ fn run_locked(
 ) -> Result<PipelineOutcome, PipelineError> {
     let out = &options.out;
     let _active = ActiveRun(out.clone());
+    // What a process killed while writing left (the lock proves it has ended).
+    crate::io::remove_stale_temporaries_of(out, &["manifest.json", "config.resolved.toml"])
+        .map_err(|e| PipelineError::Io { path: out.clone(), message: e.to_string() })?;
     // Read with --force too: it records what the program owns in the stage folders.
     let previous = Manifest::read_own(out)?;
     let resolved_path = out.join("config.resolved.toml");
@@ -445,6 +448,8 @@ impl Runner<'_, '_> {
                 false
             }
         };
+        // A resumed fit's earlier sessions count in the time that made the outputs.
+        let earlier = if resume { crate::inference::recorded_elapsed_seconds(&tmp.join("trace.csv")) } else { 0.0 };
         let started = Instant::now();
         let result = body(&tmp, resume).and_then(|r| {
             let made = hash_outputs(&tmp)?;
@@ -480,7 +485,7 @@ impl Runner<'_, '_> {
         record.outputs = made;
         record.status = StageStatus::Complete;
         record.wall_seconds = wall;
-        record.ran_seconds = wall;
+        record.ran_seconds = earlier + wall;
         record.note = (!ok).then(|| "completed, but did not converge".to_string());
         self.manifest.set_stage(record.clone());
         self.publish()?;

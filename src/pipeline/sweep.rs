@@ -590,6 +590,9 @@ fn run_one(sweep: &Sweep, run: &SweepRun, options: &SweepOptions<'_>) -> RunRepo
         }
     };
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Result<_, PipelineError> {
+        // What a process killed while writing left (the lock proves it has ended).
+        crate::io::remove_stale_temporaries_of(&dir, &["pipeline.toml", FAILED_FILE])
+            .map_err(|e| PipelineError::Io { path: dir.clone(), message: e.to_string() })?;
         let failed = dir.join(FAILED_FILE);
         if failed.exists() {
             std::fs::remove_file(&failed)
@@ -643,7 +646,8 @@ fn run_one(sweep: &Sweep, run: &SweepRun, options: &SweepOptions<'_>) -> RunRepo
 #[derive(Clone, Debug)]
 pub struct ResultRow {
     pub index: usize,
-    /// `complete`, `failed`, `incomplete` (a stage not finished) or `missing` (never run).
+    /// `complete`, `failed`, `incomplete` (a stage not finished), `running` (another process holds the
+    /// run folder's lock) or `missing` (never run).
     pub status: String,
     pub reason: String,
     /// Seconds the stages took to make the outputs (the manifest's `ran_seconds`, summed).
@@ -678,6 +682,33 @@ fn unconverged(stage: &str, read_json: &dyn Fn(&str) -> Option<serde_json::Value
 
 fn read_row(sweep: &Sweep, run: &SweepRun, out: &Path) -> ResultRow {
     let dir = run_dir(out, run.index);
+    // A run folder another process is writing into is reported as running, not read half-made. The
+    // shared lock is held while the folder is read.
+    let _lock = if dir.is_dir() {
+        match DirLock::shared(&dir) {
+            Ok(lock) => Some(lock),
+            Err(PipelineError::Locked { .. }) => {
+                return ResultRow {
+                    index: run.index,
+                    status: "running".into(),
+                    reason: format!("another tissuefit process is writing into {} (its lock is held)", dir.display()),
+                    wall_seconds: None,
+                    outputs: vec![None; sweep.columns.len()],
+                };
+            }
+            Err(e) => {
+                return ResultRow {
+                    index: run.index,
+                    status: "failed".into(),
+                    reason: e.to_string(),
+                    wall_seconds: None,
+                    outputs: vec![None; sweep.columns.len()],
+                };
+            }
+        }
+    } else {
+        None
+    };
     let read_json = |file: &str| -> Option<serde_json::Value> {
         serde_json::from_str(&std::fs::read_to_string(dir.join(file)).ok()?).ok()
     };
@@ -748,7 +779,16 @@ pub fn show_json(v: &serde_json::Value) -> String {
 /// Reads every run directory back into rows (in run order) and writes `DIR/results.csv`:
 /// `index, run, <swept keys>, <columns>, status, reason, wall_seconds`. Warns about a column that no
 /// complete run has, suggesting the nearest key of that file.
+///
+/// Holds the sweep folder's lock exclusively while it reads and writes: it refuses to run beside a
+/// whole sweep, beside job-array tasks (`--index`, which hold it shared: a table made while they run
+/// would be out of date at once) and beside another collection. A run folder whose own lock another
+/// process holds (a `tissuefit run` into it) is reported as `running`, not read half-made.
 pub fn collect_results(sweep: &Sweep, out: &Path) -> Result<Vec<ResultRow>, PipelineError> {
+    let _lock = DirLock::exclusive(out)?;
+    // What a collection killed while writing left (the lock proves it has ended).
+    crate::io::remove_stale_temporaries_of(out, &["results.csv"])
+        .map_err(|e| PipelineError::Io { path: out.to_path_buf(), message: e.to_string() })?;
     let rows: Vec<ResultRow> = sweep.runs.iter().map(|r| read_row(sweep, r, out)).collect();
     for column in &sweep.columns {
         let complete: Vec<&ResultRow> = rows.iter().filter(|r| r.status == "complete").collect();
