@@ -274,3 +274,56 @@ fn a_full_disk_is_a_clear_error_and_leaves_nothing_that_looks_complete() {
         assert!(!name.contains(".tmp") && !name.starts_with('.'), "a temporary file was left behind: {name}");
     }
 }
+
+/// Every subcommand that reads a file, given a missing file and then a file of garbage with the
+/// right extension: exit 2, a message naming the file, and nothing written where its outputs go (the
+/// output folder is not even made).
+#[test]
+fn every_subcommand_refuses_a_missing_or_garbage_input_naming_it_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    // (what the argument is, its extension, the command line with FILE for it and OUT for an output
+    // folder (or OUT/... for an output file))
+    let commands: &[(&str, &[&str])] = &[
+        ("vtk", &["inspect", "FILE"]),
+        ("vtk", &["convert", "FILE", "OUT/t.vtp"]),
+        ("vtk", &["measure", "FILE", "--out", "OUT"]),
+        ("tif", &["mesh", "FILE", "--out", "OUT/t.vtp"]),
+        ("vtk", &["simulate", "FILE", "--out", "OUT", "--max-steps", "5"]),
+        ("vtk", &["polarize", "FILE", "--out", "OUT/p.vtp"]),
+        ("vtk", &["voxelize", "FILE", "--voxel-size", "1um", "--out", "OUT/v.tif"]),
+        ("vtk", &["render", "FILE", "--out", "OUT/v.png"]),
+        ("vtk", &["bench", "forces-tissue", "FILE", "--repeat", "1"]),
+        ("toml", &["config", "check", "FILE"]),
+        ("toml", &["fit", "--config", "FILE", "--out", "OUT"]),
+        ("toml", &["run", "FILE", "--out", "OUT"]),
+        ("toml", &["sweep", "FILE", "--out", "OUT"]),
+    ];
+    let garbage: &[u8] = b"\x00\x01\x02 not a file of this kind [[[ = \xff\xfe\n";
+    let mut failures = Vec::new();
+    for (k, (ext, line)) in commands.iter().enumerate() {
+        for kind in ["missing", "garbage"] {
+            let case = dir.path().join(format!("{k}-{kind}"));
+            std::fs::create_dir_all(&case).unwrap();
+            let file = case.join(format!("{kind}_input.{ext}"));
+            if kind == "garbage" {
+                std::fs::write(&file, garbage).unwrap();
+            }
+            let out = case.join("out");
+            let args: Vec<String> = line
+                .iter()
+                .map(|a| a.replace("FILE", file.to_str().unwrap()).replace("OUT", out.to_str().unwrap()))
+                .collect();
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            let o = tissuefit(&args);
+            let err = String::from_utf8_lossy(&o.stderr).into_owned();
+            let name = format!("{kind}_input.{ext}");
+            if o.status.code() != Some(2) || !err.contains(&name) {
+                failures.push(format!("{} ({kind}): exit {:?}, stderr: {err}", line[0], o.status.code()));
+            }
+            if out.exists() {
+                failures.push(format!("{} ({kind}): wrote {:?}", line[0], files(&out)));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
