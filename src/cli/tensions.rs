@@ -64,7 +64,8 @@ fn parse_gauge(s: &str) -> Result<Gauge, String> {
     if s == "medium" {
         return Ok(Gauge::MediumMean);
     }
-    let parsed = s.split_once('-').and_then(|(a, b)| Some((a.trim().parse::<u32>().ok()?, b.trim().parse::<u32>().ok()?)));
+    let parsed =
+        s.split_once('-').and_then(|(a, b)| Some((a.trim().parse::<u32>().ok()?, b.trim().parse::<u32>().ok()?)));
     match parsed {
         Some((a, b)) if a != b => Ok(Gauge::Interface(a, b)),
         _ => Err(format!("`{s}`: give `medium` or an interface as two different labels A-B (0 = medium), e.g. 1-2")),
@@ -126,6 +127,8 @@ struct Summary<'a> {
     contact_distance_um: Real,
     junction_samples: usize,
     junction_samples_skipped: usize,
+    junction_samples_near_vertices: usize,
+    junction_samples_trimmed: usize,
     junction_lines: usize,
     unknowns: usize,
     condition_number: Option<Real>,
@@ -156,7 +159,12 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str)> {
         let meshing = mesh_labels(&read.volume, &options)
             .with_context(|| format!("meshing {} ({})", path.display(), describe_grid(&read.volume)))?;
         for r in meshing.report.iter().filter(|r| r.cell_id.is_none()) {
-            tracing::warn!("{}: label {} not meshed: {}", path.display(), r.label, r.reason.as_deref().unwrap_or("dropped"));
+            tracing::warn!(
+                "{}: label {} not meshed: {}",
+                path.display(),
+                r.label,
+                r.reason.as_deref().unwrap_or("dropped")
+            );
         }
         return Ok((meshing.tissue, "labels"));
     }
@@ -218,6 +226,8 @@ pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
         contact_distance_um: map.contact_distance * 1e6,
         junction_samples: map.samples,
         junction_samples_skipped: map.samples_skipped,
+        junction_samples_near_vertices: map.samples_near_vertices,
+        junction_samples_trimmed: map.samples_trimmed,
         junction_lines: map.junction_lines,
         unknowns: map.unknowns,
         condition_number: map.condition_number,
@@ -263,12 +273,8 @@ fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summar
         })
         .collect();
     // Per-face tension and per-cell pressure for ParaView (NaN where undetermined).
-    let face_tension: Vec<Real> = map
-        .face_interface
-        .iter()
-        .flatten()
-        .map(|&k| map.interfaces[k].tension.unwrap_or(Real::NAN))
-        .collect();
+    let face_tension: Vec<Real> =
+        map.face_interface.iter().flatten().map(|&k| map.interfaces[k].tension.unwrap_or(Real::NAN)).collect();
     let by_id: std::collections::BTreeMap<u32, Option<Real>> =
         map.cells.iter().map(|c| (c.cell, c.pressure.map(|p| p * 1e-6))).collect();
     let pressure: Vec<Real> =
@@ -287,7 +293,8 @@ fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summar
         })
         .with_context(|| format!("writing {}", path.display()))?;
     let vtp = dir.join("tensions.vtp");
-    let fields = [CellField { name: "tension", values: &face_tension }, CellField { name: "pressure", values: &pressure }];
+    let fields =
+        [CellField { name: "tension", values: &face_tension }, CellField { name: "pressure", values: &pressure }];
     let bytes = vtp_bytes(&vtp, tissue, &fields, None)?;
     group.write_bytes(&vtp, &bytes).with_context(|| format!("writing {}", vtp.display()))?;
     group.commit().with_context(|| format!("writing the outputs into {}", dir.display()))

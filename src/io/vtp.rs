@@ -52,7 +52,12 @@ pub fn write_vtp(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Op
 
 /// The bytes of the `.vtp` file [`write_vtp`] would write to `path` (named in errors), for writers that
 /// stage several files together ([`super::OutputGroup`]).
-pub fn vtp_bytes(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Option<Real>) -> Result<Vec<u8>, IoError> {
+pub fn vtp_bytes(
+    path: &Path,
+    tissue: &Tissue,
+    extra: &[CellField<'_>],
+    time: Option<Real>,
+) -> Result<Vec<u8>, IoError> {
     let header = vtp_header(path, tissue, extra, time)?;
     let mut bytes = Vec::new();
     write_vtp_body(&mut bytes, &header, tissue, extra)

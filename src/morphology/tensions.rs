@@ -65,9 +65,13 @@ pub const MAX_RADIUS_OVER_EXTENT: Real = 1e3;
 /// Sphere-fit rms above this fraction of the radius is reported in the warnings (the interface is not
 /// one sphere: its far-field tangents are approximate).
 pub const WARN_FIT_RMS: Real = 0.05;
-/// Junction samples farther than this many mean edge lengths from one of their interfaces' fitted
-/// surfaces are left out (stray contact faces, not a junction).
-pub const MAX_JUNCTION_OFFSET_EDGES: Real = 2.0;
+/// Junction samples farther than this many mean edge lengths from the line where their three fitted
+/// surfaces meet are left out (stray contact faces, not a junction).
+pub const MAX_JUNCTION_OFFSET_EDGES: Real = 4.0;
+/// Junction samples within this many mean edge lengths of another junction line are left out.
+pub const VERTEX_MARGIN_EDGES: Real = 2.0;
+/// The robust pass never drops samples whose imbalance is below this (units of the gauge).
+pub const MIN_TRIMMED_IMBALANCE: Real = 0.05;
 /// Relative size (to the largest) below which a second singular value counts as zero.
 pub const SINGULAR_TOLERANCE: Real = 1e-10;
 
@@ -182,8 +186,14 @@ pub struct TensionMap {
     pub contact_distance: Real,
     /// Junction samples used in the force balance.
     pub samples: usize,
-    /// Samples left out (a partner pair that does not touch, or an interface without a fit).
+    /// Samples left out (a partner pair that does not touch, or an interface without a fit, or
+    /// surfaces that do not meet near the sample).
     pub samples_skipped: usize,
+    /// Samples left out within [`VERTEX_MARGIN_EDGES`] mean edge lengths of another junction line
+    /// (near a vertex where four interfaces meet, the triple-line geometry does not hold).
+    pub samples_near_vertices: usize,
+    /// Samples left out by the robust pass (imbalance above [`TRIM_FACTOR`] × the median).
+    pub samples_trimmed: usize,
     /// Distinct junction lines (triples of labels).
     pub junction_lines: usize,
     /// Unknown tensions.
@@ -284,11 +294,8 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         let p = mesh.positions();
         let vectors = mesh.face_area_vectors();
         let own = ids[i];
-        let keys: Vec<(u32, u32)> = partitions[i]
-            .partner
-            .iter()
-            .map(|&b| key(own, if b == FREE { 0 } else { ids[b as usize] }))
-            .collect();
+        let keys: Vec<(u32, u32)> =
+            partitions[i].partner.iter().map(|&b| key(own, if b == FREE { 0 } else { ids[b as usize] })).collect();
         for (f, t) in mesh.triangles().iter().enumerate() {
             let k = keys[f];
             let patch = patches.entry(k).or_default();
@@ -390,20 +397,33 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
     let n = unknown_keys.len();
     let local = 4.0 * h;
     // (row coefficients as (unknown, value), line) per equation; two equations per sample.
-    let mut rows: Vec<(Vec<(usize, Real)>, usize)> = Vec::with_capacity(2 * samples.len());
-    let mut per_interface_samples = vec![0usize; keys.len()];
-    for s in &samples {
-        let normals: Option<Vec<Vec3>> =
-            s.interfaces.iter().map(|&k| patches[k].surface.and_then(|f| f.normal_at(&s.x))).collect();
+    let mut rows: Vec<Row> = Vec::with_capacity(2 * samples.len());
+    let near_vertex = near_other_lines(&samples, VERTEX_MARGIN_EDGES * h);
+    let mut vertex_skipped = 0usize;
+    for (si, s) in samples.iter().enumerate() {
+        if near_vertex[si] {
+            vertex_skipped += 1;
+            continue;
+        }
+        let surfaces: Option<Vec<Surface>> = s.interfaces.iter().map(|&k| patches[k].surface).collect();
+        let Some(surfaces) = surfaces else {
+            skipped += 1;
+            continue;
+        };
+        // The junction is where the three fitted surfaces meet: the mesh's own junction edge lies
+        // inside the rounding of the rim, up to a voxel or more away on a segmentation, and a sphere's
+        // normal turns by that offset over its radius. A sample whose surfaces do not meet near it
+        // is a stray contact face's edge, not a junction.
+        let x = snap_to_junction(&surfaces, s.x, h);
+        if (x - s.x).norm() > MAX_JUNCTION_OFFSET_EDGES * h || surfaces.iter().any(|f| f.distance(&x) > 0.1 * h) {
+            skipped += 1;
+            continue;
+        }
+        let normals: Option<Vec<Vec3>> = surfaces.iter().map(|f| f.normal_at(&x)).collect();
         let Some(normals) = normals else {
             skipped += 1;
             continue;
         };
-        // A junction lies on all three surfaces; a sample far from one is a stray contact face's edge.
-        if s.interfaces.iter().any(|&k| patches[k].surface.is_some_and(|f| f.distance(&s.x) > MAX_JUNCTION_OFFSET_EDGES * h)) {
-            skipped += 1;
-            continue;
-        }
         let Some(line) = line_direction(&normals, &s.edge) else {
             skipped += 1;
             continue;
@@ -415,8 +435,8 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
                 ok = false;
                 break;
             };
-            let near = local_mean(&patches[k].centroids, &s.x, local);
-            let toward = near - s.x;
+            let near = local_mean(&patches[k].centroids, &x, local);
+            let toward = near - x;
             tangents[j] = if t.dot(&toward) >= 0.0 { t } else { -t };
         }
         if !ok {
@@ -434,14 +454,10 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
                     None => coefficients.push((unknown_of[k], c)),
                 }
             }
-            rows.push((coefficients, s.line));
-        }
-        for &k in &s.interfaces {
-            per_interface_samples[k] += 1;
+            rows.push(Row { coefficients, line: s.line, sample: si });
         }
     }
-    let used = rows.len() / 2;
-    if used == 0 {
+    if rows.is_empty() {
         return Err(TensionError::NoJunctions { delta });
     }
 
@@ -473,89 +489,26 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
     };
 
     // Blocks of unknowns linked by samples (union-find in a fixed order).
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn find(parent: &mut [usize], mut x: usize) -> usize {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    }
-    for (coefficients, _) in &rows {
-        for w in coefficients.windows(2) {
-            let (a, b) = (find(&mut parent, w[0].0), find(&mut parent, w[1].0));
-            if a != b {
-                parent[a.max(b)] = a.min(b);
-            }
-        }
-    }
-    let root: Vec<usize> = (0..n).map(|u| find(&mut parent, u)).collect();
-    let mut sampled = vec![false; n];
-    for (coefficients, _) in &rows {
-        for &(u, _) in coefficients {
-            sampled[u] = true;
-        }
-    }
-    let mut tension: Vec<Option<Real>> = vec![None; n];
-    let mut tension_sd: Vec<Option<Real>> = vec![None; n];
-    let mut condition: Option<Real> = None;
-    let mut blocks: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
-    for u in 0..n {
-        if sampled[u] {
-            blocks.entry(root[u]).or_default().push(u);
-        }
-    }
-    let gauge_blocks: Vec<usize> = {
-        let mut b: Vec<usize> = gauge_unknowns.iter().filter(|&&u| sampled[u]).map(|&u| root[u]).collect();
-        b.sort_unstable();
-        b.dedup();
-        b
+    let first = solve_tensions(&rows, n, &gauge_unknowns, &gauge_name, settings.gauge_value)?;
+    // One robust pass: samples whose force imbalance exceeds TRIM_FACTOR × the median (a junction
+    // mis-read near a vertex, a stray contact patch) are left out and the system solved again.
+    let imbalance = sample_imbalance(&rows, &first.tension, settings.gauge_value);
+    let mut values: Vec<Real> = imbalance.values().copied().collect();
+    let limit = median(&mut values).map(|m| (TRIM_FACTOR * m).max(MIN_TRIMMED_IMBALANCE));
+    let outliers: Vec<usize> = match limit {
+        Some(limit) => imbalance.iter().filter(|(_, r)| **r > limit).map(|(s, _)| *s).collect(),
+        None => Vec::new(),
     };
-    if gauge_blocks.is_empty() {
-        return Err(TensionError::GaugeUndetermined { gauge: gauge_name });
-    }
-    if gauge_blocks.len() > 1 {
-        warnings.push(format!(
-            "the junctions form {} unconnected groups with a gauge tension each; each group is scaled by its own \
-             gauge ({gauge_name}), so tensions compare only within a group",
-            gauge_blocks.len()
-        ));
-    }
-    for (&block_root, members) in &blocks {
-        if !gauge_blocks.contains(&block_root) {
-            warnings.push(format!(
-                "{} tension(s) share no junction with the gauge ({gauge_name}): undetermined",
-                members.len()
-            ));
-            continue;
-        }
-        let local_of: BTreeMap<usize, usize> = members.iter().enumerate().map(|(l, &u)| (u, l)).collect();
-        let m = members.len();
-        let block_rows: Vec<&(Vec<(usize, Real)>, usize)> =
-            rows.iter().filter(|(c, _)| local_of.contains_key(&c[0].0)).collect();
-        let mut a = DMatrix::<Real>::zeros(block_rows.len(), m);
-        for (r, (coefficients, _)) in block_rows.iter().enumerate() {
-            for &(u, c) in coefficients {
-                a[(r, local_of[&u])] += c;
-            }
-        }
-        let gauge: Vec<usize> = gauge_unknowns.iter().filter_map(|u| local_of.get(u).copied()).collect();
-        match solve_block(&a, &block_rows.iter().map(|r| r.1).collect::<Vec<_>>(), &gauge, settings.gauge_value) {
-            Some(solution) => {
-                for (l, &u) in members.iter().enumerate() {
-                    tension[u] = Some(solution.tension[l]);
-                    tension_sd[u] = Some(solution.sd[l]);
-                }
-                if let Some(c) = solution.condition {
-                    condition = Some(condition.map_or(c, |x: Real| x.max(c)));
-                }
-            }
-            None => warnings.push(format!(
-                "{m} tension(s) linked to the gauge are not determined by the junctions (several force-balancing \
-                 directions): undetermined"
-            )),
-        }
-    }
+    let solved = if outliers.is_empty() {
+        first
+    } else {
+        let kept: Vec<Row> = rows.into_iter().filter(|r| outliers.binary_search(&r.sample).is_err()).collect();
+        rows = kept;
+        solve_tensions(&rows, n, &gauge_unknowns, &gauge_name, settings.gauge_value)?
+    };
+    let trimmed_samples = outliers.len();
+    let Solved { tension, tension_sd, condition, sampled, warnings: solve_warnings } = solved;
+    warnings.extend(solve_warnings);
     let unsampled: Vec<String> = keys
         .iter()
         .enumerate()
@@ -582,24 +535,15 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
     }
 
     // Residuals of the force balance.
-    let mut per_sample: Vec<Real> = Vec::new();
-    for pair in rows.chunks(2) {
-        let mut norm2 = 0.0;
-        let mut known = true;
-        for (coefficients, _) in pair {
-            let mut r = 0.0;
-            for &(u, c) in coefficients {
-                match tension[u] {
-                    Some(t) => r += c * t,
-                    None => known = false,
-                }
-            }
-            norm2 += r * r;
-        }
-        if known {
-            per_sample.push(norm2.sqrt() / settings.gauge_value);
+    let mut per_interface_samples = vec![0usize; keys.len()];
+    let mut used = 0usize;
+    for r in rows.iter().step_by(2) {
+        used += 1;
+        for &k in &samples[r.sample].interfaces {
+            per_interface_samples[k] += 1;
         }
     }
+    let per_sample: Vec<Real> = sample_imbalance(&rows, &tension, settings.gauge_value).into_values().collect();
     let residual_rms = (!per_sample.is_empty())
         .then(|| (per_sample.iter().map(|r| r * r).sum::<Real>() / per_sample.len() as Real).sqrt());
     let residual_median = median(&mut per_sample.clone());
@@ -681,6 +625,8 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         contact_distance: delta,
         samples: used,
         samples_skipped: skipped,
+        samples_near_vertices: vertex_skipped,
+        samples_trimmed: trimmed_samples,
         junction_lines: lines.len(),
         unknowns: n,
         condition_number: condition,
@@ -689,6 +635,175 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         pressure_residual_rms,
         warnings,
     })
+}
+
+/// Per sample (index), |Σ T_k t_k| / gauge over its two rows; samples with an undetermined tension
+/// are left out.
+fn sample_imbalance(rows: &[Row], tension: &[Option<Real>], value: Real) -> BTreeMap<usize, Real> {
+    let mut out: BTreeMap<usize, Real> = BTreeMap::new();
+    let mut unknown: Vec<usize> = Vec::new();
+    for r in rows {
+        let mut sum = 0.0;
+        for &(u, c) in &r.coefficients {
+            match tension[u] {
+                Some(t) => sum += c * t,
+                None => unknown.push(r.sample),
+            }
+        }
+        *out.entry(r.sample).or_insert(0.0) += sum * sum;
+    }
+    for s in unknown {
+        out.remove(&s);
+    }
+    out.values_mut().for_each(|v| *v = v.sqrt() / value);
+    out
+}
+
+/// For each sample, whether a sample of another junction line lies within `radius` (a hash grid of
+/// cubes of edge `radius`); a line never loses all its samples this way.
+fn near_other_lines(samples: &[Sample], radius: Real) -> Vec<bool> {
+    let cube = |x: &Vec3| [0, 1, 2].map(|a| (x[a] / radius).floor() as i64);
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = std::collections::HashMap::new();
+    for (i, s) in samples.iter().enumerate() {
+        grid.entry(cube(&s.x)).or_default().push(i);
+    }
+    let mut near: Vec<bool> = samples
+        .iter()
+        .map(|s| {
+            let c = cube(&s.x);
+            (-1..=1).any(|dx| {
+                (-1..=1).any(|dy| {
+                    (-1..=1).any(|dz| {
+                        grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]).is_some_and(|list| {
+                            list.iter().any(|&j| {
+                                samples[j].line != s.line && (samples[j].x - s.x).norm_squared() < radius * radius
+                            })
+                        })
+                    })
+                })
+            })
+        })
+        .collect();
+    let lines = samples.iter().map(|s| s.line).max().map_or(0, |m| m + 1);
+    let mut keeps = vec![false; lines];
+    for (s, &n) in samples.iter().zip(&near) {
+        keeps[s.line] |= !n;
+    }
+    for (s, n) in samples.iter().zip(near.iter_mut()) {
+        if !keeps[s.line] {
+            *n = false;
+        }
+    }
+    near
+}
+
+/// One force-balance equation: coefficients per unknown, its junction line and sample.
+struct Row {
+    coefficients: Vec<(usize, Real)>,
+    line: usize,
+    sample: usize,
+}
+
+/// The tensions solved block by block (see the module docs).
+struct Solved {
+    tension: Vec<Option<Real>>,
+    tension_sd: Vec<Option<Real>>,
+    condition: Option<Real>,
+    sampled: Vec<bool>,
+    warnings: Vec<String>,
+}
+
+fn solve_tensions(
+    rows: &[Row],
+    n: usize,
+    gauge_unknowns: &[usize],
+    gauge_name: &str,
+    value: Real,
+) -> Result<Solved, TensionError> {
+    let mut warnings = Vec::new();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    for Row { coefficients, .. } in rows {
+        for w in coefficients.windows(2) {
+            let (a, b) = (find(&mut parent, w[0].0), find(&mut parent, w[1].0));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let root: Vec<usize> = (0..n).map(|u| find(&mut parent, u)).collect();
+    let mut sampled = vec![false; n];
+    for Row { coefficients, .. } in rows {
+        for &(u, _) in coefficients {
+            sampled[u] = true;
+        }
+    }
+    let mut tension: Vec<Option<Real>> = vec![None; n];
+    let mut tension_sd: Vec<Option<Real>> = vec![None; n];
+    let mut condition: Option<Real> = None;
+    let mut blocks: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for u in 0..n {
+        if sampled[u] {
+            blocks.entry(root[u]).or_default().push(u);
+        }
+    }
+    let gauge_blocks: Vec<usize> = {
+        let mut b: Vec<usize> = gauge_unknowns.iter().filter(|&&u| sampled[u]).map(|&u| root[u]).collect();
+        b.sort_unstable();
+        b.dedup();
+        b
+    };
+    if gauge_blocks.is_empty() {
+        return Err(TensionError::GaugeUndetermined { gauge: gauge_name.to_string() });
+    }
+    if gauge_blocks.len() > 1 {
+        warnings.push(format!(
+            "the junctions form {} unconnected groups with a gauge tension each; each group is scaled by its own \
+             gauge ({gauge_name}), so tensions compare only within a group",
+            gauge_blocks.len()
+        ));
+    }
+    for (&block_root, members) in &blocks {
+        if !gauge_blocks.contains(&block_root) {
+            warnings.push(format!(
+                "{} tension(s) share no junction with the gauge ({gauge_name}): undetermined",
+                members.len()
+            ));
+            continue;
+        }
+        let local_of: BTreeMap<usize, usize> = members.iter().enumerate().map(|(l, &u)| (u, l)).collect();
+        let m = members.len();
+        let block_rows: Vec<&Row> = rows.iter().filter(|r| local_of.contains_key(&r.coefficients[0].0)).collect();
+        let mut a = DMatrix::<Real>::zeros(block_rows.len(), m);
+        for (r, Row { coefficients, .. }) in block_rows.iter().enumerate() {
+            for &(u, c) in coefficients {
+                a[(r, local_of[&u])] += c;
+            }
+        }
+        let gauge: Vec<usize> = gauge_unknowns.iter().filter_map(|u| local_of.get(u).copied()).collect();
+        match solve_block(&a, &block_rows.iter().map(|r| r.line).collect::<Vec<_>>(), &gauge, value) {
+            Some(solution) => {
+                for (l, &u) in members.iter().enumerate() {
+                    tension[u] = Some(solution.tension[l]);
+                    tension_sd[u] = Some(solution.sd[l]);
+                }
+                if let Some(c) = solution.condition {
+                    condition = Some(condition.map_or(c, |x: Real| x.max(c)));
+                }
+            }
+            None => warnings.push(format!(
+                "{m} tension(s) linked to the gauge are not determined by the junctions (several force-balancing \
+                 directions): undetermined"
+            )),
+        }
+    }
+    Ok(Solved { tension, tension_sd, condition, sampled, warnings })
 }
 
 /// Sphere or plane through the points (see the module docs): each fitted, refitted once without the
@@ -771,6 +886,34 @@ fn fit_plane(points: &[Vec3]) -> Option<Surface> {
     let k = eigen.eigenvalues.imin();
     let normal = eigen.eigenvectors.column(k).into_owned().try_normalize(0.0)?;
     Some(Surface::Plane { point: mean, normal })
+}
+
+/// The point nearest to `x0` on all three surfaces: Gauss–Newton on Σ_k d_k(x)² + λ|x − x0|² (the
+/// surfaces meet along a line, so the small λ = 10⁻³ only fixes the position along it), from `x0`.
+fn snap_to_junction(surfaces: &[Surface], x0: Vec3, h: Real) -> Vec3 {
+    let lambda = 1e-3;
+    let mut x = x0;
+    for _ in 0..20 {
+        let mut jtj = nalgebra::Matrix3::<Real>::identity() * lambda;
+        let mut jtf = (x - x0) * lambda;
+        for f in surfaces {
+            let (value, gradient) = match f {
+                Surface::Sphere { centre, radius } => {
+                    let Some(n) = (x - centre).try_normalize(0.0) else { return x0 };
+                    ((x - centre).norm() - radius, n)
+                }
+                Surface::Plane { point, normal } => ((x - point).dot(normal), *normal),
+            };
+            jtj += gradient * gradient.transpose();
+            jtf += gradient * value;
+        }
+        let Some(step) = jtj.lu().solve(&jtf) else { return x0 };
+        x -= step;
+        if step.norm() < 1e-9 * h {
+            break;
+        }
+    }
+    x
 }
 
 /// The junction line's direction: the cross product of the two most different interface normals, or
@@ -868,11 +1011,7 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
     let j = (DMatrix::<Real>::identity(m, m) - &v * gvec.transpose() / g) * (value / g);
     let cov_t = &j * cov_v * j.transpose();
     let sd = (0..m).map(|k| cov_t[(k, k)].max(0.0).sqrt()).collect();
-    Some(BlockSolution {
-        tension: tension.iter().copied().collect(),
-        sd,
-        condition: Some((largest / second).sqrt()),
-    })
+    Some(BlockSolution { tension: tension.iter().copied().collect(), sd, condition: Some((largest / second).sqrt()) })
 }
 
 /// Least-squares pressures (per tissue index: value and sd) from Young–Laplace on the determined
@@ -913,7 +1052,8 @@ fn solve_pressures(
         }
     }
     let unknowns: Vec<usize> = (0..n_cells).filter(|&i| reached[i]).collect();
-    let unreached: Vec<String> = cell_index.iter().filter(|(_, i)| !reached[**i]).map(|(id, _)| id.to_string()).collect();
+    let unreached: Vec<String> =
+        cell_index.iter().filter(|(_, i)| !reached[**i]).map(|(id, _)| id.to_string()).collect();
     if !unreached.is_empty() {
         warnings.push(format!(
             "cell(s) {}: no determined interface links them to the medium, so their pressure is undetermined",

@@ -54,7 +54,9 @@ def score(truth, interfaces, cells):
         else:
             lateral.append(abs(g - t) / t)
     for c in range(1, truth["cells"] + 1):
-        g = got.get((c, 0))
+        if (c, 0) not in got:
+            continue  # no free surface (a buried cell): no cell–medium interface to score
+        g = got[(c, 0)]
         if g is None:
             missing += 1
         else:
