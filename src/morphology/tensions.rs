@@ -975,7 +975,7 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
     let largest = sigma2[order[0]];
     let smallest = order[m - 1];
     let second = sigma2[order[m - 2]];
-    if !(largest > 0.0) || second <= SINGULAR_TOLERANCE * largest {
+    if largest.is_nan() || largest <= 0.0 || second <= SINGULAR_TOLERANCE * largest {
         return None;
     }
     let v: DVector<Real> = v_t.row(smallest).transpose();
@@ -1014,6 +1014,9 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
     Some(BlockSolution { tension: tension.iter().copied().collect(), sd, condition: Some((largest / second).sqrt()) })
 }
 
+/// A cell's pressure and its standard deviation.
+type PressureEstimate = (Option<Real>, Option<Real>);
+
 /// Least-squares pressures (per tissue index: value and sd) from Young–Laplace on the determined
 /// interfaces, and the rms residual.
 fn solve_pressures(
@@ -1021,7 +1024,7 @@ fn solve_pressures(
     cell_index: &BTreeMap<u32, usize>,
     n_cells: usize,
     warnings: &mut Vec<String>,
-) -> (Vec<(Option<Real>, Option<Real>)>, Option<Real>) {
+) -> (Vec<PressureEstimate>, Option<Real>) {
     let mut out = vec![(None, None); n_cells];
     // Equations p_a − p_b = 2 H T with their variance from T's sd.
     let mut equations: Vec<(usize, Option<usize>, Real, Real)> = Vec::new();
