@@ -142,7 +142,8 @@ struct Summary<'a> {
     warnings: &'a [String],
 }
 
-fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str)> {
+/// The tissue, `tissue` or `labels`, and for labels the largest voxel edge (m).
+fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Option<Real>)> {
     let path = &args.tissue;
     if is_tiff(path) {
         let read = read_label_tiff(path, &LabelReadOptions { voxel_size: args.voxel_size, ..Default::default() })
@@ -166,7 +167,8 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str)> {
                 r.reason.as_deref().unwrap_or("dropped")
             );
         }
-        return Ok((meshing.tissue, "labels"));
+        let voxel = read.volume.grid().voxel_size.iter().copied().fold(0.0, Real::max);
+        return Ok((meshing.tissue, "labels", Some(voxel)));
     }
     if args.voxel_size.is_some()
         || args.border != BorderPolicy::Keep
@@ -182,17 +184,18 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str)> {
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }
-    Ok((read.tissue, "tissue"))
+    Ok((read.tissue, "tissue", None))
 }
 
 pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
     OutputPolicy::new().input("TISSUE", &args.tissue).folder("--out", &args.out, &OUTPUT_FILES)?;
-    let (tissue, input) = read_input(args)?;
+    let (tissue, input, voxel) = read_input(args)?;
     let settings = TensionSettings {
         contact_distance: args.contact_distance,
         one_medium_tension: args.one_medium_tension,
         gauge: args.gauge,
         gauge_value: args.gauge_tension.unwrap_or(1.0),
+        rounding_scale: voxel,
     };
     let start = Instant::now();
     let map = estimate_tensions(&tissue, &settings)

@@ -94,11 +94,21 @@ pub struct TensionSettings {
     pub gauge: Gauge,
     /// The gauge tension's value (1 for relative tensions, or a tension in the user's unit).
     pub gauge_value: Real,
+    /// The length (m) over which the input rounds its junctions when it exceeds the mean edge length:
+    /// the voxel size of a meshed segmentation. The fit margin, the vertex margin and the junction
+    /// tolerances are multiples of max(this, mean edge length). `None`: the mean edge length.
+    pub rounding_scale: Option<Real>,
 }
 
 impl Default for TensionSettings {
     fn default() -> Self {
-        Self { contact_distance: None, one_medium_tension: false, gauge: Gauge::MediumMean, gauge_value: 1.0 }
+        Self {
+            contact_distance: None,
+            one_medium_tension: false,
+            gauge: Gauge::MediumMean,
+            gauge_value: 1.0,
+            rounding_scale: None,
+        }
     }
 }
 
@@ -352,7 +362,10 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
     }
 
     // Fit every interface, leaving out the faces near its junctions.
-    let margin = FIT_MARGIN_EDGES * h;
+    // The scale over which a junction is rounded: the mesh's edges, or the segmentation's voxels
+    // when they are coarser.
+    let scale = settings.rounding_scale.map_or(h, |v| v.max(h));
+    let margin = FIT_MARGIN_EDGES * scale;
     for (k, patch) in patches.iter_mut().enumerate() {
         let far: Vec<Vec3> = patch
             .centroids
@@ -395,10 +408,10 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         }
     }
     let n = unknown_keys.len();
-    let local = 4.0 * h;
+    let local = 4.0 * scale;
     // (row coefficients as (unknown, value), line) per equation; two equations per sample.
     let mut rows: Vec<Row> = Vec::with_capacity(2 * samples.len());
-    let near_vertex = near_other_lines(&samples, VERTEX_MARGIN_EDGES * h);
+    let near_vertex = near_other_lines(&samples, VERTEX_MARGIN_EDGES * scale);
     let mut vertex_skipped = 0usize;
     for (si, s) in samples.iter().enumerate() {
         if near_vertex[si] {
@@ -415,7 +428,8 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         // normal turns by that offset over its radius. A sample whose surfaces do not meet near it
         // is a stray contact face's edge, not a junction.
         let x = snap_to_junction(&surfaces, s.x, h);
-        if (x - s.x).norm() > MAX_JUNCTION_OFFSET_EDGES * h || surfaces.iter().any(|f| f.distance(&x) > 0.1 * h) {
+        if (x - s.x).norm() > MAX_JUNCTION_OFFSET_EDGES * scale || surfaces.iter().any(|f| f.distance(&x) > 0.1 * scale)
+        {
             skipped += 1;
             continue;
         }
