@@ -289,6 +289,30 @@ fn the_command_writes_the_same_map_on_one_and_two_threads() {
     let vtp = String::from_utf8_lossy(&outputs[0].2).into_owned();
     assert!(vtp.contains("Name=\"tension\"") && vtp.contains("Name=\"pressure\""));
 
+    // A known tension sets the unit: interface 1-2 = 0.5 mN/m, pressures in kPa.
+    let cluster = fixture("hetero4").join("cluster.vtk");
+    let out = dir.path().join("mn");
+    let o = run_cli(&[
+        "tensions",
+        cluster.to_str().unwrap(),
+        "--length-unit",
+        "um",
+        "--gauge",
+        "1-2",
+        "--gauge-tension",
+        "0.5mN/m",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!((summary["tension_unit"].as_str(), summary["pressure_unit"].as_str()), (Some("mN/m"), Some("kPa")));
+    let csv = std::fs::read_to_string(out.join("interfaces.csv")).unwrap();
+    let row = csv.lines().find(|l| l.starts_with("1,2,")).unwrap();
+    assert!(row.starts_with("1,2,0.5,"), "{row}");
+    let o = run_cli(&["tensions", cluster.to_str().unwrap(), "--gauge", "3-3", "--out", out.to_str().unwrap()]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("two different labels"));
+
     let single = dir.path().join("one.vtp");
     let o = run_cli(&["generate", "mesh", "--kind", "sphere", "--out", single.to_str().unwrap(), "-q"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

@@ -275,9 +275,16 @@ fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summar
             free_area_um2: c.free_area * 1e12,
         })
         .collect();
-    // Per-face tension and per-cell pressure for ParaView (NaN where undetermined).
-    let face_tension: Vec<Real> =
-        map.face_interface.iter().flatten().map(|&k| map.interfaces[k].tension.unwrap_or(Real::NAN)).collect();
+    // Per-face tension and per-cell pressure for ParaView (NaN where undetermined, and on nuclei,
+    // which take no part).
+    let mut face_tension: Vec<Real> = Vec::with_capacity(tissue.face_count());
+    for (cell, faces) in tissue.cells().iter().zip(&map.face_interface) {
+        if faces.len() == cell.mesh().face_count() {
+            face_tension.extend(faces.iter().map(|&k| map.interfaces[k].tension.unwrap_or(Real::NAN)));
+        } else {
+            face_tension.extend(std::iter::repeat_n(Real::NAN, cell.mesh().face_count()));
+        }
+    }
     let by_id: std::collections::BTreeMap<u32, Option<Real>> =
         map.cells.iter().map(|c| (c.cell, c.pressure.map(|p| p * 1e-6))).collect();
     let pressure: Vec<Real> =
