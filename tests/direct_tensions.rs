@@ -202,6 +202,9 @@ fn label_volumes_meet_the_median_targets_at_10_and_20_voxels_per_diameter() {
         ("tetra", 10, 0.10),
         ("triplet", 20, 0.05),
         ("doublet", 10, 0.10),
+        // The buried cell 12 shows a spurious free patch whose tension comes out < 0: left out of the
+        // gauge, or every tension would be 18 % high.
+        ("ball12", 20, 0.05),
     ] {
         let (tissue, settings) = meshed_labels(name, per_diameter);
         let map = estimate_tensions(&tissue, &settings).unwrap();

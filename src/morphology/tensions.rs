@@ -543,7 +543,8 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         .collect();
     if !negative.is_empty() {
         warnings.push(format!(
-            "interface(s) {} came out with a tension ≤ 0: the shapes are not at a force balance there, or the mesh is too coarse",
+            "interface(s) {} came out with a tension ≤ 0 (left out of the gauge's mean and of the pressures): the shapes \
+             are not at a force balance there, or the mesh is too coarse, or a buried cell shows a spurious free patch",
             negative.join(", ")
         ));
     }
@@ -993,10 +994,20 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
         return None;
     }
     let v: DVector<Real> = v_t.row(smallest).transpose();
-    let g = gauge.iter().map(|&k| v[k]).sum::<Real>() / gauge.len().max(1) as Real;
+    let mean = |entries: &[usize]| entries.iter().map(|&k| v[k]).sum::<Real>() / entries.len().max(1) as Real;
+    let mut g = mean(gauge);
     if g == 0.0 || !g.is_finite() {
         return None;
     }
+    // Gauge tensions that come out ≤ 0 (a spurious free patch of a buried cell, a mis-read
+    // junction) are left out of the gauge's mean: one such value would rescale every tension.
+    let positive: Vec<usize> = gauge.iter().copied().filter(|&k| v[k] / g > 0.0).collect();
+    let gauge: &[usize] = if !positive.is_empty() && positive.len() < gauge.len() {
+        g = mean(&positive);
+        &positive
+    } else {
+        gauge
+    };
     let tension: DVector<Real> = &v * (value / g);
     // Perturbation of v by the residuals r = A v: δv = −P Aᵀ r-part; clustered by line.
     let mut p = DMatrix::<Real>::zeros(m, m);
@@ -1044,6 +1055,9 @@ fn solve_pressures(
     let mut equations: Vec<(usize, Option<usize>, Real, Real)> = Vec::new();
     for f in interfaces {
         let (Some(t), Some(h)) = (f.tension, f.mean_curvature) else { continue };
+        if t <= 0.0 {
+            continue;
+        }
         let (Some(&a), b) = (cell_index.get(&f.cell_a), cell_index.get(&f.cell_b).copied()) else { continue };
         let sd = f.tension_sd.unwrap_or(0.0);
         equations.push((a, b, 2.0 * h * t, (2.0 * h * sd).powi(2)));
