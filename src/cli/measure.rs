@@ -87,7 +87,7 @@ pub struct MeasureArgs {
 const MEASURE_WORK_BYTES_PER_VOXEL: u64 = 9;
 
 /// Whether `path` is a TIFF: by extension, else by its magic number (II*/MM* classic, II+/MM+ BigTIFF).
-fn is_tiff(path: &Path) -> bool {
+pub(super) fn is_tiff(path: &Path) -> bool {
     if let Some(ext) = path.extension().and_then(|e| e.to_str()) {
         let ext = ext.to_ascii_lowercase();
         if ext == "tif" || ext == "tiff" {
@@ -132,7 +132,7 @@ fn read_input(path: &Path, args: &MeasureArgs) -> anyhow::Result<Input> {
 }
 
 /// A single length: a number of metres or a number with a unit (m, mm, um, nm).
-fn parse_length(s: &str) -> Result<Real, String> {
+pub(super) fn parse_length(s: &str) -> Result<Real, String> {
     let v = s.parse::<LengthScale>()?.0;
     if v.x != v.y || v.y != v.z {
         return Err(format!("`{s}`: give one length, not three"));

@@ -14,6 +14,7 @@ mod render;
 mod run;
 mod simulate;
 mod sweep;
+mod tensions;
 mod voxelize;
 
 use crate::io::{LengthScale, ReadOptions};
@@ -47,6 +48,10 @@ pub enum Command {
     /// Measure morphology: per-cell volume, area, sphericity, neighbours, contact fraction, contact
     /// angles, layers, nuclei → DIR/cells.csv, DIR/contacts.csv, DIR/summary.json.
     Measure(measure::MeasureArgs),
+    /// Estimate every interface's tension and every cell's pressure directly from the shapes (force
+    /// balance at the junction lines, Young–Laplace on the interfaces), relative to a gauge →
+    /// DIR/interfaces.csv, cells.csv, summary.json, tensions.vtp. Takes seconds; no simulation.
+    Tensions(tensions::TensionsArgs),
     /// Mesh a label volume: every label → a closed cell surface → TISSUE.vtp/.vtk, plus a per-label
     /// report (kept/static/dropped and why); optionally nuclei from a second volume. Given a .vtk/.vtp
     /// tissue instead, re-triangulate its cells. Exits with 2 when no cell could be meshed.
@@ -150,6 +155,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Config(cmd) => config::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
         Command::Measure(args) => measure::run(&args),
+        Command::Tensions(args) => tensions::run(&args),
         Command::Mesh(args) => mesh::run(&args),
         Command::Polarize(args) => polarize::run(&args),
         Command::Bench(args) => bench::run(&args),

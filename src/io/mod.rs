@@ -36,4 +36,4 @@ pub use simulation_output::{SimulationRecorder, write_events};
 pub use units::{
     LengthScale, PLAUSIBLE_LENGTH, PLAUSIBLE_TENSION, implausible_length, implausible_tension, parse_lengths,
 };
-pub use vtp::{CellField, read_vtp, write_vtp};
+pub use vtp::{CellField, read_vtp, vtp_bytes, write_vtp};

@@ -27,7 +27,8 @@ use std::fmt::Write as _;
 use std::io::{self, Write};
 use std::path::Path;
 
-/// One value per cell, in `tissue.cells()` order, written as per-face cell data.
+/// One value per cell, in `tissue.cells()` order, written as per-face cell data; or one value per face
+/// (all cells' faces in order, [`Tissue::face_count`] values), written as it is.
 #[derive(Clone, Copy, Debug)]
 pub struct CellField<'a> {
     pub name: &'a str,
@@ -42,20 +43,42 @@ const STANDARD_FIELDS: [&str; 8] =
 const RESAVE_HINT: &str = "re-save it from ParaView (File > Save Data, .vtp) with Data Mode 'Ascii', or \
      'Appended' with 'Encode Appended Data' off and Compressor Type 'None', or convert it with `tissuefit convert`";
 
-/// Writes `tissue` as a `.vtp` file, atomically. `extra` fields need one value per cell; `time` (s),
-/// when given, is stored as the dataset's `TimeValue`.
+/// Writes `tissue` as a `.vtp` file, atomically. `extra` fields need one value per cell or one per
+/// face; `time` (s), when given, is stored as the dataset's `TimeValue`.
 pub fn write_vtp(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Option<Real>) -> Result<(), IoError> {
+    let header = vtp_header(path, tissue, extra, time)?;
+    write_atomically(path, |w| write_vtp_body(w, &header, tissue, extra))
+}
+
+/// The bytes of the `.vtp` file [`write_vtp`] would write to `path` (named in errors), for writers that
+/// stage several files together ([`super::OutputGroup`]).
+pub fn vtp_bytes(
+    path: &Path,
+    tissue: &Tissue,
+    extra: &[CellField<'_>],
+    time: Option<Real>,
+) -> Result<Vec<u8>, IoError> {
+    let header = vtp_header(path, tissue, extra, time)?;
+    let mut bytes = Vec::new();
+    write_vtp_body(&mut bytes, &header, tissue, extra)
+        .map_err(|source| IoError::Write { path: path.to_path_buf(), source })?;
+    Ok(bytes)
+}
+
+/// Checks the fields and returns the XML header.
+fn vtp_header(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Option<Real>) -> Result<String, IoError> {
     let invalid = |message: String| IoError::Write {
         path: path.to_path_buf(),
         source: io::Error::new(io::ErrorKind::InvalidInput, message),
     };
     for (k, field) in extra.iter().enumerate() {
-        if field.values.len() != tissue.len() {
+        if field.values.len() != tissue.len() && field.values.len() != tissue.face_count() {
             return Err(invalid(format!(
-                "extra field '{}' has {} values for {} cells",
+                "extra field '{}' has {} values for {} cells ({} faces)",
                 field.name,
                 field.values.len(),
-                tissue.len()
+                tissue.len(),
+                tissue.face_count()
             )));
         }
         if STANDARD_FIELDS.contains(&field.name) || extra[..k].iter().any(|f| f.name == field.name) {
@@ -68,11 +91,17 @@ pub fn write_vtp(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Op
         return Err(invalid(format!("time {t} is not finite")));
     }
 
-    let cells = tissue.cells();
-    let volumes: Vec<Real> = cells.iter().map(|c| c.mesh().signed_volume()).collect();
-    let areas: Vec<Real> = cells.iter().map(|c| c.mesh().area()).collect();
+    let (volumes, areas) = cell_measures(tissue);
     let frame = Frame { tissue, volumes: &volumes, areas: &areas };
+    Ok(xml_header(&frame, &arrays(extra), time))
+}
 
+fn cell_measures(tissue: &Tissue) -> (Vec<Real>, Vec<Real>) {
+    let cells = tissue.cells();
+    (cells.iter().map(|c| c.mesh().signed_volume()).collect(), cells.iter().map(|c| c.mesh().area()).collect())
+}
+
+fn arrays<'a>(extra: &[CellField<'a>]) -> Vec<Array<'a>> {
     let mut arrays = vec![
         Array::Points,
         Array::Connectivity,
@@ -87,20 +116,23 @@ pub fn write_vtp(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Op
         Array::TargetVolume,
     ];
     arrays.extend(extra.iter().map(|f| Array::Extra(f.name, f.values)));
-    let header = xml_header(&frame, &arrays, time);
+    arrays
+}
 
-    write_atomically(path, |w| {
-        w.write_all(header.as_bytes())?;
-        let mut buf = Vec::new();
-        for array in &arrays {
-            buf.clear();
-            array.fill(&frame, &mut buf);
-            debug_assert_eq!(buf.len(), array.byte_len(&frame));
-            w.write_all(&(buf.len() as u64).to_le_bytes())?;
-            w.write_all(&buf)?;
-        }
-        w.write_all(b"\n  </AppendedData>\n</VTKFile>\n")
-    })
+/// Writes the header and the appended arrays.
+fn write_vtp_body(w: &mut impl Write, header: &str, tissue: &Tissue, extra: &[CellField<'_>]) -> io::Result<()> {
+    let (volumes, areas) = cell_measures(tissue);
+    let frame = Frame { tissue, volumes: &volumes, areas: &areas };
+    w.write_all(header.as_bytes())?;
+    let mut buf = Vec::new();
+    for array in &arrays(extra) {
+        buf.clear();
+        array.fill(&frame, &mut buf);
+        debug_assert_eq!(buf.len(), array.byte_len(&frame));
+        w.write_all(&(buf.len() as u64).to_le_bytes())?;
+        w.write_all(&buf)?;
+    }
+    w.write_all(b"\n  </AppendedData>\n</VTKFile>\n")
 }
 
 /// The tissue being written and its per-cell measures.
@@ -224,7 +256,12 @@ impl Array<'_> {
             Array::CellVolume => per_cell_f64(buf, &|i, _| frame.volumes[i]),
             Array::CellArea => per_cell_f64(buf, &|i, _| frame.areas[i]),
             Array::TargetVolume => per_cell_f64(buf, &|_, c| c.target_volume()),
-            Array::Extra(_, values) => per_cell_f64(buf, &|i, _| values[i]),
+            Array::Extra(_, values) if values.len() == cells.len() => per_cell_f64(buf, &|i, _| values[i]),
+            Array::Extra(_, values) => {
+                for v in values.iter() {
+                    buf.extend_from_slice(&v.to_le_bytes());
+                }
+            }
         }
     }
 }

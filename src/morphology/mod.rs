@@ -33,6 +33,7 @@ pub mod measure_labels;
 pub mod nucleus;
 pub mod rim_angle;
 mod summary;
+pub mod tensions;
 
 pub use cell_morphology::CellMorphology;
 pub use compare::{compare_shapes, compare_tissues};

@@ -1,0 +1,351 @@
+//! `tissuefit tensions TISSUE|LABELS.tif --out DIR [--gauge medium|A-B] [--gauge-tension T]
+//! [--one-medium-tension]`: the direct estimate of every interface's tension and every cell's pressure
+//! from the shapes alone (force balance at the junction lines, Young–Laplace on the interfaces; see
+//! [`crate::morphology::tensions`]) into `interfaces.csv`, `cells.csv`, `summary.json` and `tensions.vtp`,
+//! written together (all or nothing). A label TIFF is meshed first as `tissuefit mesh` meshes it.
+
+use super::label_args::{describe_grid, parse_voxel_size};
+use super::measure::{is_tiff, parse_length};
+use super::{InputArgs, Outcome};
+use crate::geometry::Real;
+use crate::imaging::{LabelReadOptions, read_label_tiff};
+use crate::io::{CellField, OutputGroup, OutputPolicy, read_tissue, vtp_bytes};
+use crate::mesh::Tissue;
+use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, mesh_labels};
+use crate::morphology::tensions::{Gauge, TensionMap, TensionSettings, estimate_tensions};
+use anyhow::{Context, bail};
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct TensionsArgs {
+    /// Tissue file (.vtk or .vtp, per-cell or multi-material), or a label TIFF (.tif/.tiff; 0 =
+    /// background), meshed first as `tissuefit mesh` does (cell ids = labels).
+    pub tissue: PathBuf,
+    /// Output directory (created if missing): interfaces.csv, cells.csv, summary.json, tensions.vtp.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Which tension fixes the scale: `medium` (the mean of the cell–medium tensions) or an interface
+    /// `A-B` between two labels (0 = the medium, e.g. 3-0 for cell 3's free surface).
+    #[arg(long, default_value = "medium", value_parser = parse_gauge)]
+    pub gauge: Gauge,
+    /// The gauge's tension in mN/m, when known: tensions are then written in mN/m and pressures in kPa
+    /// (mN/m per µm). Default: relative tensions (gauge = 1), pressures in gauge tension per µm.
+    #[arg(long, value_name = "mN/m", value_parser = parse_tension)]
+    pub gauge_tension: Option<Real>,
+    /// One tension shared by every cell–medium interface instead of one per cell.
+    #[arg(long)]
+    pub one_medium_tension: bool,
+    /// Contact distance δ: a face whose centroid lies within δ of another cell's surface belongs to the
+    /// interface with it. A length with unit (0.1um, 1e-7). Default: 0.25 × the mean edge length.
+    #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
+    pub contact_distance: Option<Real>,
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Label TIFF only: voxel size z,y,x (or one for all) overriding the file's metadata (0.235,0.15,0.15um).
+    #[arg(long, value_name = "Z,Y,X", value_parser = parse_voxel_size)]
+    pub voxel_size: Option<[Real; 3]>,
+    /// Label TIFF only: labels touching the image border are kept as cells (default, as `mesh`), meshed
+    /// as static cells (their tensions are estimated all the same), or dropped.
+    #[arg(long, default_value_t = BorderPolicy::Keep, value_parser = |s: &str| s.parse::<BorderPolicy>())]
+    pub border: BorderPolicy,
+    /// Label TIFF only: labels with fewer voxels are debris and are dropped (as `mesh`).
+    #[arg(long, default_value_t = DEFAULT_MIN_VOXELS)]
+    pub min_voxels: u64,
+    /// Label TIFF only: nodes of a median-sized cell's mesh (as `mesh --target-nodes`).
+    #[arg(long, default_value_t = DEFAULT_TARGET_NODES)]
+    pub target_nodes: usize,
+}
+
+/// `medium` or `A-B`.
+fn parse_gauge(s: &str) -> Result<Gauge, String> {
+    if s == "medium" {
+        return Ok(Gauge::MediumMean);
+    }
+    let parsed =
+        s.split_once('-').and_then(|(a, b)| Some((a.trim().parse::<u32>().ok()?, b.trim().parse::<u32>().ok()?)));
+    match parsed {
+        Some((a, b)) if a != b => Ok(Gauge::Interface(a, b)),
+        _ => Err(format!("`{s}`: give `medium` or an interface as two different labels A-B (0 = medium), e.g. 1-2")),
+    }
+}
+
+/// A tension in mN/m: a positive number, optionally followed by `mN/m`.
+fn parse_tension(s: &str) -> Result<Real, String> {
+    let number = s.trim().strip_suffix("mN/m").unwrap_or(s.trim()).trim();
+    match number.parse::<Real>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("`{s}`: give a positive tension in mN/m, e.g. 0.5 or 0.5mN/m")),
+    }
+}
+
+/// What `tensions` writes into --out.
+const OUTPUT_FILES: [&str; 4] = ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp"];
+
+#[derive(Serialize)]
+struct InterfaceRow {
+    cell_a: u32,
+    cell_b: u32,
+    tension: Option<Real>,
+    tension_sd: Option<Real>,
+    determined: bool,
+    area_um2: Real,
+    samples: usize,
+    mean_curvature_per_um: Option<Real>,
+    fit: &'static str,
+    fit_rms_um: Option<Real>,
+}
+
+#[derive(Serialize)]
+struct CellRow {
+    cell: u32,
+    pressure: Option<Real>,
+    pressure_sd: Option<Real>,
+    determined: bool,
+    free_mean_curvature_per_um: Option<Real>,
+    free_area_um2: Real,
+}
+
+#[derive(Serialize)]
+struct Summary<'a> {
+    file: String,
+    /// `tissue` or `labels` (meshed first).
+    input: &'static str,
+    cells: usize,
+    interfaces: usize,
+    determined_interfaces: usize,
+    determined_pressures: usize,
+    /// What fixes the scale, and the units of the tension and pressure columns.
+    gauge: String,
+    gauge_value: Real,
+    tension_unit: &'static str,
+    pressure_unit: &'static str,
+    one_medium_tension: bool,
+    uncertainty: &'static str,
+    contact_distance_um: Real,
+    junction_samples: usize,
+    junction_samples_skipped: usize,
+    junction_samples_near_vertices: usize,
+    junction_samples_trimmed: usize,
+    junction_lines: usize,
+    unknowns: usize,
+    condition_number: Option<Real>,
+    /// Force imbalance per junction sample, |Σ T_k t_k|, in units of the gauge.
+    residual_rms: Option<Real>,
+    residual_median: Option<Real>,
+    /// Rms Young–Laplace residual of the pressures (pressure unit).
+    pressure_residual_rms: Option<Real>,
+    wall_seconds: f64,
+    threads: usize,
+    warnings: &'a [String],
+}
+
+/// The tissue, `tissue` or `labels`, and for labels the largest voxel edge (m).
+fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Option<Real>)> {
+    let path = &args.tissue;
+    if is_tiff(path) {
+        let read = read_label_tiff(path, &LabelReadOptions { voxel_size: args.voxel_size, ..Default::default() })
+            .with_context(|| format!("reading label volume {}", path.display()))?;
+        for w in &read.warnings {
+            tracing::warn!("{}: {w}", path.display());
+        }
+        let options = LabelMeshingOptions {
+            target_nodes: args.target_nodes,
+            min_voxels: args.min_voxels,
+            border: args.border,
+            ..Default::default()
+        };
+        let meshing = mesh_labels(&read.volume, &options)
+            .with_context(|| format!("meshing {} ({})", path.display(), describe_grid(&read.volume)))?;
+        for r in meshing.report.iter().filter(|r| r.cell_id.is_none()) {
+            tracing::warn!(
+                "{}: label {} not meshed: {}",
+                path.display(),
+                r.label,
+                r.reason.as_deref().unwrap_or("dropped")
+            );
+        }
+        let voxel = read.volume.grid().voxel_size.iter().copied().fold(0.0, Real::max);
+        return Ok((meshing.tissue, "labels", Some(voxel)));
+    }
+    if args.voxel_size.is_some()
+        || args.border != BorderPolicy::Keep
+        || args.min_voxels != DEFAULT_MIN_VOXELS
+        || args.target_nodes != DEFAULT_TARGET_NODES
+    {
+        bail!(
+            "{} is a tissue mesh: --voxel-size, --border, --min-voxels and --target-nodes apply to label TIFFs",
+            path.display()
+        );
+    }
+    let read = read_tissue(path, &args.input.read_options()).with_context(|| format!("reading {}", path.display()))?;
+    for w in &read.warnings {
+        tracing::warn!("{}: {w}", path.display());
+    }
+    Ok((read.tissue, "tissue", None))
+}
+
+pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
+    OutputPolicy::new().input("TISSUE", &args.tissue).folder("--out", &args.out, &OUTPUT_FILES)?;
+    let (tissue, input, voxel) = read_input(args)?;
+    let settings = TensionSettings {
+        contact_distance: args.contact_distance,
+        one_medium_tension: args.one_medium_tension,
+        gauge: args.gauge,
+        gauge_value: args.gauge_tension.unwrap_or(1.0),
+        rounding_scale: voxel,
+    };
+    let start = Instant::now();
+    let map = estimate_tensions(&tissue, &settings)
+        .with_context(|| format!("estimating tensions in {}", args.tissue.display()))?;
+    let wall_seconds = start.elapsed().as_secs_f64();
+    for w in &map.warnings {
+        tracing::warn!("{}: {w}", args.tissue.display());
+    }
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let (tension_unit, pressure_unit) =
+        if args.gauge_tension.is_some() { ("mN/m", "kPa") } else { ("gauge", "gauge/um") };
+    let gauge = match args.gauge {
+        Gauge::MediumMean if args.one_medium_tension => "the cell–medium tension (shared)".to_string(),
+        Gauge::MediumMean => "the mean of the cell–medium tensions".to_string(),
+        Gauge::Interface(a, b) => format!("the tension of interface {a}-{b}"),
+    };
+    let summary = Summary {
+        file: args.tissue.display().to_string(),
+        input,
+        cells: map.cells.len(),
+        interfaces: map.interfaces.len(),
+        determined_interfaces: map.interfaces.iter().filter(|f| f.determined).count(),
+        determined_pressures: map.cells.iter().filter(|c| c.determined).count(),
+        gauge,
+        gauge_value: settings.gauge_value,
+        tension_unit,
+        pressure_unit,
+        one_medium_tension: args.one_medium_tension,
+        uncertainty: "tension_sd and pressure_sd: first-order propagation of the force-balance residuals, \
+                      cluster-robust by junction line; biases shared by all junctions are not in it",
+        contact_distance_um: map.contact_distance * 1e6,
+        junction_samples: map.samples,
+        junction_samples_skipped: map.samples_skipped,
+        junction_samples_near_vertices: map.samples_near_vertices,
+        junction_samples_trimmed: map.samples_trimmed,
+        junction_lines: map.junction_lines,
+        unknowns: map.unknowns,
+        condition_number: map.condition_number,
+        residual_rms: map.residual_rms,
+        residual_median: map.residual_median,
+        pressure_residual_rms: map.pressure_residual_rms.map(|p| p * 1e-6),
+        wall_seconds,
+        threads: rayon::current_num_threads(),
+        warnings: &map.warnings,
+    };
+    write_outputs(&args.out, &tissue, &map, &summary)?;
+    print_summary(&mut std::io::stdout().lock(), &args.tissue, &map, &summary)?;
+    Ok(Outcome::Success)
+}
+
+fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summary<'_>) -> anyhow::Result<()> {
+    let interfaces: Vec<InterfaceRow> = map
+        .interfaces
+        .iter()
+        .map(|f| InterfaceRow {
+            cell_a: f.cell_a,
+            cell_b: f.cell_b,
+            tension: f.tension,
+            tension_sd: f.tension_sd,
+            determined: f.determined,
+            area_um2: f.area * 1e12,
+            samples: f.samples,
+            mean_curvature_per_um: f.mean_curvature.map(|h| h * 1e-6),
+            fit: f.fit,
+            fit_rms_um: f.fit_rms.map(|r| r * 1e6),
+        })
+        .collect();
+    let cells: Vec<CellRow> = map
+        .cells
+        .iter()
+        .map(|c| CellRow {
+            cell: c.cell,
+            pressure: c.pressure.map(|p| p * 1e-6),
+            pressure_sd: c.pressure_sd.map(|p| p * 1e-6),
+            determined: c.determined,
+            free_mean_curvature_per_um: c.free_mean_curvature.map(|h| h * 1e-6),
+            free_area_um2: c.free_area * 1e12,
+        })
+        .collect();
+    // Per-face tension and per-cell pressure for ParaView (NaN where undetermined, and on nuclei,
+    // which take no part).
+    let mut face_tension: Vec<Real> = Vec::with_capacity(tissue.face_count());
+    for (cell, faces) in tissue.cells().iter().zip(&map.face_interface) {
+        if faces.len() == cell.mesh().face_count() {
+            face_tension.extend(faces.iter().map(|&k| map.interfaces[k].tension.unwrap_or(Real::NAN)));
+        } else {
+            face_tension.extend(std::iter::repeat_n(Real::NAN, cell.mesh().face_count()));
+        }
+    }
+    let by_id: std::collections::BTreeMap<u32, Option<Real>> =
+        map.cells.iter().map(|c| (c.cell, c.pressure.map(|p| p * 1e-6))).collect();
+    let pressure: Vec<Real> =
+        tissue.cells().iter().map(|c| by_id.get(&c.id().0).copied().flatten().unwrap_or(Real::NAN)).collect();
+    if face_tension.len() != tissue.face_count() {
+        bail!("internal: {} face tensions for {} faces", face_tension.len(), tissue.face_count());
+    }
+    let mut group = OutputGroup::new();
+    write_csv(&mut group, &dir.join("interfaces.csv"), &interfaces)?;
+    write_csv(&mut group, &dir.join("cells.csv"), &cells)?;
+    let path = dir.join("summary.json");
+    group
+        .write(&path, |w| {
+            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
+            writeln!(w)
+        })
+        .with_context(|| format!("writing {}", path.display()))?;
+    let vtp = dir.join("tensions.vtp");
+    let fields =
+        [CellField { name: "tension", values: &face_tension }, CellField { name: "pressure", values: &pressure }];
+    let bytes = vtp_bytes(&vtp, tissue, &fields, None)?;
+    group.write_bytes(&vtp, &bytes).with_context(|| format!("writing {}", vtp.display()))?;
+    group.commit().with_context(|| format!("writing the outputs into {}", dir.display()))
+}
+
+fn write_csv<T: Serialize>(group: &mut OutputGroup, path: &Path, rows: &[T]) -> anyhow::Result<()> {
+    group
+        .write(path, |w| {
+            let mut csv = csv::Writer::from_writer(&mut *w);
+            for row in rows {
+                csv.serialize(row)?;
+            }
+            csv.flush()
+        })
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+fn print_summary(out: &mut impl Write, input: &Path, map: &TensionMap, s: &Summary<'_>) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "{}: {} cells, {} interfaces ({} determined), {} junction samples on {} lines, {:.3} s",
+        input.display(),
+        s.cells,
+        s.interfaces,
+        s.determined_interfaces,
+        s.junction_samples,
+        s.junction_lines,
+        s.wall_seconds
+    )?;
+    let opt = |v: Option<Real>| v.map_or("n/a".to_string(), |x| format!("{x:.3}"));
+    writeln!(
+        out,
+        "  gauge: {} = {}; force-balance residual rms {} (median {}); condition number {}",
+        s.gauge,
+        s.gauge_value,
+        opt(map.residual_rms),
+        opt(map.residual_median),
+        map.condition_number.map_or("n/a".to_string(), |c| format!("{c:.1}"))
+    )?;
+    if !map.warnings.is_empty() {
+        writeln!(out, "  {} warning(s) in summary.json", map.warnings.len())?;
+    }
+    Ok(())
+}

@@ -1,0 +1,1126 @@
+//! Direct estimate of every interface's tension and every cell's pressure from the shapes alone:
+//! Young–Dupré (Neumann) force balance at the junction lines and Young–Laplace on each interface, in
+//! the manner of CellFIT-3D (Veldhuis et al. 2017) and foambryo (Ichbiah et al. 2023), on per-cell
+//! closed meshes.
+//!
+//! **Interfaces.** The contact partition ([`super::face_contacts`]) splits every cell's surface into
+//! interfaces: the faces in contact with cell j (interface i–j, seen from both cells) and the free
+//! faces (interface i–medium, label 0). Each interface's faces are fitted by one sphere (a surface of
+//! constant tension between two constant pressures has constant mean curvature; a sphere is the simplest
+//! such surface and fits every Surface Evolver interface we have within a few % of its radius), or by a
+//! plane when the sphere is not determined (nearly flat patches). The faces within
+//! [`FIT_MARGIN_EDGES`] mean edge lengths of the interface's junction lines are left out of the fit: a
+//! mesh rounds its junctions over one or two edges (remeshing, the contact gap, the voxels of a
+//! segmentation), and the first triangles' angle is biased by several degrees there.
+//!
+//! **Junction samples.** Every mesh edge whose two faces belong to different interfaces is a sample of
+//! a triple line: on cell i between partners p and q, the line where i, p and q meet (p or q may be the
+//! medium), with the three interfaces i–p, i–q and p–q. At the sample point x each interface's fitted
+//! surface gives its unit normal n_k (far field: the fit, not the nearest faces); the line direction is
+//! the cross product of the two most different normals, and each interface's unit tangent t_k is
+//! perpendicular to the line and to n_k, pointing from the line into the interface (towards that
+//! interface's faces near x). Force balance gives two equations per sample in the plane normal to the
+//! line, Σ_k T_k t_k = 0.
+//!
+//! **Solve.** The stacked equations A T = 0 are homogeneous: tensions are fixed up to a common factor,
+//! the gauge. The estimate is the right singular vector of A with the smallest singular value (the
+//! direction that balances the samples best, independent of the gauge), scaled so that the gauge holds:
+//! by default the mean of the cell–medium tensions is 1, or a named interface's tension is 1, or either
+//! equals a value given in mN/m. Unknowns that share no sample form separate blocks solved separately; a
+//! block without a gauge unknown, an interface without a sample, and a block whose second-smallest
+//! singular value vanishes (several balancing directions) are *undetermined*: flagged, no number. The
+//! condition number is σ_max / σ_second-smallest (how well the samples separate the solution from the
+//! other directions).
+//!
+//! **Uncertainty.** First-order perturbation of the smallest singular vector by the residuals,
+//! cluster-robust by junction line (the samples of one line share their fits, so they are not
+//! independent): Cov(v) = P (Σ_lines s_l s_lᵀ) P · G/(G − 1), s_l = A_lᵀ r_l the line's score,
+//! P = Σ_{k>0} v_k v_kᵀ / σ_k², G lines, carried through the gauge scaling. It reflects how consistently
+//! the junctions balance, not biases shared by all junctions (a systematically rounded rim).
+//!
+//! **Pressures.** Young–Laplace on every determined interface, p_a − p_b = 2 H_ab T_ab with H_ab the
+//! mean curvature of its fitted sphere (positive when the sphere's centre lies on a's side, 0 for a
+//! plane), the medium's pressure 0; least squares over all interfaces. A cell with no path of determined
+//! interfaces to the medium is undetermined. The pressure's standard deviation combines the tensions'
+//! (independent) and the Laplace residual.
+//!
+//! Units: lengths in metres as the tissue; tensions in units of the gauge; pressures in gauge tension
+//! per metre (the command line prints per µm). Deterministic: every loop runs in a fixed order and the
+//! contact partition is thread-independent, so 1 and N threads give identical results.
+
+use super::face_contacts::{FREE, detect_face_contacts};
+use super::far_field::fit_sphere;
+use super::measure::DEFAULT_CONTACT_DISTANCE_FACTOR;
+use crate::geometry::{Real, Vec3};
+use crate::mesh::{Adjacency, CellKind, Tissue};
+use nalgebra::{DMatrix, DVector};
+use std::collections::BTreeMap;
+
+/// Faces within this many mean edge lengths of an interface's junction lines are left out of its fit.
+pub const FIT_MARGIN_EDGES: Real = 2.0;
+/// Fewest faces for a sphere fit (fewer: a plane, from at least 3).
+pub const MIN_SPHERE_FACES: usize = 12;
+/// A sphere fit whose radius exceeds this many times the patch's rms extent is a plane.
+pub const MAX_RADIUS_OVER_EXTENT: Real = 1e3;
+/// Sphere-fit rms above this fraction of the radius is reported in the warnings (the interface is not
+/// one sphere: its far-field tangents are approximate).
+pub const WARN_FIT_RMS: Real = 0.05;
+/// Junction samples farther than this many mean edge lengths from the line where their three fitted
+/// surfaces meet are left out (stray contact faces, not a junction).
+pub const MAX_JUNCTION_OFFSET_EDGES: Real = 4.0;
+/// Junction samples within this many mean edge lengths of another junction line are left out.
+pub const VERTEX_MARGIN_EDGES: Real = 2.0;
+/// The robust pass never drops samples whose imbalance is below this (units of the gauge).
+pub const MIN_TRIMMED_IMBALANCE: Real = 0.05;
+/// Relative size (to the largest) below which a second singular value counts as zero.
+pub const SINGULAR_TOLERANCE: Real = 1e-10;
+
+/// Which tension fixes the common scale.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Gauge {
+    /// The mean of all cell–medium tensions equals the gauge value.
+    MediumMean,
+    /// The tension of the interface between these two labels (0 = medium) equals the gauge value.
+    Interface(u32, u32),
+}
+
+/// How to estimate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TensionSettings {
+    /// Contact distance δ (m); `None`: [`DEFAULT_CONTACT_DISTANCE_FACTOR`] × the mean edge length.
+    pub contact_distance: Option<Real>,
+    /// One tension shared by every cell–medium interface instead of one per cell.
+    pub one_medium_tension: bool,
+    pub gauge: Gauge,
+    /// The gauge tension's value (1 for relative tensions, or a tension in the user's unit).
+    pub gauge_value: Real,
+    /// The length (m) over which the input rounds its junctions when it exceeds the mean edge length:
+    /// the voxel size of a meshed segmentation. The fit margin, the vertex margin and the junction
+    /// tolerances are multiples of max(this, mean edge length). `None`: the mean edge length.
+    pub rounding_scale: Option<Real>,
+}
+
+impl Default for TensionSettings {
+    fn default() -> Self {
+        Self {
+            contact_distance: None,
+            one_medium_tension: false,
+            gauge: Gauge::MediumMean,
+            gauge_value: 1.0,
+            rounding_scale: None,
+        }
+    }
+}
+
+/// Why no estimate could be made.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum TensionError {
+    #[error("the tissue has {cells} cell(s): a force balance needs at least two cells in contact")]
+    TooFewCells { cells: usize },
+    #[error("cell {cell} has a non-finite node coordinate")]
+    NonFinite { cell: u32 },
+    #[error("cell id 0 is reserved for the medium; renumber the cells from 1")]
+    CellIdZero,
+    #[error("contact distance {value:e} m must be finite and positive")]
+    InvalidContactDistance { value: Real },
+    #[error("cannot derive the contact distance: the tissue has no edge length; give one")]
+    NoEdgeLength,
+    #[error(
+        "no junction lines: no cell touches another within the contact distance δ = {delta:e} m, so there is no \
+         force balance to solve (give a larger contact distance if the cells are separated by a gap)"
+    )]
+    NoJunctions { delta: Real },
+    #[error("the gauge value {value} must be finite and positive")]
+    InvalidGaugeValue { value: Real },
+    #[error("gauge interface {a}-{b} is not an interface of this tissue (labels present: {labels})")]
+    UnknownGaugeInterface { a: u32, b: u32, labels: String },
+    #[error(
+        "no cell has a free surface, so the default gauge (mean cell–medium tension) is empty; fix one interface \
+         instead (--gauge A-B)"
+    )]
+    NoMediumInterface,
+    #[error("the gauge {gauge} has no junction sample: every tension is undetermined")]
+    GaugeUndetermined { gauge: String },
+}
+
+/// One interface's estimate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InterfaceTension {
+    /// Cell labels; `cell_b` = 0 for the medium (then `cell_a` is the cell), else `cell_a < cell_b`.
+    pub cell_a: u32,
+    pub cell_b: u32,
+    /// Tension in units of the gauge; `None` when undetermined.
+    pub tension: Option<Real>,
+    /// Its standard deviation (see the module docs); `None` when undetermined.
+    pub tension_sd: Option<Real>,
+    pub determined: bool,
+    /// Area (m²): the mean of both sides' face areas for a cell–cell interface.
+    pub area: Real,
+    /// Junction samples that involve this interface.
+    pub samples: usize,
+    /// Mean curvature (1/m) of the fitted surface, positive when it bulges into `cell_b`; `None` without
+    /// a fit.
+    pub mean_curvature: Option<Real>,
+    /// `sphere`, `plane` or `none`.
+    pub fit: &'static str,
+    /// Rms distance (m) of the fitted faces from the surface.
+    pub fit_rms: Option<Real>,
+    /// Faces behind the fit.
+    pub fit_faces: usize,
+}
+
+/// One cell's pressure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CellPressure {
+    pub cell: u32,
+    /// Pressure relative to the medium, in gauge tension per metre; `None` when undetermined.
+    pub pressure: Option<Real>,
+    pub pressure_sd: Option<Real>,
+    pub determined: bool,
+    /// Mean curvature (1/m) of the fitted free surface; `None` without one.
+    pub free_mean_curvature: Option<Real>,
+    /// Free area (m²).
+    pub free_area: Real,
+}
+
+/// The whole estimate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TensionMap {
+    /// Ascending by (cell_a, cell_b) with the medium interfaces (cell_b = 0) first for each cell.
+    pub interfaces: Vec<InterfaceTension>,
+    /// In tissue order.
+    pub cells: Vec<CellPressure>,
+    /// For each tissue cell and face, the index in `interfaces` of the face's interface.
+    pub face_interface: Vec<Vec<usize>>,
+    /// Contact distance used (m).
+    pub contact_distance: Real,
+    /// Junction samples used in the force balance.
+    pub samples: usize,
+    /// Samples left out (a partner pair that does not touch, or an interface without a fit, or
+    /// surfaces that do not meet near the sample).
+    pub samples_skipped: usize,
+    /// Samples left out within [`VERTEX_MARGIN_EDGES`] mean edge lengths of another junction line
+    /// (near a vertex where four interfaces meet, the triple-line geometry does not hold).
+    pub samples_near_vertices: usize,
+    /// Samples left out by the robust pass (imbalance above [`TRIM_FACTOR`] × the median).
+    pub samples_trimmed: usize,
+    /// Distinct junction lines (triples of labels).
+    pub junction_lines: usize,
+    /// Unknown tensions.
+    pub unknowns: usize,
+    /// σ_max / σ_second-smallest of the force-balance matrix (largest over the blocks).
+    pub condition_number: Option<Real>,
+    /// Rms and median over samples of |Σ T_k t_k| (units of the gauge).
+    pub residual_rms: Option<Real>,
+    pub residual_median: Option<Real>,
+    /// Rms residual of the Young–Laplace fit of the pressures (gauge tension per metre).
+    pub pressure_residual_rms: Option<Real>,
+    pub warnings: Vec<String>,
+}
+
+/// An interface's faces and its fitted surface.
+#[derive(Default)]
+struct Patch {
+    /// Face centroids, both sides.
+    centroids: Vec<Vec3>,
+    /// Face area per side: [cell_a side, cell_b side].
+    area: [Real; 2],
+    /// Sum of area-weighted normals pointing from cell_a into cell_b.
+    normal_ab: Vec3,
+    junction_points: Vec<Vec3>,
+    surface: Option<Surface>,
+    fit_rms: Option<Real>,
+    fit_faces: usize,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Surface {
+    Sphere { centre: Vec3, radius: Real },
+    Plane { point: Vec3, normal: Vec3 },
+}
+
+impl Surface {
+    fn normal_at(&self, x: &Vec3) -> Option<Vec3> {
+        match self {
+            Surface::Sphere { centre, .. } => (x - centre).try_normalize(0.0),
+            Surface::Plane { normal, .. } => Some(*normal),
+        }
+    }
+}
+
+/// A junction sample: the point, the mesh edge direction and its three interfaces (indices).
+struct Sample {
+    x: Vec3,
+    edge: Vec3,
+    interfaces: [usize; 3],
+    line: usize,
+}
+
+fn key(a: u32, b: u32) -> (u32, u32) {
+    match (a, b) {
+        (0, c) | (c, 0) => (c, 0),
+        (a, b) => (a.min(b), a.max(b)),
+    }
+}
+
+/// Estimates every interface's tension and every cell's pressure; see the module docs.
+pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<TensionMap, TensionError> {
+    if !(settings.gauge_value.is_finite() && settings.gauge_value > 0.0) {
+        return Err(TensionError::InvalidGaugeValue { value: settings.gauge_value });
+    }
+    let cells = tissue.cells();
+    let participates: Vec<bool> = cells.iter().map(|c| c.kind() != CellKind::Nucleus).collect();
+    let n_cells = participates.iter().filter(|&&p| p).count();
+    if n_cells < 2 {
+        return Err(TensionError::TooFewCells { cells: n_cells });
+    }
+    for c in cells {
+        if c.id().0 == 0 {
+            return Err(TensionError::CellIdZero);
+        }
+        if c.mesh().positions().iter().any(|p| !p.iter().all(|v| v.is_finite())) {
+            return Err(TensionError::NonFinite { cell: c.id().0 });
+        }
+    }
+    let h = tissue.mean_edge_length().filter(|h| h.is_finite() && *h > 0.0).ok_or(TensionError::NoEdgeLength)?;
+    let delta = match settings.contact_distance {
+        Some(d) if d.is_finite() && d > 0.0 => d,
+        Some(d) => return Err(TensionError::InvalidContactDistance { value: d }),
+        None => DEFAULT_CONTACT_DISTANCE_FACTOR * h,
+    };
+    let partitions = detect_face_contacts(tissue, &participates, delta);
+    let ids: Vec<u32> = cells.iter().map(|c| c.id().0).collect();
+    let mut warnings = Vec::new();
+
+    // Interfaces and each face's interface.
+    let mut patches: BTreeMap<(u32, u32), Patch> = BTreeMap::new();
+    let mut face_key: Vec<Vec<(u32, u32)>> = Vec::with_capacity(cells.len());
+    for (i, cell) in cells.iter().enumerate() {
+        if !participates[i] {
+            face_key.push(Vec::new());
+            continue;
+        }
+        let mesh = cell.mesh();
+        let p = mesh.positions();
+        let vectors = mesh.face_area_vectors();
+        let own = ids[i];
+        let keys: Vec<(u32, u32)> =
+            partitions[i].partner.iter().map(|&b| key(own, if b == FREE { 0 } else { ids[b as usize] })).collect();
+        for (f, t) in mesh.triangles().iter().enumerate() {
+            let k = keys[f];
+            let patch = patches.entry(k).or_default();
+            let side = usize::from(k.0 != own);
+            patch.centroids.push((p[t[0] as usize] + p[t[1] as usize] + p[t[2] as usize]) / 3.0);
+            patch.area[side] += vectors[f].norm();
+            // Outward of cell_a points into b; outward of cell_b points into a.
+            patch.normal_ab += if side == 0 { vectors[f] } else { -vectors[f] };
+        }
+        face_key.push(keys);
+    }
+    let index: BTreeMap<(u32, u32), usize> = patches.keys().enumerate().map(|(n, k)| (*k, n)).collect();
+    let keys: Vec<(u32, u32)> = patches.keys().copied().collect();
+    let mut patches: Vec<Patch> = patches.into_values().collect();
+
+    // Junction samples.
+    let mut samples = Vec::new();
+    let mut skipped = 0usize;
+    let mut lines: BTreeMap<[u32; 3], usize> = BTreeMap::new();
+    for (i, cell) in cells.iter().enumerate() {
+        if !participates[i] {
+            continue;
+        }
+        let mesh = cell.mesh();
+        let p = mesh.positions();
+        let adjacency = Adjacency::new(mesh);
+        let own = ids[i];
+        for (e, &[u, v]) in adjacency.edges().iter().enumerate() {
+            let &[f, g] = adjacency.edge_faces(e) else { continue };
+            let (kf, kg) = (face_key[i][f as usize], face_key[i][g as usize]);
+            if kf == kg {
+                continue;
+            }
+            let other = |k: (u32, u32)| if k.0 == own { k.1 } else { k.0 };
+            let (pa, pb) = (other(kf), other(kg));
+            let Some(&third) = index.get(&key(pa, pb)) else {
+                skipped += 1;
+                continue;
+            };
+            let mut triple = [own, pa, pb];
+            triple.sort_unstable();
+            let next = lines.len();
+            let line = *lines.entry(triple).or_insert(next);
+            let x = (p[u as usize] + p[v as usize]) / 2.0;
+            let interfaces = [index[&kf], index[&kg], third];
+            for &k in &interfaces {
+                patches[k].junction_points.push(x);
+            }
+            samples.push(Sample { x, edge: p[v as usize] - p[u as usize], interfaces, line });
+        }
+    }
+    if samples.is_empty() {
+        return Err(TensionError::NoJunctions { delta });
+    }
+
+    // Fit every interface, leaving out the faces near its junctions.
+    // The scale over which a junction is rounded: the mesh's edges, or the segmentation's voxels
+    // when they are coarser.
+    let scale = settings.rounding_scale.map_or(h, |v| v.max(h));
+    let margin = FIT_MARGIN_EDGES * scale;
+    for (k, patch) in patches.iter_mut().enumerate() {
+        let far: Vec<Vec3> = patch
+            .centroids
+            .iter()
+            .filter(|c| patch.junction_points.iter().all(|q| (*c - q).norm_squared() > margin * margin))
+            .copied()
+            .collect();
+        let points = if far.len() >= MIN_SPHERE_FACES { far } else { patch.centroids.clone() };
+        let (surface, rms) = fit_surface(&points);
+        if let (Some(Surface::Sphere { radius, .. }), Some(rms)) = (surface, rms)
+            && rms > WARN_FIT_RMS * radius
+        {
+            let (a, b) = keys[k];
+            warnings.push(format!(
+                "interface {a}-{b}: its faces are not one sphere (rms {:.1} % of the radius); its tangents are approximate",
+                100.0 * rms / radius
+            ));
+        }
+        patch.surface = surface;
+        patch.fit_rms = rms;
+        patch.fit_faces = points.len();
+    }
+
+    // Force-balance rows: per sample, the tangents of its three interfaces in the plane normal to the line.
+    let medium_unknown = settings.one_medium_tension;
+    let mut unknown_of = vec![usize::MAX; keys.len()];
+    let mut unknown_keys: Vec<Vec<usize>> = Vec::new();
+    let mut shared_medium = None;
+    for (k, &(_, b)) in keys.iter().enumerate() {
+        if b == 0 && medium_unknown {
+            let u = *shared_medium.get_or_insert_with(|| {
+                unknown_keys.push(Vec::new());
+                unknown_keys.len() - 1
+            });
+            unknown_of[k] = u;
+            unknown_keys[u].push(k);
+        } else {
+            unknown_of[k] = unknown_keys.len();
+            unknown_keys.push(vec![k]);
+        }
+    }
+    let n = unknown_keys.len();
+    let local = 4.0 * scale;
+    // (row coefficients as (unknown, value), line) per equation; two equations per sample.
+    let mut rows: Vec<Row> = Vec::with_capacity(2 * samples.len());
+    let near_vertex = near_other_lines(&samples, VERTEX_MARGIN_EDGES * scale);
+    let mut vertex_skipped = 0usize;
+    for (si, s) in samples.iter().enumerate() {
+        if near_vertex[si] {
+            vertex_skipped += 1;
+            continue;
+        }
+        let surfaces: Option<Vec<Surface>> = s.interfaces.iter().map(|&k| patches[k].surface).collect();
+        let Some(surfaces) = surfaces else {
+            skipped += 1;
+            continue;
+        };
+        // The junction is where the three fitted surfaces meet: the mesh's own junction edge lies
+        // inside the rounding of the rim, up to a voxel or more away on a segmentation, and a sphere's
+        // normal turns by that offset over its radius. A sample whose surfaces do not meet near it
+        // is a stray contact face's edge, not a junction.
+        let x = snap_to_junction(&surfaces, s.x, h);
+        if (x - s.x).norm() > MAX_JUNCTION_OFFSET_EDGES * scale || surfaces.iter().any(|f| f.distance(&x) > 0.1 * scale)
+        {
+            skipped += 1;
+            continue;
+        }
+        let normals: Option<Vec<Vec3>> = surfaces.iter().map(|f| f.normal_at(&x)).collect();
+        let Some(normals) = normals else {
+            skipped += 1;
+            continue;
+        };
+        let Some(line) = line_direction(&normals, &s.edge) else {
+            skipped += 1;
+            continue;
+        };
+        let mut tangents = [Vec3::zeros(); 3];
+        let mut ok = true;
+        for (j, &k) in s.interfaces.iter().enumerate() {
+            let Some(t) = line.cross(&normals[j]).try_normalize(1e-12) else {
+                ok = false;
+                break;
+            };
+            let near = local_mean(&patches[k].centroids, &x, local);
+            let toward = near - x;
+            tangents[j] = if t.dot(&toward) >= 0.0 { t } else { -t };
+        }
+        if !ok {
+            skipped += 1;
+            continue;
+        }
+        let u_axis = tangents[0];
+        let w_axis = line.cross(&u_axis);
+        for axis in [u_axis, w_axis] {
+            let mut coefficients: Vec<(usize, Real)> = Vec::with_capacity(3);
+            for (j, &k) in s.interfaces.iter().enumerate() {
+                let c = tangents[j].dot(&axis);
+                match coefficients.iter_mut().find(|(u, _)| *u == unknown_of[k]) {
+                    Some(entry) => entry.1 += c,
+                    None => coefficients.push((unknown_of[k], c)),
+                }
+            }
+            rows.push(Row { coefficients, line: s.line, sample: si });
+        }
+    }
+    if rows.is_empty() {
+        return Err(TensionError::NoJunctions { delta });
+    }
+
+    // Gauge vector.
+    let gauge_unknowns: Vec<usize> = match settings.gauge {
+        Gauge::MediumMean => {
+            let mut u: Vec<usize> =
+                keys.iter().enumerate().filter(|(_, k)| k.1 == 0).map(|(k, _)| unknown_of[k]).collect();
+            u.dedup();
+            if u.is_empty() {
+                return Err(TensionError::NoMediumInterface);
+            }
+            u
+        }
+        Gauge::Interface(a, b) => match index.get(&key(a, b)) {
+            Some(&k) => vec![unknown_of[k]],
+            None => {
+                return Err(TensionError::UnknownGaugeInterface {
+                    a,
+                    b,
+                    labels: ids.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
+                });
+            }
+        },
+    };
+    let gauge_name = match settings.gauge {
+        Gauge::MediumMean => "the mean cell–medium tension".to_string(),
+        Gauge::Interface(a, b) => format!("interface {a}-{b}"),
+    };
+
+    // Blocks of unknowns linked by samples (union-find in a fixed order).
+    let first = solve_tensions(&rows, n, &gauge_unknowns, &gauge_name, settings.gauge_value)?;
+    // One robust pass: samples whose force imbalance exceeds TRIM_FACTOR × the median (a junction
+    // mis-read near a vertex, a stray contact patch) are left out and the system solved again.
+    let imbalance = sample_imbalance(&rows, &first.tension, settings.gauge_value);
+    let mut values: Vec<Real> = imbalance.values().copied().collect();
+    let limit = median(&mut values).map(|m| (TRIM_FACTOR * m).max(MIN_TRIMMED_IMBALANCE));
+    let outliers: Vec<usize> = match limit {
+        Some(limit) => imbalance.iter().filter(|(_, r)| **r > limit).map(|(s, _)| *s).collect(),
+        None => Vec::new(),
+    };
+    let solved = if outliers.is_empty() {
+        first
+    } else {
+        let kept: Vec<Row> = rows.into_iter().filter(|r| outliers.binary_search(&r.sample).is_err()).collect();
+        rows = kept;
+        solve_tensions(&rows, n, &gauge_unknowns, &gauge_name, settings.gauge_value)?
+    };
+    let trimmed_samples = outliers.len();
+    let Solved { tension, tension_sd, condition, sampled, warnings: solve_warnings } = solved;
+    warnings.extend(solve_warnings);
+    let unsampled: Vec<String> = keys
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| !sampled[unknown_of[*k]])
+        .map(|(_, (a, b))| format!("{a}-{b}"))
+        .collect();
+    if !unsampled.is_empty() {
+        warnings.push(format!(
+            "interface(s) {} have no junction sample: undetermined (flagged, no tension)",
+            unsampled.join(", ")
+        ));
+    }
+    let negative: Vec<String> = keys
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| tension[unknown_of[*k]].is_some_and(|t| t <= 0.0))
+        .map(|(_, (a, b))| format!("{a}-{b}"))
+        .collect();
+    if !negative.is_empty() {
+        warnings.push(format!(
+            "interface(s) {} came out with a tension ≤ 0 (left out of the gauge's mean and of the pressures): the shapes \
+             are not at a force balance there, or the mesh is too coarse, or a buried cell shows a spurious free patch",
+            negative.join(", ")
+        ));
+    }
+
+    // Residuals of the force balance.
+    let mut per_interface_samples = vec![0usize; keys.len()];
+    let mut used = 0usize;
+    for r in rows.iter().step_by(2) {
+        used += 1;
+        for &k in &samples[r.sample].interfaces {
+            per_interface_samples[k] += 1;
+        }
+    }
+    let per_sample: Vec<Real> = sample_imbalance(&rows, &tension, settings.gauge_value).into_values().collect();
+    let residual_rms = (!per_sample.is_empty())
+        .then(|| (per_sample.iter().map(|r| r * r).sum::<Real>() / per_sample.len() as Real).sqrt());
+    let residual_median = median(&mut per_sample.clone());
+
+    // Interfaces.
+    let interfaces: Vec<InterfaceTension> = keys
+        .iter()
+        .enumerate()
+        .map(|(k, &(a, b))| {
+            let patch = &patches[k];
+            let u = unknown_of[k];
+            let area = if b == 0 { patch.area[0] } else { (patch.area[0] + patch.area[1]) / 2.0 };
+            let (fit, curvature) = match patch.surface {
+                Some(Surface::Sphere { centre, radius }) => {
+                    let mean = patch.centroids.iter().sum::<Vec3>() / patch.centroids.len() as Real;
+                    // Centre on a's side (opposite to the a→b normal): bulges into b, H > 0.
+                    let sign = if (centre - mean).dot(&patch.normal_ab) <= 0.0 { 1.0 } else { -1.0 };
+                    ("sphere", Some(sign / radius))
+                }
+                Some(Surface::Plane { .. }) => ("plane", Some(0.0)),
+                None => ("none", None),
+            };
+            InterfaceTension {
+                cell_a: a,
+                cell_b: b,
+                tension: tension[u],
+                tension_sd: tension_sd[u],
+                determined: tension[u].is_some(),
+                area,
+                samples: per_interface_samples[k],
+                mean_curvature: curvature,
+                fit,
+                fit_rms: patch.fit_rms,
+                fit_faces: patch.fit_faces,
+            }
+        })
+        .collect();
+
+    // Pressures: Young–Laplace on every determined interface with a curvature.
+    let cell_index: BTreeMap<u32, usize> =
+        ids.iter().enumerate().filter(|(i, _)| participates[*i]).map(|(i, &id)| (id, i)).collect();
+    let (pressures, pressure_residual_rms) = solve_pressures(&interfaces, &cell_index, cells.len(), &mut warnings);
+    let no_free: Vec<String> = ids
+        .iter()
+        .enumerate()
+        .filter(|(i, id)| participates[*i] && !index.contains_key(&(**id, 0)))
+        .map(|(_, id)| id.to_string())
+        .collect();
+    if !no_free.is_empty() {
+        warnings.push(format!(
+            "cell(s) {} have no free surface: no cell–medium tension of theirs enters{}",
+            no_free.join(", "),
+            if matches!(settings.gauge, Gauge::MediumMean) { " the gauge" } else { "" }
+        ));
+    }
+    let cells_out: Vec<CellPressure> = cells
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| participates[*i])
+        .map(|(i, c)| {
+            let free = index.get(&(c.id().0, 0)).map(|&k| &interfaces[k]);
+            let (p, sd) = pressures[i];
+            CellPressure {
+                cell: c.id().0,
+                pressure: p,
+                pressure_sd: sd,
+                determined: p.is_some(),
+                free_mean_curvature: free.and_then(|f| f.mean_curvature),
+                free_area: free.map_or(0.0, |f| f.area),
+            }
+        })
+        .collect();
+    let face_interface =
+        face_key.iter().map(|keys| keys.iter().map(|k| index[k]).collect::<Vec<usize>>()).collect::<Vec<_>>();
+    Ok(TensionMap {
+        interfaces,
+        cells: cells_out,
+        face_interface,
+        contact_distance: delta,
+        samples: used,
+        samples_skipped: skipped,
+        samples_near_vertices: vertex_skipped,
+        samples_trimmed: trimmed_samples,
+        junction_lines: lines.len(),
+        unknowns: n,
+        condition_number: condition,
+        residual_rms,
+        residual_median,
+        pressure_residual_rms,
+        warnings,
+    })
+}
+
+/// Per sample (index), |Σ T_k t_k| / gauge over its two rows; samples with an undetermined tension
+/// are left out.
+fn sample_imbalance(rows: &[Row], tension: &[Option<Real>], value: Real) -> BTreeMap<usize, Real> {
+    let mut out: BTreeMap<usize, Real> = BTreeMap::new();
+    let mut unknown: Vec<usize> = Vec::new();
+    for r in rows {
+        let mut sum = 0.0;
+        for &(u, c) in &r.coefficients {
+            match tension[u] {
+                Some(t) => sum += c * t,
+                None => unknown.push(r.sample),
+            }
+        }
+        *out.entry(r.sample).or_insert(0.0) += sum * sum;
+    }
+    for s in unknown {
+        out.remove(&s);
+    }
+    out.values_mut().for_each(|v| *v = v.sqrt() / value);
+    out
+}
+
+/// For each sample, whether a sample of another junction line lies within `radius` (a hash grid of
+/// cubes of edge `radius`); a line never loses all its samples this way.
+fn near_other_lines(samples: &[Sample], radius: Real) -> Vec<bool> {
+    let cube = |x: &Vec3| [0, 1, 2].map(|a| (x[a] / radius).floor() as i64);
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = std::collections::HashMap::new();
+    for (i, s) in samples.iter().enumerate() {
+        grid.entry(cube(&s.x)).or_default().push(i);
+    }
+    let mut near: Vec<bool> = samples
+        .iter()
+        .map(|s| {
+            let c = cube(&s.x);
+            (-1..=1).any(|dx| {
+                (-1..=1).any(|dy| {
+                    (-1..=1).any(|dz| {
+                        grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]).is_some_and(|list| {
+                            list.iter().any(|&j| {
+                                samples[j].line != s.line && (samples[j].x - s.x).norm_squared() < radius * radius
+                            })
+                        })
+                    })
+                })
+            })
+        })
+        .collect();
+    let lines = samples.iter().map(|s| s.line).max().map_or(0, |m| m + 1);
+    let mut keeps = vec![false; lines];
+    for (s, &n) in samples.iter().zip(&near) {
+        keeps[s.line] |= !n;
+    }
+    for (s, n) in samples.iter().zip(near.iter_mut()) {
+        if !keeps[s.line] {
+            *n = false;
+        }
+    }
+    near
+}
+
+/// One force-balance equation: coefficients per unknown, its junction line and sample.
+struct Row {
+    coefficients: Vec<(usize, Real)>,
+    line: usize,
+    sample: usize,
+}
+
+/// The tensions solved block by block (see the module docs).
+struct Solved {
+    tension: Vec<Option<Real>>,
+    tension_sd: Vec<Option<Real>>,
+    condition: Option<Real>,
+    sampled: Vec<bool>,
+    warnings: Vec<String>,
+}
+
+fn solve_tensions(
+    rows: &[Row],
+    n: usize,
+    gauge_unknowns: &[usize],
+    gauge_name: &str,
+    value: Real,
+) -> Result<Solved, TensionError> {
+    let mut warnings = Vec::new();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    for Row { coefficients, .. } in rows {
+        for w in coefficients.windows(2) {
+            let (a, b) = (find(&mut parent, w[0].0), find(&mut parent, w[1].0));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let root: Vec<usize> = (0..n).map(|u| find(&mut parent, u)).collect();
+    let mut sampled = vec![false; n];
+    for Row { coefficients, .. } in rows {
+        for &(u, _) in coefficients {
+            sampled[u] = true;
+        }
+    }
+    let mut tension: Vec<Option<Real>> = vec![None; n];
+    let mut tension_sd: Vec<Option<Real>> = vec![None; n];
+    let mut condition: Option<Real> = None;
+    let mut blocks: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for u in 0..n {
+        if sampled[u] {
+            blocks.entry(root[u]).or_default().push(u);
+        }
+    }
+    let gauge_blocks: Vec<usize> = {
+        let mut b: Vec<usize> = gauge_unknowns.iter().filter(|&&u| sampled[u]).map(|&u| root[u]).collect();
+        b.sort_unstable();
+        b.dedup();
+        b
+    };
+    if gauge_blocks.is_empty() {
+        return Err(TensionError::GaugeUndetermined { gauge: gauge_name.to_string() });
+    }
+    if gauge_blocks.len() > 1 {
+        warnings.push(format!(
+            "the junctions form {} unconnected groups with a gauge tension each; each group is scaled by its own \
+             gauge ({gauge_name}), so tensions compare only within a group",
+            gauge_blocks.len()
+        ));
+    }
+    for (&block_root, members) in &blocks {
+        if !gauge_blocks.contains(&block_root) {
+            warnings.push(format!(
+                "{} tension(s) share no junction with the gauge ({gauge_name}): undetermined",
+                members.len()
+            ));
+            continue;
+        }
+        let local_of: BTreeMap<usize, usize> = members.iter().enumerate().map(|(l, &u)| (u, l)).collect();
+        let m = members.len();
+        let block_rows: Vec<&Row> = rows.iter().filter(|r| local_of.contains_key(&r.coefficients[0].0)).collect();
+        let mut a = DMatrix::<Real>::zeros(block_rows.len(), m);
+        for (r, Row { coefficients, .. }) in block_rows.iter().enumerate() {
+            for &(u, c) in coefficients {
+                a[(r, local_of[&u])] += c;
+            }
+        }
+        let gauge: Vec<usize> = gauge_unknowns.iter().filter_map(|u| local_of.get(u).copied()).collect();
+        match solve_block(&a, &block_rows.iter().map(|r| r.line).collect::<Vec<_>>(), &gauge, value) {
+            Some(solution) => {
+                for (l, &u) in members.iter().enumerate() {
+                    tension[u] = Some(solution.tension[l]);
+                    tension_sd[u] = Some(solution.sd[l]);
+                }
+                if let Some(c) = solution.condition {
+                    condition = Some(condition.map_or(c, |x: Real| x.max(c)));
+                }
+            }
+            None => warnings.push(format!(
+                "{m} tension(s) linked to the gauge are not determined by the junctions (several force-balancing \
+                 directions): undetermined"
+            )),
+        }
+    }
+    Ok(Solved { tension, tension_sd, condition, sampled, warnings })
+}
+
+/// Sphere or plane through the points (see the module docs): each fitted, refitted once without the
+/// points farther than [`TRIM_FACTOR`] × the median distance (stray contact faces far from the
+/// interface), and the sphere kept only when it fits clearly better than the plane (rms at most
+/// [`SPHERE_OVER_PLANE_RMS`] of the plane's; on a nearly flat, noisy patch a sphere fits the noise).
+fn fit_surface(points: &[Vec3]) -> (Option<Surface>, Option<Real>) {
+    if points.len() < 3 {
+        return (None, None);
+    }
+    let plane = trimmed(points, fit_plane);
+    let sphere = if points.len() >= MIN_SPHERE_FACES { trimmed(points, fit_sphere_surface) } else { None };
+    match (sphere, plane) {
+        (Some((Surface::Sphere { centre, radius }, rms_s, extent)), Some((_, rms_p, _)))
+            if radius < MAX_RADIUS_OVER_EXTENT * extent && rms_s <= SPHERE_OVER_PLANE_RMS * rms_p =>
+        {
+            (Some(Surface::Sphere { centre, radius }), Some(rms_s))
+        }
+        (_, Some((plane, rms_p, _))) => (Some(plane), Some(rms_p)),
+        _ => (None, None),
+    }
+}
+
+/// Points farther than this many median distances from a first fit are left out of the second.
+pub const TRIM_FACTOR: Real = 3.0;
+/// A sphere replaces the plane when its rms distance is at most this fraction of the plane's.
+pub const SPHERE_OVER_PLANE_RMS: Real = 0.5;
+
+impl Surface {
+    fn distance(&self, x: &Vec3) -> Real {
+        match self {
+            Surface::Sphere { centre, radius } => ((x - centre).norm() - radius).abs(),
+            Surface::Plane { point, normal } => (x - point).dot(normal).abs(),
+        }
+    }
+}
+
+/// `fit` on the points, then again on those within [`TRIM_FACTOR`] median distances of the first
+/// fit: (surface, rms distance of the kept points, their rms extent about their mean).
+fn trimmed(points: &[Vec3], fit: fn(&[Vec3]) -> Option<Surface>) -> Option<(Surface, Real, Real)> {
+    let first = fit(points)?;
+    let mut d: Vec<Real> = points.iter().map(|p| first.distance(p)).collect();
+    let limit = TRIM_FACTOR * median(&mut d.clone()).unwrap_or(0.0);
+    d.clear();
+    let kept: Vec<Vec3> = points.iter().filter(|p| first.distance(p) <= limit).copied().collect();
+    let (surface, kept) = if kept.len() >= 3 && kept.len() < points.len() {
+        match fit(&kept) {
+            Some(s) => (s, kept),
+            None => (first, points.to_vec()),
+        }
+    } else {
+        (first, points.to_vec())
+    };
+    let n = kept.len() as Real;
+    let rms = (kept.iter().map(|p| surface.distance(p).powi(2)).sum::<Real>() / n).sqrt();
+    let mean = kept.iter().sum::<Vec3>() / n;
+    let extent = (kept.iter().map(|p| (p - mean).norm_squared()).sum::<Real>() / n).sqrt();
+    Some((surface, rms, extent))
+}
+
+fn fit_sphere_surface(points: &[Vec3]) -> Option<Surface> {
+    if points.len() < MIN_SPHERE_FACES {
+        return None;
+    }
+    let (cap, _) = fit_sphere(points)?;
+    cap.radius.is_finite().then_some(Surface::Sphere { centre: cap.centre, radius: cap.radius })
+}
+
+fn fit_plane(points: &[Vec3]) -> Option<Surface> {
+    if points.len() < 3 {
+        return None;
+    }
+    let mean = points.iter().sum::<Vec3>() / points.len() as Real;
+    let mut cov = nalgebra::Matrix3::<Real>::zeros();
+    for p in points {
+        let q = p - mean;
+        cov += q * q.transpose();
+    }
+    let eigen = cov.symmetric_eigen();
+    let k = eigen.eigenvalues.imin();
+    let normal = eigen.eigenvectors.column(k).into_owned().try_normalize(0.0)?;
+    Some(Surface::Plane { point: mean, normal })
+}
+
+/// The point nearest to `x0` on all three surfaces: Gauss–Newton on Σ_k d_k(x)² + λ|x − x0|² (the
+/// surfaces meet along a line, so the small λ = 10⁻³ only fixes the position along it), from `x0`.
+fn snap_to_junction(surfaces: &[Surface], x0: Vec3, h: Real) -> Vec3 {
+    let lambda = 1e-3;
+    let mut x = x0;
+    for _ in 0..20 {
+        let mut jtj = nalgebra::Matrix3::<Real>::identity() * lambda;
+        let mut jtf = (x - x0) * lambda;
+        for f in surfaces {
+            let (value, gradient) = match f {
+                Surface::Sphere { centre, radius } => {
+                    let Some(n) = (x - centre).try_normalize(0.0) else { return x0 };
+                    ((x - centre).norm() - radius, n)
+                }
+                Surface::Plane { point, normal } => ((x - point).dot(normal), *normal),
+            };
+            jtj += gradient * gradient.transpose();
+            jtf += gradient * value;
+        }
+        let Some(step) = jtj.lu().solve(&jtf) else { return x0 };
+        x -= step;
+        if step.norm() < 1e-9 * h {
+            break;
+        }
+    }
+    x
+}
+
+/// The junction line's direction: the cross product of the two most different interface normals, or
+/// the mesh edge where all three are nearly parallel (a junction with a vanishing angle).
+fn line_direction(normals: &[Vec3], edge: &Vec3) -> Option<Vec3> {
+    let mut best = Vec3::zeros();
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        let c = normals[a].cross(&normals[b]);
+        if c.norm_squared() > best.norm_squared() {
+            best = c;
+        }
+    }
+    if best.norm() > 0.1 {
+        let l = best.normalize();
+        return Some(if l.dot(edge) >= 0.0 { l } else { -l });
+    }
+    edge.try_normalize(0.0)
+}
+
+/// Mean of the points within `radius` of `x`, or of all points when none is that close.
+fn local_mean(points: &[Vec3], x: &Vec3, radius: Real) -> Vec3 {
+    let (sum, count) = points
+        .iter()
+        .filter(|p| (*p - x).norm_squared() <= radius * radius)
+        .fold((Vec3::zeros(), 0usize), |(s, c), p| (s + p, c + 1));
+    if count > 0 { sum / count as Real } else { points.iter().sum::<Vec3>() / points.len().max(1) as Real }
+}
+
+fn median(values: &mut [Real]) -> Option<Real> {
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(|a, b| a.total_cmp(b));
+    let n = values.len();
+    Some(if n % 2 == 1 { values[n / 2] } else { (values[n / 2 - 1] + values[n / 2]) / 2.0 })
+}
+
+struct BlockSolution {
+    tension: Vec<Real>,
+    sd: Vec<Real>,
+    condition: Option<Real>,
+}
+
+/// The smallest right singular vector of `a`, scaled so that the mean over `gauge` is `value`, and its
+/// cluster-robust standard deviations; `None` when the second-smallest singular value vanishes.
+fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value: Real) -> Option<BlockSolution> {
+    let m = a.ncols();
+    if m == 1 {
+        // A single unknown (all samples on one shared tension): only the gauge fixes it.
+        return Some(BlockSolution { tension: vec![value], sd: vec![0.0], condition: None });
+    }
+    let normal = a.transpose() * a;
+    let svd = normal.clone().svd(false, true);
+    let v_t = svd.v_t?;
+    let sigma2 = &svd.singular_values;
+    // Singular values of AᵀA sorted descending by nalgebra? Not guaranteed: order them.
+    let mut order: Vec<usize> = (0..m).collect();
+    order.sort_by(|&x, &y| sigma2[y].total_cmp(&sigma2[x]));
+    let largest = sigma2[order[0]];
+    let smallest = order[m - 1];
+    let second = sigma2[order[m - 2]];
+    if largest.is_nan() || largest <= 0.0 || second <= SINGULAR_TOLERANCE * largest {
+        return None;
+    }
+    let v: DVector<Real> = v_t.row(smallest).transpose();
+    let mean = |entries: &[usize]| entries.iter().map(|&k| v[k]).sum::<Real>() / entries.len().max(1) as Real;
+    let mut g = mean(gauge);
+    if g == 0.0 || !g.is_finite() {
+        return None;
+    }
+    // Gauge tensions that come out ≤ 0 (a spurious free patch of a buried cell, a mis-read
+    // junction) are left out of the gauge's mean: one such value would rescale every tension.
+    let positive: Vec<usize> = gauge.iter().copied().filter(|&k| v[k] / g > 0.0).collect();
+    let gauge: &[usize] = if !positive.is_empty() && positive.len() < gauge.len() {
+        g = mean(&positive);
+        &positive
+    } else {
+        gauge
+    };
+    let tension: DVector<Real> = &v * (value / g);
+    // Perturbation of v by the residuals r = A v: δv = −P Aᵀ r-part; clustered by line.
+    let mut p = DMatrix::<Real>::zeros(m, m);
+    for &k in &order[..m - 1] {
+        let vk: DVector<Real> = v_t.row(k).transpose();
+        p += &vk * vk.transpose() / sigma2[k];
+    }
+    let residual = a * &v;
+    let mut scores: BTreeMap<usize, DVector<Real>> = BTreeMap::new();
+    for (r, &line) in line_of_row.iter().enumerate() {
+        let row: DVector<Real> = a.row(r).transpose();
+        *scores.entry(line).or_insert_with(|| DVector::zeros(m)) += row * residual[r];
+    }
+    let groups = scores.len() as Real;
+    let mut meat = DMatrix::<Real>::zeros(m, m);
+    for s in scores.values() {
+        meat += s * s.transpose();
+    }
+    let correction = if groups > 1.0 { groups / (groups - 1.0) } else { 1.0 };
+    let cov_v = &p * meat * &p * correction;
+    // T = value · v / g(v): J = (value / g) (I − v gᵀ / g), g = mean over the gauge entries.
+    let mut gvec = DVector::<Real>::zeros(m);
+    for &k in gauge {
+        gvec[k] += 1.0 / gauge.len() as Real;
+    }
+    let j = (DMatrix::<Real>::identity(m, m) - &v * gvec.transpose() / g) * (value / g);
+    let cov_t = &j * cov_v * j.transpose();
+    let sd = (0..m).map(|k| cov_t[(k, k)].max(0.0).sqrt()).collect();
+    Some(BlockSolution { tension: tension.iter().copied().collect(), sd, condition: Some((largest / second).sqrt()) })
+}
+
+/// A cell's pressure and its standard deviation.
+type PressureEstimate = (Option<Real>, Option<Real>);
+
+/// Least-squares pressures (per tissue index: value and sd) from Young–Laplace on the determined
+/// interfaces, and the rms residual.
+fn solve_pressures(
+    interfaces: &[InterfaceTension],
+    cell_index: &BTreeMap<u32, usize>,
+    n_cells: usize,
+    warnings: &mut Vec<String>,
+) -> (Vec<PressureEstimate>, Option<Real>) {
+    let mut out = vec![(None, None); n_cells];
+    // Equations p_a − p_b = 2 H T with their variance from T's sd.
+    let mut equations: Vec<(usize, Option<usize>, Real, Real)> = Vec::new();
+    for f in interfaces {
+        let (Some(t), Some(h)) = (f.tension, f.mean_curvature) else { continue };
+        if t <= 0.0 {
+            continue;
+        }
+        let (Some(&a), b) = (cell_index.get(&f.cell_a), cell_index.get(&f.cell_b).copied()) else { continue };
+        let sd = f.tension_sd.unwrap_or(0.0);
+        equations.push((a, b, 2.0 * h * t, (2.0 * h * sd).powi(2)));
+    }
+    // Cells reached from the medium through equations.
+    let mut reached = vec![false; n_cells];
+    let mut changed = true;
+    for e in &equations {
+        if e.1.is_none() {
+            reached[e.0] = true;
+        }
+    }
+    while changed {
+        changed = false;
+        for e in &equations {
+            if let Some(b) = e.1
+                && reached[e.0] != reached[b]
+            {
+                reached[e.0] = true;
+                reached[b] = true;
+                changed = true;
+            }
+        }
+    }
+    let unknowns: Vec<usize> = (0..n_cells).filter(|&i| reached[i]).collect();
+    let unreached: Vec<String> =
+        cell_index.iter().filter(|(_, i)| !reached[**i]).map(|(id, _)| id.to_string()).collect();
+    if !unreached.is_empty() {
+        warnings.push(format!(
+            "cell(s) {}: no determined interface links them to the medium, so their pressure is undetermined",
+            unreached.join(", ")
+        ));
+    }
+    if unknowns.is_empty() {
+        return (out, None);
+    }
+    let local: BTreeMap<usize, usize> = unknowns.iter().enumerate().map(|(l, &i)| (i, l)).collect();
+    let rows: Vec<&(usize, Option<usize>, Real, Real)> =
+        equations.iter().filter(|e| local.contains_key(&e.0)).collect();
+    let (m, n) = (rows.len(), unknowns.len());
+    let mut a = DMatrix::<Real>::zeros(m, n);
+    let mut b = DVector::<Real>::zeros(m);
+    for (r, e) in rows.iter().enumerate() {
+        a[(r, local[&e.0])] += 1.0;
+        if let Some(j) = e.1 {
+            a[(r, local[&j])] -= 1.0;
+        }
+        b[r] = e.2;
+    }
+    let svd = a.clone().svd(true, true);
+    let Ok(p) = svd.solve(&b, 1e-12) else { return (out, None) };
+    let residual = &a * &p - &b;
+    let rms = (residual.norm_squared() / m as Real).sqrt();
+    // Covariance: pseudo-inverse carrying the tensions' variances, plus the residual scatter.
+    let Some(pinv) = svd.pseudo_inverse(1e-12).ok() else { return (out, Some(rms)) };
+    let var_b = DMatrix::<Real>::from_diagonal(&DVector::from_iterator(m, rows.iter().map(|e| e.3)));
+    let mut cov = &pinv * var_b * pinv.transpose();
+    if m > n {
+        let s2 = residual.norm_squared() / (m - n) as Real;
+        cov += &pinv * pinv.transpose() * s2;
+    }
+    for (l, &i) in unknowns.iter().enumerate() {
+        out[i] = (Some(p[l]), Some(cov[(l, l)].max(0.0).sqrt()));
+    }
+    (out, Some(rms))
+}
