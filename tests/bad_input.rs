@@ -292,6 +292,8 @@ fn every_subcommand_refuses_a_missing_or_garbage_input_naming_it_and_writes_noth
         ("vtk", &["polarize", "FILE", "--out", "OUT/p.vtp"]),
         ("vtk", &["voxelize", "FILE", "--voxel-size", "1um", "--out", "OUT/v.tif"]),
         ("vtk", &["render", "FILE", "--out", "OUT/v.png"]),
+        ("vtk", &["tensions", "FILE", "--out", "OUT"]),
+        ("tif", &["tensions", "FILE", "--out", "OUT"]),
         ("vtk", &["bench", "forces-tissue", "FILE", "--repeat", "1"]),
         ("toml", &["config", "check", "FILE"]),
         ("toml", &["fit", "--config", "FILE", "--out", "OUT"]),
