@@ -2,7 +2,10 @@
 //! analytic doublet, recovers the Surface Evolver truths (hetero4: six different interface tensions),
 //! same output on 1 and 2 threads, and clear errors on bad input.
 
-use std::f64::consts::PI;
+#[path = "support/analytic_doublet.rs"]
+mod analytic_doublet;
+
+use analytic_doublet::cap_cell;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use tissuefit::geometry::{Real, Vec3};
@@ -22,66 +25,6 @@ fn tissue(meshes: Vec<CellMesh>) -> Tissue {
             .collect(),
     )
     .unwrap()
-}
-
-/// A closed surface of revolution around z through `rings`, closed by fans to `start` and `end`.
-fn ring_surface(start: Vec3, rings: &[Vec<Vec3>], end: Vec3) -> CellMesh {
-    let m = rings[0].len() as u32;
-    let mut positions = vec![start];
-    for ring in rings {
-        positions.extend(ring);
-    }
-    positions.push(end);
-    let ring_node = |r: u32, j: u32| 1 + r * m + j % m;
-    let mut triangles = Vec::new();
-    for j in 0..m {
-        triangles.push([0, ring_node(0, j + 1), ring_node(0, j)]);
-    }
-    for r in 0..rings.len() as u32 - 1 {
-        for j in 0..m {
-            let (a, b, c, d) = (ring_node(r, j), ring_node(r, j + 1), ring_node(r + 1, j + 1), ring_node(r + 1, j));
-            triangles.push([a, b, c]);
-            triangles.push([a, c, d]);
-        }
-    }
-    let last = positions.len() as u32 - 1;
-    let r = rings.len() as u32 - 1;
-    for j in 0..m {
-        triangles.push([last, ring_node(r, j), ring_node(r, j + 1)]);
-    }
-    let mut mesh = CellMesh::from_triangles(positions, triangles).unwrap();
-    mesh.orient_outward();
-    mesh
-}
-
-/// The part z ≤ 0 of the sphere of radius `radius` that meets z = 0 in the disc of radius `disc`,
-/// closed by that disc (mirrored to z ≥ 0 when `upper`).
-fn cap_cell(radius: f64, disc: f64, segments: u32, cap_rings: u32, disc_rings: u32, upper: bool) -> CellMesh {
-    let hc = (radius * radius - disc * disc).sqrt();
-    let centre = Vec3::new(0.0, 0.0, -hc);
-    let rim_polar = PI - (disc / radius).asin();
-    let around = |j: u32| 2.0 * PI * j as f64 / segments as f64;
-    let mut rings: Vec<Vec<Vec3>> = Vec::new();
-    for k in 1..cap_rings {
-        let alpha = rim_polar * k as f64 / cap_rings as f64;
-        rings.push(
-            (0..segments)
-                .map(|j| {
-                    centre
-                        + radius * Vec3::new(alpha.sin() * around(j).cos(), alpha.sin() * around(j).sin(), -alpha.cos())
-                })
-                .collect(),
-        );
-    }
-    for k in (1..=disc_rings).rev() {
-        let r = disc * k as f64 / disc_rings as f64;
-        rings.push((0..segments).map(|j| Vec3::new(r * around(j).cos(), r * around(j).sin(), 0.0)).collect());
-    }
-    let mut mesh = ring_surface(centre - Vec3::new(0.0, 0.0, radius), &rings, Vec3::zeros());
-    if upper {
-        mesh.scale(Vec3::new(1.0, 1.0, -1.0));
-    }
-    mesh
 }
 
 fn tension_of(map: &TensionMap, a: u32, b: u32) -> Real {

@@ -96,18 +96,43 @@ pub fn interface_plane(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
     if points.len() < MIN_FIT_FACES {
         return None;
     }
-    let mean = points.iter().sum::<Vec3>() / points.len() as Real;
+    let plane = least_squares_plane(points)?;
+    (plane.off_plane_ms.sqrt() <= MAX_PLANE_RMS * plane.spread_ms.sqrt()).then_some((plane.centroid, plane.normal))
+}
+
+/// The least-squares plane through points (smallest principal axis of their scatter).
+#[derive(Copy, Clone, Debug)]
+pub struct LeastSquaresPlane {
+    pub centroid: Vec3,
+    /// Unit normal (sign arbitrary).
+    pub normal: Vec3,
+    /// Mean squared distance of the points from the plane.
+    pub off_plane_ms: Real,
+    /// Mean squared distance of the points from their centroid.
+    pub spread_ms: Real,
+}
+
+/// [`LeastSquaresPlane`] through `points`; `None` for an empty set or a degenerate normal.
+pub fn least_squares_plane(points: &[Vec3]) -> Option<LeastSquaresPlane> {
+    if points.is_empty() {
+        return None;
+    }
+    let n = points.len() as Real;
+    let centroid = points.iter().sum::<Vec3>() / n;
     let mut cov = nalgebra::Matrix3::<Real>::zeros();
     for p in points {
-        let q = p - mean;
+        let q = p - centroid;
         cov += q * q.transpose();
     }
     let eigen = cov.symmetric_eigen();
     let k = eigen.eigenvalues.imin();
-    let normal: Vec3 = eigen.eigenvectors.column(k).into_owned();
-    let n = points.len() as Real;
-    let (flat, extent) = (eigen.eigenvalues[k].max(0.0) / n, eigen.eigenvalues.sum().max(0.0) / n);
-    (flat.sqrt() <= MAX_PLANE_RMS * extent.sqrt()).then(|| (mean, normal.normalize()))
+    let normal = eigen.eigenvectors.column(k).into_owned().try_normalize(0.0)?;
+    Some(LeastSquaresPlane {
+        centroid,
+        normal,
+        off_plane_ms: eigen.eigenvalues[k].max(0.0) / n,
+        spread_ms: eigen.eigenvalues.sum().max(0.0) / n,
+    })
 }
 
 /// External far-field angle (radians) between two cells' caps meeting at the plane (`point`,

@@ -891,16 +891,8 @@ fn fit_plane(points: &[Vec3]) -> Option<Surface> {
     if points.len() < 3 {
         return None;
     }
-    let mean = points.iter().sum::<Vec3>() / points.len() as Real;
-    let mut cov = nalgebra::Matrix3::<Real>::zeros();
-    for p in points {
-        let q = p - mean;
-        cov += q * q.transpose();
-    }
-    let eigen = cov.symmetric_eigen();
-    let k = eigen.eigenvalues.imin();
-    let normal = eigen.eigenvectors.column(k).into_owned().try_normalize(0.0)?;
-    Some(Surface::Plane { point: mean, normal })
+    let plane = super::far_field::least_squares_plane(points)?;
+    Some(Surface::Plane { point: plane.centroid, normal: plane.normal })
 }
 
 /// The point nearest to `x0` on all three surfaces: Gauss–Newton on Σ_k d_k(x)² + λ|x − x0|² (the
