@@ -16,6 +16,16 @@ img=docs/src/img
 mkdir -p "$gen"
 
 "$bin" --threads 2 run pipelines/demo.toml --out runs/demo --force > "$gen/demo-run.txt"
+# The README quotes the same output between its demo-run markers.
+python3 - "$gen/demo-run.txt" README.md <<'PY'
+import re, sys
+run, readme = open(sys.argv[1]).read(), open(sys.argv[2]).read()
+block = re.compile(r"(<!-- demo-run:[^\n]*-->\n)```\n.*?```\n(<!-- /demo-run -->)", re.S)
+new, n = block.subn(lambda m: m.group(1) + "```\n" + run + "```\n" + m.group(2), readme)
+if n != 1:
+    sys.exit("README.md: no demo-run block between its markers")
+open(sys.argv[2], "w").write(new)
+PY
 "$bin" render runs/demo/mesh/tissue.vtp --out "$img/demo-mesh.png" --view y --edges --size 420,280
 "$bin" render runs/demo/simulate/final.vtk --out "$img/demo-relaxed.png" --view y --edges --size 420,280
 cp runs/demo/fit/objective.png runs/demo/fit/landscape.png "$img/"
