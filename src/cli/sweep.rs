@@ -28,7 +28,8 @@ pub struct SweepArgs {
     /// Run only run I into DIR/run-000I (one task of a job array); no results table.
     #[arg(long, value_name = "I", conflicts_with = "collect")]
     pub index: Option<usize>,
-    /// Run nothing: build results.csv and the plots from the run directories already in DIR.
+    /// Run nothing: build results.csv and the plots from the run directories already in DIR. Refused
+    /// while a sweep, a job-array task or another collection works in DIR (collect after they end).
     #[arg(long)]
     pub collect: bool,
 }
