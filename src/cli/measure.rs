@@ -4,7 +4,7 @@
 //! cell also gets its IoU and χ = 1 − IoU against the same label of the other input.
 
 use super::label_args::{describe_grid, parse_voxel_size};
-use super::{InputArgs, Outcome};
+use super::{InputArgs, Outcome, write_csv};
 use crate::geometry::Real;
 use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, label_overlap, read_label_tiff};
 use crate::io::{LengthScale, OutputGroup, OutputPolicy, read_tissue};
@@ -339,26 +339,6 @@ fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> anyho
         })
         .with_context(|| format!("writing {}", path.display()))?;
     group.commit().with_context(|| format!("writing the outputs into {}", dir.display()))
-}
-
-/// Writes rows under a header of `T`'s serde field names, in field order; the header comes from
-/// `example` (not written) so that a file without rows still has its columns.
-fn write_csv<T: Serialize>(group: &mut OutputGroup, path: &Path, rows: &[T], example: &T) -> anyhow::Result<()> {
-    group
-        .write(path, |w| {
-            let mut header = csv::Writer::from_writer(Vec::new());
-            header.serialize(example)?;
-            let bytes = header.into_inner().map_err(|e| e.into_error())?;
-            let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
-            w.write_all(first_line)?;
-            w.write_all(b"\n")?;
-            let mut csv = csv::WriterBuilder::new().has_headers(false).from_writer(&mut *w);
-            for row in rows {
-                csv.serialize(row)?;
-            }
-            csv.flush()
-        })
-        .with_context(|| format!("writing {}", path.display()))
 }
 
 fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_seconds: f64) -> std::io::Result<()> {

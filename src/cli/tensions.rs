@@ -6,7 +6,7 @@
 
 use super::label_args::{describe_grid, parse_voxel_size};
 use super::measure::{is_tiff, parse_length};
-use super::{InputArgs, Outcome};
+use super::{InputArgs, Outcome, write_csv};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_label_tiff};
 use crate::io::{CellField, OutputGroup, OutputPolicy, read_tissue, vtp_bytes};
@@ -84,7 +84,7 @@ fn parse_tension(s: &str) -> Result<Real, String> {
 /// What `tensions` writes into --out.
 const OUTPUT_FILES: [&str; 4] = ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp"];
 
-#[derive(Serialize)]
+#[derive(Serialize, Default)]
 struct InterfaceRow {
     cell_a: u32,
     cell_b: u32,
@@ -98,7 +98,7 @@ struct InterfaceRow {
     fit_rms_um: Option<Real>,
 }
 
-#[derive(Serialize)]
+#[derive(Serialize, Default)]
 struct CellRow {
     cell: u32,
     pressure: Option<Real>,
@@ -293,8 +293,8 @@ fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summar
         bail!("internal: {} face tensions for {} faces", face_tension.len(), tissue.face_count());
     }
     let mut group = OutputGroup::new();
-    write_csv(&mut group, &dir.join("interfaces.csv"), &interfaces)?;
-    write_csv(&mut group, &dir.join("cells.csv"), &cells)?;
+    write_csv(&mut group, &dir.join("interfaces.csv"), &interfaces, &InterfaceRow::default())?;
+    write_csv(&mut group, &dir.join("cells.csv"), &cells, &CellRow::default())?;
     let path = dir.join("summary.json");
     group
         .write(&path, |w| {
@@ -308,18 +308,6 @@ fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summar
     let bytes = vtp_bytes(&vtp, tissue, &fields, None)?;
     group.write_bytes(&vtp, &bytes).with_context(|| format!("writing {}", vtp.display()))?;
     group.commit().with_context(|| format!("writing the outputs into {}", dir.display()))
-}
-
-fn write_csv<T: Serialize>(group: &mut OutputGroup, path: &Path, rows: &[T]) -> anyhow::Result<()> {
-    group
-        .write(path, |w| {
-            let mut csv = csv::Writer::from_writer(&mut *w);
-            for row in rows {
-                csv.serialize(row)?;
-            }
-            csv.flush()
-        })
-        .with_context(|| format!("writing {}", path.display()))
 }
 
 fn print_summary(out: &mut impl Write, input: &Path, map: &TensionMap, s: &Summary<'_>) -> std::io::Result<()> {
