@@ -51,7 +51,7 @@ pub struct SimulationSettings {
     pub sampling_period: Real,
     /// Steps between two saved frames of an `equilibrium` run. Default 1,000.
     pub sample_every_steps: u64,
-    /// Steps between two local remeshing passes of the moving cells (split edges > 3·l_min, collapse
+    /// Steps between two local remeshing passes of the moving cells (split edges > l_max, collapse
     /// edges < l_min, flip poor triangles); 0 = never. Default 0.
     pub remesh_every_steps: u64,
     /// Equilibrium mode: no remeshing pass at step `max_steps − settle_steps` or later, so that at

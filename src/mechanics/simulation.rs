@@ -1251,7 +1251,9 @@ impl<'p> Simulation<'p> {
     /// does not depend on the thread count). Refused operations are skipped and counted; a pass that
     /// would break a surface is discarded and counted. Returns whether any mesh changed.
     fn remesh_cells(&mut self) -> Result<bool, SimulationError> {
-        let settings = RemeshSettings::new(self.params.numerics.min_edge_length);
+        let numerics = &self.params.numerics;
+        let settings =
+            RemeshSettings { l_max: numerics.max_edge_length(), ..RemeshSettings::new(numerics.min_edge_length) };
         let results: Vec<Option<(u64, Result<RemeshReport, RemeshError>)>> = self
             .tissue
             .cells_mut()

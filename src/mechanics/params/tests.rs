@@ -172,7 +172,9 @@ fn invalid_values_are_rejected_naming_the_field() {
             "cell_types[0].faces.apical.surface_tension = -0.001 N/m: must be ≥ 0",
         ),
         ("[[cell_types]]\nbulk_modulus = nan\n", "cell_types[0].bulk_modulus = nan Pa: is NaN"),
-        ("[numerics]\ncontact_cutoff = 7e-7\n", "numerics.contact_cutoff = 7e-7 m exceeds l_max"),
+        ("[numerics]\ncontact_cutoff = 7e-7\n", "numerics.contact_cutoff = 7e-7 m exceeds 3·numerics.min_edge_length"),
+        ("[numerics]\nmax_edge_ratio = 1.5\n", "numerics.max_edge_ratio = 1.5: must be a number of at least 2"),
+        ("[numerics]\nmax_edge_ratio = nan\n", "numerics.max_edge_ratio = nan: must be a number of at least 2"),
         (
             "[[cell_types]]\ntarget_isoperimetric_ratio = 100\n",
             "cell_types[0].target_isoperimetric_ratio = 100.0: is below 36π",

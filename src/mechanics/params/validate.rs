@@ -42,13 +42,29 @@ impl Parameters {
                     .to_owned(),
             );
         }
-        if l_min_ok && cutoff_ok && numerics.contact_cutoff > numerics.max_edge_length() {
+        if l_min_ok && cutoff_ok && numerics.contact_cutoff > 3.0 * numerics.min_edge_length {
             report.errors.push(format!(
-                "numerics.contact_cutoff = {} m exceeds l_max = 3·numerics.min_edge_length = {} m; the reference model \
-                 requires c ≤ l_max so that a contact stays within one edge of the surface; lower contact_cutoff or \
-                 raise min_edge_length",
+                "numerics.contact_cutoff = {} m exceeds 3·numerics.min_edge_length = {} m (the paper's l_max); the \
+                 reference model requires c ≤ l_max so that a contact stays within one edge of the surface; lower \
+                 contact_cutoff or raise min_edge_length",
                 fmt_real(numerics.contact_cutoff),
-                fmt_real(numerics.max_edge_length())
+                fmt_real(3.0 * numerics.min_edge_length)
+            ));
+        }
+        let ratio = numerics.max_edge_ratio;
+        if !(ratio.is_finite() && ratio >= 2.0) {
+            report.errors.push(format!(
+                "numerics.max_edge_ratio = {}: must be a number of at least 2 (l_max/l_min; a split halves an edge, \
+                 which must not make it shorter than l_min) (default: {})",
+                fmt_real(ratio),
+                fmt_real(numerics_defaults.max_edge_ratio)
+            ));
+        } else if ratio > 10.0 {
+            report.warnings.push(format!(
+                "numerics.max_edge_ratio = {}: edges up to {}·l_min leave curved surfaces coarse (default: {})",
+                fmt_real(ratio),
+                fmt_real(ratio),
+                fmt_real(numerics_defaults.max_edge_ratio)
             ));
         }
 
@@ -176,7 +192,7 @@ impl Parameters {
 /// Time-step stability estimate for one cell type: how close Δt is to making the integrator diverge.
 ///
 /// The estimate models a typical node of the type. Its edges are l = 2·l_min long (between l_min and
-/// l_max = 3·l_min, where remeshing keeps them), so it carries the area a_n = (√3/2)·l² of two
+/// l_max ≈ 3·l_min, where remeshing keeps them), so it carries the area a_n = (√3/2)·l² of two
 /// equilateral triangles (a node has ~6 triangles, each shared by 3 nodes). The cell has volume
 /// V = min_volume (the smallest, lightest cell of the type; (4/3)π(10·l_min)³ if min_volume is 0),
 /// hence about N = (36π)^(1/3)·V^(2/3)/a_n nodes (a sphere's area over a_n; at least 4) of mass
