@@ -386,6 +386,18 @@ pub struct ProfileConfig {
     /// Default 2.
     #[serde(default = "default_noise_sigmas")]
     pub noise_sigmas: Real,
+    /// Relative error of the forward model itself, added in quadrature (in log space) to both sides
+    /// of every closed range of a parameter or ratio: a range from the objective alone holds only
+    /// the data's and the forward model's noise, not the model's systematic difference from a real
+    /// foam. Default 0.05, the largest error of the fits of the Surface Evolver doublet, triplet and
+    /// tetrahedral clusters at 10–40 voxels per diameter (docs: validation, "Surface Evolver
+    /// clusters"); 0: noise only.
+    #[serde(default = "default_model_error")]
+    pub model_error: Real,
+}
+
+fn default_model_error() -> Real {
+    0.05
 }
 
 fn default_noise_replicates() -> usize {
@@ -581,6 +593,12 @@ impl FitConfig {
         }
         if !(self.profile.acceptable_increase > 0.0 && self.profile.acceptable_increase.is_finite()) {
             return Err(format!("profile.acceptable_increase: must be > 0; got {}", self.profile.acceptable_increase));
+        }
+        if !(self.profile.model_error >= 0.0 && self.profile.model_error < 1.0) {
+            return Err(format!(
+                "profile.model_error: must be a fraction in [0, 1) (0.05 = 5 %); got {}",
+                self.profile.model_error
+            ));
         }
         if !(self.profile.noise_sigmas >= 0.0 && self.profile.noise_sigmas.is_finite()) {
             return Err(format!("profile.noise_sigmas: must be ≥ 0 and finite; got {}", self.profile.noise_sigmas));

@@ -44,9 +44,20 @@ pub struct Slice {
     /// Log-space offsets from the optimum (of the varied quantity) and their objectives, ascending.
     pub offsets: Vec<Real>,
     pub objectives: Vec<Real>,
-    /// Acceptable range of the offset `[lo, hi]`; `None` on a side that never crossed.
+    /// Acceptable range of the offset `[lo, hi]`, model error included (see [`with_model_error`]);
+    /// `None` on a side that never crossed.
     pub lower: Option<Real>,
     pub upper: Option<Real>,
+    /// The same from the objective and its noise alone (without the model error).
+    pub noise_lower: Option<Real>,
+    pub noise_upper: Option<Real>,
+}
+
+/// A closed side's log offset (`sign` −1 below the optimum, +1 above) widened by the model's
+/// relative error `model_error` in quadrature: sign·√(o² + ln(1 + m)²). An open side stays open.
+pub fn with_model_error(offset: Option<Real>, sign: Real, model_error: Real) -> Option<Real> {
+    let e = model_error.ln_1p();
+    offset.map(|o| sign * o.hypot(e))
 }
 
 impl Slice {
@@ -223,7 +234,12 @@ pub fn profile(
             let upper = crossing(&xs, &ys, &usable, mid, threshold, reference, Box::new(mid + 1..xs.len()));
             let lower = crossing(&xs, &ys, &usable, mid, threshold, reference, Box::new((0..mid).rev()));
             let name = d.name.split('=').next().unwrap_or(&d.name).to_string();
-            Slice { name, offsets: xs, objectives: ys, lower, upper }
+            // The scale direction is not a quantity the model's shape error applies to.
+            let m = if name == "scale" { 0.0 } else { config.model_error };
+            let (noise_lower, noise_upper) = (lower, upper);
+            let lower = with_model_error(lower, -1.0, m);
+            let upper = with_model_error(upper, 1.0, m);
+            Slice { name, offsets: xs, objectives: ys, lower, upper, noise_lower, noise_upper }
         })
         .collect();
     (slices, noise)

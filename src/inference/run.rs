@@ -590,6 +590,15 @@ fn assemble(
          compression against K (γ̃ = γ/(K·l)), weakly, and through the spring model's cutoff c"
             .to_string(),
     );
+    if config.profile.model_error > 0.0 && !slices.is_empty() {
+        statements.push(format!(
+            "every closed range includes a model error of ±{:.3} % (profile.model_error, added in quadrature to the \
+             objective's range): the forward model's systematic error on outside truths (Surface Evolver clusters), \
+             which the objective alone cannot see; the ranges from the objective alone are the profile's \
+             noise_lower/noise_upper",
+            100.0 * config.profile.model_error
+        ));
+    }
     if let Some(n) = noise {
         statements.push(if n.std.is_finite() {
             format!(
