@@ -120,8 +120,7 @@ fn read_input(path: &Path, args: &MeasureArgs) -> anyhow::Result<Input> {
         }
         Ok(Input::Labels(read.volume))
     } else {
-        let read =
-            read_tissue(path, &args.input.read_options()).with_context(|| format!("reading {}", path.display()))?;
+        let read = read_tissue(path, &args.input.read_options()).with_context(|| super::mesh::reading_tissue(path))?;
         for w in &read.warnings {
             tracing::warn!("{}: {w}", path.display());
         }

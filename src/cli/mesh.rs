@@ -161,6 +161,15 @@ struct Meshed {
     retriangulated: Option<RetriangulatedFrom>,
 }
 
+/// Context for a failed tissue read where a label volume was also possible: names the label formats
+/// too when the extension did not say "tissue".
+pub(super) fn reading_tissue(path: &Path) -> String {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("vtk" | "vtp") => format!("reading {}", path.display()),
+        _ => format!("reading {} (not a label volume either: those are {SUPPORTED_FORMATS})", path.display()),
+    }
+}
+
 fn read_label_volume(path: &Path, args: &MeshArgs, what: &str) -> anyhow::Result<LabelVolume> {
     let read_options =
         LabelReadOptions { voxel_size: args.voxel_size, zarr_level: args.zarr_level, ..Default::default() };

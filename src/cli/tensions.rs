@@ -189,7 +189,7 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Opti
             path.display()
         );
     }
-    let read = read_tissue(path, &args.input.read_options()).with_context(|| format!("reading {}", path.display()))?;
+    let read = read_tissue(path, &args.input.read_options()).with_context(|| super::mesh::reading_tissue(path))?;
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }

@@ -265,7 +265,9 @@ impl PipelineConfig {
             files.push(("fit.model", p.as_path()));
         }
         for (key, file) in files {
-            if !file.is_file() {
+            // An OME-Zarr label input is a folder.
+            let exists = file.is_file() || (key == "input.labels" && file.is_dir());
+            if !exists {
                 return Err(PipelineError::Config(format!("{origin}: {key}: {} does not exist", file.display())));
             }
         }
