@@ -620,3 +620,27 @@ fn zarr_level_is_refused_for_a_tiff() {
     let e = read_labels(&tif, &LabelReadOptions { zarr_level: Some(0), ..Default::default() }).unwrap_err().to_string();
     assert!(e.contains("TIFF file") && e.contains("OME-Zarr stores only") && e.contains("l.tif"), "{e}");
 }
+
+/// Stores and a .npy written by Python (zarr-python 3.1.6, numpy 2.4.6; tests/data/python_zarr/make.py):
+/// Zarr v3 with zarr-python's default zstd codec and a channel axis, Zarr v2 with GZip and int32, a
+/// Fortran-order .npy; all read as the labels make.py computes.
+#[test]
+fn python_written_stores_read_identically() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/python_zarr");
+    let expected = Array3::from_shape_fn((6, 10, 12), |(z, y, x)| (((3 * z + 2 * y + x) / 4) % 5 * (z + 1)) as u32);
+    let v3 = read(&data.join("cells_v3.zarr"));
+    assert_eq!(v3.volume.labels(), &expected);
+    assert_close(v3.volume.voxel_size(), [0.8e-6, 0.25e-6, 0.25e-6]);
+    assert_eq!(v3.voxel_size_source, [VoxelSizeSource::OmeZarr; 3]);
+    let level1 =
+        read_labels(&data.join("cells_v3.zarr"), &LabelReadOptions { zarr_level: Some(1), ..Default::default() })
+            .unwrap();
+    assert_eq!(level1.volume.labels(), &downsample(&expected));
+    assert_close(level1.volume.voxel_size(), [0.8e-6, 0.5e-6, 0.5e-6]);
+    let v2 = read(&data.join("cells_v2.zarr"));
+    assert_eq!(v2.volume.labels(), &expected);
+    assert_eq!((v2.bits, v2.signed), (32, true));
+    assert_close(v2.volume.voxel_size(), [800e-9, 250e-9, 250e-9]);
+    let npy = read(&data.join("cells_f.npy"));
+    assert_eq!(npy.volume.labels(), &expected);
+}

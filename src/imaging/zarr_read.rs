@@ -85,6 +85,13 @@ pub fn read_label_zarr(path: &Path, options: &LabelReadOptions) -> Result<LabelR
     } else {
         path.to_path_buf()
     };
+    if root.exists() && !root.is_dir() {
+        return Err(ImagingError::Zarr {
+            path: root,
+            message: "is a file; an OME-Zarr store is a folder (give the .zarr folder of the image or label group)"
+                .into(),
+        });
+    }
     if !root.is_dir() {
         let source =
             std::io::Error::new(std::io::ErrorKind::NotFound, "no such folder (an OME-Zarr store is a folder)");
