@@ -364,6 +364,7 @@ fn read_group(dir: &Path) -> Result<Group, ImagingError> {
 }
 
 /// One multiscales axis.
+#[derive(Debug)]
 struct Axis {
     name: String,
     /// `space`, `time`, `channel` (from `type`, or guessed from the name).
@@ -598,5 +599,68 @@ impl<S: ?Sized + zarrs::storage::ReadableStorageTraits + 'static> Slabs<'_, S> {
             z0 = z1;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn axes_must_end_in_zyx_after_time_and_channel() {
+        let ok = json!({"axes": [{"name": "t", "type": "time"}, {"name": "c", "type": "channel"},
+            {"name": "z", "type": "space", "unit": "micrometer"}, "y", "x"]});
+        let axes = parse_axes(&ok).unwrap();
+        assert_eq!(axes.len(), 5);
+        assert_eq!(axes[2].unit.as_deref(), Some("micrometer"));
+        assert_eq!(axes[3].unit, None);
+        for bad in
+            [json!({"axes": ["y", "x"]}), json!({"axes": ["z", "x", "y"]}), json!({"axes": ["q", "z", "y", "x"]})]
+        {
+            let e = parse_axes(&bad).unwrap_err();
+            assert!(e.contains("not a 3-D volume"), "{e}");
+        }
+        assert!(parse_axes(&json!({})).unwrap_err().contains("no `axes`"));
+    }
+
+    #[test]
+    fn transforms_give_scale_and_translation_per_axis() {
+        let t = json!([{"type": "scale", "scale": [2.0, 0.5, 0.5]}, {"type": "translation", "translation": [1, 2, 3]}]);
+        let (scale, translation) = parse_transforms(&t, 3).unwrap();
+        assert_eq!(scale, Some(vec![2.0, 0.5, 0.5]));
+        assert_eq!(translation, Some(vec![1.0, 2.0, 3.0]));
+        assert_eq!(parse_transforms(&Value::Null, 3).unwrap(), (None, None));
+        let e = parse_transforms(&json!([{"type": "scale", "scale": [1.0, 1.0]}]), 3).unwrap_err();
+        assert!(e.contains("2 values for 3 axes"), "{e}");
+        let e = parse_transforms(&json!([{"type": "scale", "path": "s.bin"}]), 3).unwrap_err();
+        assert!(e.contains("`path`"), "{e}");
+        let e = parse_transforms(&json!([{"type": "affine"}]), 3).unwrap_err();
+        assert!(e.contains("`affine`"), "{e}");
+    }
+
+    #[test]
+    fn codecs_outside_the_build_are_named() {
+        let dir = Path::new("store/0");
+        let v3 = json!({"codecs": [{"name": "sharding_indexed", "configuration": {
+            "codecs": [{"name": "bytes"}, {"name": "blosc"}], "index_codecs": [{"name": "bytes"}, {"name": "crc32c"}]}}]});
+        let e = check_codecs(&v3, dir, 3).unwrap_err().to_string();
+        assert!(e.contains("`blosc` codec") && e.contains("store/0"), "{e}");
+        let ok = json!({"codecs": [{"name": "bytes"}, {"name": "zstd"}]});
+        assert!(check_codecs(&ok, dir, 3).is_ok());
+        assert!(check_codecs(&json!({"compressor": {"id": "gzip"}, "filters": null}), dir, 2).is_ok());
+        let e = check_codecs(&json!({"compressor": null, "filters": [{"id": "delta"}]}), dir, 2).unwrap_err();
+        assert!(e.to_string().contains("filter `delta`"), "{e}");
+    }
+
+    #[test]
+    fn data_types_are_integers_only() {
+        let dir = Path::new("s");
+        assert_eq!(array_dtype(&json!({"dtype": ">i2"}), dir, 2).unwrap(), Dtype::I16);
+        assert_eq!(array_dtype(&json!({"data_type": "uint64"}), dir, 3).unwrap(), Dtype::U64);
+        let e = array_dtype(&json!({"data_type": "float32"}), dir, 3).unwrap_err().to_string();
+        assert!(e.contains("32-bit floating-point"), "{e}");
+        let e = array_dtype(&json!({"dtype": "|b1"}), dir, 2).unwrap_err().to_string();
+        assert!(e.contains("`|b1`"), "{e}");
     }
 }
