@@ -81,27 +81,35 @@ pub fn read_label_npy(path: &Path, options: &LabelReadOptions) -> Result<LabelRe
         for (k, raw) in bytes.chunks_exact(item).enumerate() {
             let flat = done + k;
             // C order: the last index varies fastest; Fortran order: the first.
-            let (z, y, x) = if header.fortran_order {
-                (flat % nz, (flat / nz) % ny, flat / (nz * ny))
-            } else {
-                (flat / (ny * nx), (flat / nx) % ny, flat % nx)
+            let zyx = |flat: usize| {
+                if header.fortran_order {
+                    [flat % nz, (flat / nz) % ny, flat / (nz * ny)]
+                } else {
+                    [flat / (ny * nx), (flat / nx) % ny, flat % nx]
+                }
             };
             let value = decode(raw, header.signed, header.big_endian);
             if value < 0 {
                 return Err(ImagingError::NegativeLabel {
                     path: path.to_path_buf(),
-                    index: [z, y, x],
+                    index: zyx(flat),
                     value: value as i64,
                 });
             }
             if value > u32::MAX as i128 {
                 return Err(ImagingError::LabelTooLarge {
                     path: path.to_path_buf(),
-                    index: [z, y, x],
+                    index: zyx(flat),
                     value: value as u64,
                 });
             }
-            data[(z * ny + y) * nx + x] = value as u32;
+            let at = if header.fortran_order {
+                let [z, y, x] = zyx(flat);
+                (z * ny + y) * nx + x
+            } else {
+                flat
+            };
+            data[at] = value as u32;
         }
         done += count;
     }
