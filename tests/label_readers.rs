@@ -644,3 +644,67 @@ fn python_written_stores_read_identically() {
     let npy = read(&data.join("cells_f.npy"));
     assert_eq!(npy.volume.labels(), &expected);
 }
+
+fn statuses(run: &Path) -> Vec<String> {
+    let m: Value = serde_json::from_slice(&std::fs::read(run.join("manifest.json")).unwrap()).unwrap();
+    m["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| format!("{}:{}", s["name"].as_str().unwrap(), s["status"].as_str().unwrap()))
+        .collect()
+}
+
+/// `tissuefit run` on an OME-Zarr folder: the manifest hashes the store's files, so a rerun skips
+/// the stages, and a changed chunk or a changed `zarr_level` re-runs the mesh.
+#[test]
+fn a_pipeline_run_hashes_a_zarr_store_and_reruns_when_a_chunk_or_the_level_changes() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = LabelSpec {
+        pattern: LabelPattern::Doublet,
+        shape: [14, 20, 24],
+        voxel_size: [1e-6, 0.5e-6, 0.5e-6],
+        cells: 2,
+        seed: 0,
+        lumen: false,
+    };
+    let labels = generate_labels(&spec).unwrap().volume.labels().clone();
+    let root = dir.path().join("doublet.zarr");
+    let store = |labels: &Array3<u32>| Store {
+        zarr_version: 2,
+        axes: ZYX_UM.to_vec(),
+        levels: vec![
+            Level { shape: vec![14, 20, 24], values: c_order(labels), scale: vec![1.0, 0.5, 0.5] },
+            Level { shape: vec![14, 10, 12], values: c_order(&downsample(labels)), scale: vec![1.0, 1.0, 1.0] },
+        ],
+        dtype: "<u2",
+        codec: Codec::Gzip,
+        chunks: vec![7, 10, 12],
+        skip_empty: false,
+    };
+    store(&labels).write(&root);
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, "[input]\nlabels = \"doublet.zarr\"\n").unwrap();
+    let run = dir.path().join("run");
+    let args = ["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()];
+    let go = || {
+        let o = tissuefit(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        statuses(&run)
+    };
+    assert_eq!(go(), ["mesh:complete", "measure:complete"]);
+    let manifest: Value = serde_json::from_slice(&std::fs::read(run.join("manifest.json")).unwrap()).unwrap();
+    let first_hash = manifest["inputs"][0]["blake3"].as_str().unwrap().to_string();
+    assert!(manifest["inputs"][0]["path"].as_str().unwrap().ends_with("doublet.zarr"), "{manifest}");
+    assert_eq!(go(), ["mesh:skipped", "measure:skipped"]);
+    // One voxel of cell 1 given to cell 2: a chunk's bytes change, and so does the store's hash.
+    let mut changed = labels.clone();
+    let at = changed.indexed_iter().find(|(_, v)| **v == 1).map(|(i, _)| i).unwrap();
+    changed[at] = 2;
+    store(&changed).write(&root);
+    assert_eq!(go(), ["mesh:complete", "measure:complete"]);
+    let manifest: Value = serde_json::from_slice(&std::fs::read(run.join("manifest.json")).unwrap()).unwrap();
+    assert_ne!(manifest["inputs"][0]["blake3"].as_str().unwrap(), first_hash);
+    std::fs::write(&pipeline, "[input]\nlabels = \"doublet.zarr\"\nzarr_level = 1\n").unwrap();
+    assert_eq!(go(), ["mesh:complete", "measure:complete"]);
+}

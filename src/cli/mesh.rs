@@ -74,7 +74,8 @@ pub struct MeshArgs {
     #[arg(long, value_name = "NUCLEI.tif")]
     pub nuclei: Option<PathBuf>,
     /// OME-Zarr input only: the multiscales scale level to read (0 = full resolution, the default;
-    /// level N is usually 2^N times coarser in x and y). The voxel size is that level's.
+    /// level N is usually 2^N times coarser in x and y), for the labels and --nuclei alike. The voxel
+    /// size is that level's.
     #[arg(long, value_name = "N")]
     pub zarr_level: Option<usize>,
     /// Retries of a cell that cannot be made valid at the shared l_min, each at half the previous l_min.
