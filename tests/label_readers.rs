@@ -708,3 +708,15 @@ fn a_pipeline_run_hashes_a_zarr_store_and_reruns_when_a_chunk_or_the_level_chang
     std::fs::write(&pipeline, "[input]\nlabels = \"doublet.zarr\"\nzarr_level = 1\n").unwrap();
     assert_eq!(go(), ["mesh:complete", "measure:complete"]);
 }
+
+#[test]
+fn zarr_level_in_a_fit_config_needs_a_labels_input() {
+    let text =
+        "[observed]\ntissue = \"tissue.vtk\"\nzarr_level = 1\n[parameters.surface_tension]\nbounds = [1e-4, 1e-3]\n";
+    let e = tissuefit::inference::FitConfig::from_toml_str(text, "fit.toml").unwrap_err().to_string();
+    assert!(e.contains("fit.toml") && e.contains("observed.zarr_level"), "{e}");
+    let text = "[input]\nmesh = \"tissue.vtp\"\nzarr_level = 1\n";
+    let e =
+        tissuefit::pipeline::PipelineConfig::load_text(text, Path::new("p.toml")).map(|_| ()).unwrap_err().to_string();
+    assert!(e.contains("input.zarr_level") && e.contains("not to a mesh"), "{e}");
+}

@@ -457,6 +457,9 @@ impl FitConfig {
             (None, None) => return Err("observed: give `tissue` (a mesh file) or `labels` (a label TIFF)".into()),
             _ => {}
         }
+        if observed.zarr_level.is_some() && observed.labels.is_none() {
+            return Err("observed.zarr_level: applies to an OME-Zarr `labels` input, not to a tissue".into());
+        }
         if let Some(v) = observed.voxel_size
             && let Some(bad) = v.iter().find_map(|&l| crate::io::implausible_length("observed.voxel_size", l))
         {
