@@ -282,7 +282,7 @@ fn a_full_disk_is_a_clear_error_and_leaves_nothing_that_looks_complete() {
 fn every_subcommand_refuses_a_missing_or_garbage_input_naming_it_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     // (what the argument is, its extension, the command line with FILE for it and OUT for an output
-    // folder (or OUT/... for an output file))
+    // folder (or OUT/... for an output file); TISSUE is the demo tissue)
     let commands: &[(&str, &[&str])] = &[
         ("vtk", &["inspect", "FILE"]),
         ("vtk", &["convert", "FILE", "OUT/t.vtp"]),
@@ -294,6 +294,12 @@ fn every_subcommand_refuses_a_missing_or_garbage_input_naming_it_and_writes_noth
         ("vtk", &["render", "FILE", "--out", "OUT/v.png"]),
         ("vtk", &["tensions", "FILE", "--out", "OUT"]),
         ("tif", &["tensions", "FILE", "--out", "OUT"]),
+        ("npy", &["mesh", "FILE", "--out", "OUT/t.vtp"]),
+        ("npy", &["measure", "FILE", "--out", "OUT"]),
+        ("zarr", &["mesh", "FILE", "--out", "OUT/t.vtp"]),
+        ("zarr", &["measure", "FILE", "--out", "OUT"]),
+        ("zarr", &["tensions", "FILE", "--out", "OUT"]),
+        ("npy", &["voxelize", "TISSUE", "--like", "FILE", "--out", "OUT/v.tif"]),
         ("vtk", &["bench", "forces-tissue", "FILE", "--repeat", "1"]),
         ("toml", &["config", "check", "FILE"]),
         ("toml", &["fit", "--config", "FILE", "--out", "OUT"]),
@@ -313,7 +319,11 @@ fn every_subcommand_refuses_a_missing_or_garbage_input_naming_it_and_writes_noth
             let out = case.join("out");
             let args: Vec<String> = line
                 .iter()
-                .map(|a| a.replace("FILE", file.to_str().unwrap()).replace("OUT", out.to_str().unwrap()))
+                .map(|a| {
+                    a.replace("FILE", file.to_str().unwrap())
+                        .replace("OUT", out.to_str().unwrap())
+                        .replace("TISSUE", demo().to_str().unwrap())
+                })
                 .collect();
             let args: Vec<&str> = args.iter().map(String::as_str).collect();
             let o = tissuefit(&args);

@@ -6,7 +6,7 @@
 use super::label_args::{describe_grid, parse_voxel_size};
 use super::{InputArgs, Outcome, write_csv};
 use crate::geometry::Real;
-use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, label_overlap, read_label_tiff};
+use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, is_label_volume, label_overlap, read_labels};
 use crate::io::{LengthScale, OutputGroup, OutputPolicy, read_tissue};
 use crate::mesh::{CellKind, Tissue};
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
@@ -17,14 +17,15 @@ use crate::morphology::{
 use crate::pipeline::{PipelineConfig, run_measure};
 use anyhow::{Context, bail};
 use serde::Serialize;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct MeasureArgs {
-    /// Tissue file (.vtk or .vtp), or a label TIFF (.tif/.tiff or TIFF magic; 0 = background) measured
-    /// directly on its voxels (cell ids = labels).
+    /// Tissue file (.vtk or .vtp), or a label volume (0 = background) measured directly on its voxels
+    /// (cell ids = labels): a TIFF stack (.tif/.tiff), an OME-Zarr label or image group (a .zarr
+    /// folder) or a NumPy .npy array, recognised by content.
     pub tissue: PathBuf,
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
@@ -37,6 +38,7 @@ pub struct MeasureArgs {
         conflicts_with_all = [
             "contact_distance", "include_static", "exterior_free_fraction", "length_unit", "orient", "voxel_size",
             "border", "lumen_labels", "min_voxels", "normal_smoothing", "compare", "compare_voxel_size",
+            "zarr_level",
         ]
     )]
     pub config: Option<PathBuf>,
@@ -53,24 +55,29 @@ pub struct MeasureArgs {
     pub exterior_free_fraction: Real,
     #[command(flatten)]
     pub input: InputArgs,
-    /// Label TIFF only: voxel size z,y,x (or one for all) overriding the file's metadata (0.235,0.15,0.15um).
+    /// Label volume only: voxel size z,y,x (or one for all) overriding the file's metadata
+    /// (0.235,0.15,0.15um); a .npy file has none, so give it there.
     #[arg(long, value_name = "Z,Y,X", value_parser = parse_voxel_size)]
     pub voxel_size: Option<[Real; 3]>,
-    /// Label TIFF only: labels touching the image border are kept as cells (default, as `mesh`), flagged
+    /// OME-Zarr input only: the multiscales scale level to read (0 = full resolution, the default;
+    /// level N is usually 2^N times coarser in x and y). The voxel size is that level's.
+    #[arg(long, value_name = "N")]
+    pub zarr_level: Option<usize>,
+    /// Label volume only: labels touching the image border are kept as cells (default, as `mesh`), flagged
     /// static (measured, left out of the statistics), or dropped.
     #[arg(long, default_value_t = BorderPolicy::Keep, value_parser = |s: &str| s.parse::<BorderPolicy>())]
     pub border: BorderPolicy,
-    /// Label TIFF only: labels that are lumen bodies (for the layer count), comma-separated.
+    /// Label volume only: labels that are lumen bodies (for the layer count), comma-separated.
     #[arg(long, value_delimiter = ',', value_name = "LABELS")]
     pub lumen_labels: Vec<u32>,
-    /// Label TIFF only: labels with fewer voxels are debris and are dropped (as `mesh`).
+    /// Label volume only: labels with fewer voxels are debris and are dropped (as `mesh`).
     #[arg(long, default_value_t = DEFAULT_MIN_VOXELS)]
     pub min_voxels: u64,
-    /// Label TIFF only: σ of the Gaussian smoothing for surface normals (a length, 0.2um). Default: 2 ×
+    /// Label volume only: σ of the Gaussian smoothing for surface normals (a length, 0.2um). Default: 2 ×
     /// the largest voxel size.
     #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
     pub normal_smoothing: Option<Real>,
-    /// Compare shapes with this tissue or label TIFF (cells matched by id = label): adds `iou` and `chi`
+    /// Compare shapes with this tissue or label volume (cells matched by id = label): adds `iou` and `chi`
     /// to cells.csv and `mean_chi` to summary.json. A tissue is voxelised on the label volume's grid; two
     /// label volumes must share a grid; two tissues are voxelised on a common grid (--compare-voxel-size).
     #[arg(long, value_name = "FILE")]
@@ -86,20 +93,11 @@ pub struct MeasureArgs {
 /// in all. The TIFF reader checks the total against the memory limit before decoding.
 const MEASURE_WORK_BYTES_PER_VOXEL: u64 = 9;
 
-/// Whether `path` is a TIFF: by extension, else by its magic number (II*/MM* classic, II+/MM+ BigTIFF).
-pub(super) fn is_tiff(path: &Path) -> bool {
-    if let Some(ext) = path.extension().and_then(|e| e.to_str()) {
-        let ext = ext.to_ascii_lowercase();
-        if ext == "tif" || ext == "tiff" {
-            return true;
-        }
-        if ext == "vtk" || ext == "vtp" {
-            return false;
-        }
-    }
-    let mut magic = [0u8; 4];
-    let read = std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut magic));
-    read.is_ok() && matches!(&magic, b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+")
+/// Whether `path` is a label volume rather than a tissue mesh: a .vtk/.vtp is a tissue; anything else
+/// is a label volume when its content or extension says so ([`is_label_volume`]).
+pub(super) fn is_labels(path: &Path) -> bool {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    !matches!(ext.as_deref(), Some("vtk" | "vtp")) && is_label_volume(path)
 }
 
 /// A measured or compared input.
@@ -109,21 +107,20 @@ enum Input {
 }
 
 fn read_input(path: &Path, args: &MeasureArgs) -> anyhow::Result<Input> {
-    if is_tiff(path) {
+    if is_labels(path) {
         let options = LabelReadOptions {
             voxel_size: args.voxel_size,
             work_bytes_per_voxel: MEASURE_WORK_BYTES_PER_VOXEL,
+            zarr_level: args.zarr_level,
             ..Default::default()
         };
-        let read =
-            read_label_tiff(path, &options).with_context(|| format!("reading label volume {}", path.display()))?;
+        let read = read_labels(path, &options).with_context(|| format!("reading label volume {}", path.display()))?;
         for w in &read.warnings {
             tracing::warn!("{}: {w}", path.display());
         }
         Ok(Input::Labels(read.volume))
     } else {
-        let read =
-            read_tissue(path, &args.input.read_options()).with_context(|| format!("reading {}", path.display()))?;
+        let read = read_tissue(path, &args.input.read_options()).with_context(|| super::mesh::reading_tissue(path))?;
         for w in &read.warnings {
             tracing::warn!("{}: {w}", path.display());
         }
@@ -166,7 +163,7 @@ struct SummaryFile<'a> {
 fn run_stage(tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outcome> {
     let config = PipelineConfig::load(pipeline)?;
     OutputPolicy::new().input("TISSUE", tissue).input("--config", pipeline).folder("--out", out, &OUTPUT_FILES)?;
-    if is_tiff(tissue) {
+    if is_labels(tissue) {
         bail!(
             "{}: with a pipeline file ({}), measure takes the mesh stage's tissue (e.g. runs/NAME/mesh/tissue.vtp), \
              not a label volume",
@@ -200,13 +197,15 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
     )?;
     let input = read_input(&args.tissue, args)?;
     let labels_only = args.voxel_size.is_some()
+        || args.zarr_level.is_some()
         || args.border != BorderPolicy::Keep
         || !args.lumen_labels.is_empty()
         || args.min_voxels != DEFAULT_MIN_VOXELS
         || args.normal_smoothing.is_some();
     if matches!(input, Input::Tissue(_)) && labels_only {
         bail!(
-            "{} is a tissue mesh: --voxel-size, --border, --lumen-labels, --min-voxels and --normal-smoothing apply to label TIFFs",
+            "{} is a tissue mesh: --voxel-size, --zarr-level, --border, --lumen-labels, --min-voxels and --normal-smoothing \
+             apply to label volumes",
             args.tissue.display()
         );
     }
@@ -376,16 +375,23 @@ mod tests {
     use crate::imaging::{LabelWriteOptions, write_label_tiff};
 
     #[test]
-    fn tiffs_are_told_by_extension_or_magic_number() {
+    fn label_volumes_are_told_by_content_or_extension() {
         let dir = tempfile::tempdir().unwrap();
         let volume = LabelVolume::new(ndarray::Array3::from_elem((2, 3, 4), 1u32), [1e-6; 3], Vec3::zeros()).unwrap();
         let unnamed = dir.path().join("labels.data");
         write_label_tiff(&unnamed, &volume, &LabelWriteOptions::default()).unwrap();
-        assert!(is_tiff(&unnamed));
-        assert!(is_tiff(Path::new("missing.TIF")));
+        assert!(is_labels(&unnamed));
+        assert!(is_labels(Path::new("missing.TIF")));
+        assert!(is_labels(Path::new("missing.npy")));
+        assert!(is_labels(Path::new("missing.zarr")));
+        assert!(is_labels(dir.path()), "a folder is an OME-Zarr store");
+        let npy = dir.path().join("labels.raw");
+        std::fs::write(&npy, b"\x93NUMPY\x01\x00").unwrap();
+        assert!(is_labels(&npy));
         let text = dir.path().join("tissue.mesh");
         std::fs::write(&text, "# vtk DataFile Version 4.2\n").unwrap();
-        assert!(!is_tiff(&text));
-        assert!(!is_tiff(&dir.path().join("missing")));
+        assert!(!is_labels(&text));
+        assert!(!is_labels(&dir.path().join("missing")));
+        assert!(!is_labels(Path::new("missing.vtp")));
     }
 }

@@ -11,7 +11,7 @@
 use super::Outcome;
 use super::label_args::{describe_grid, parse_voxel_size};
 use crate::geometry::Real;
-use crate::imaging::{LabelReadOptions, LabelVolume, read_label_tiff};
+use crate::imaging::{LabelReadOptions, LabelVolume, SUPPORTED_FORMATS, is_label_volume, read_labels};
 use crate::io::{
     Format, LengthScale, OutputPolicy, ReadOptions, parse_lengths, read_tissue, write_atomically, write_tissue,
 };
@@ -27,8 +27,9 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct MeshArgs {
-    /// Label TIFF (.tif/.tiff: 0 = background; 8/16/32-bit, multi-page, ImageJ/OME voxel size), or a
-    /// tissue mesh (.vtk/.vtp, e.g. a multi-material mesh from an image tool) to re-triangulate.
+    /// Label volume (0 = background): a TIFF stack (.tif/.tiff, ImageJ/OME voxel size), an OME-Zarr
+    /// label or image group (a .zarr folder, NGFF 0.4/0.5) or a NumPy .npy array; or a tissue mesh
+    /// (.vtk/.vtp, e.g. a multi-material mesh from an image tool) to re-triangulate.
     /// Not with --config (the pipeline's `[input]` names the labels).
     #[arg(required_unless_present = "config", conflicts_with = "config")]
     pub labels: Option<PathBuf>,
@@ -40,7 +41,7 @@ pub struct MeshArgs {
         value_name = "PIPELINE.toml",
         conflicts_with_all = [
             "voxel_size", "l_min", "target_nodes", "min_voxels", "border", "lumen_labels", "nuclei",
-            "max_refinements", "length_unit", "seed", "report",
+            "max_refinements", "length_unit", "seed", "report", "zarr_level",
         ]
     )]
     pub config: Option<PathBuf>,
@@ -68,10 +69,15 @@ pub struct MeshArgs {
     /// Labels meshed as lumen cells, comma-separated (e.g. 5,7).
     #[arg(long, value_delimiter = ',', value_name = "LABELS")]
     pub lumen_labels: Vec<u32>,
-    /// Nuclei label TIFF on the same grid: each nucleus becomes a nucleus cell inside the cell holding
+    /// Nuclei label volume (any label format) on the same grid: each nucleus becomes a nucleus cell inside the cell holding
     /// most of its voxels; nuclei outside every meshed cell are reported as dropped.
     #[arg(long, value_name = "NUCLEI.tif")]
     pub nuclei: Option<PathBuf>,
+    /// OME-Zarr input only: the multiscales scale level to read (0 = full resolution, the default;
+    /// level N is usually 2^N times coarser in x and y), for the labels and --nuclei alike. The voxel
+    /// size is that level's.
+    #[arg(long, value_name = "N")]
+    pub zarr_level: Option<usize>,
     /// Retries of a cell that cannot be made valid at the shared l_min, each at half the previous l_min.
     #[arg(long, default_value_t = DEFAULT_MAX_REFINEMENTS)]
     pub max_refinements: u32,
@@ -156,13 +162,19 @@ struct Meshed {
     retriangulated: Option<RetriangulatedFrom>,
 }
 
-fn is_tiff(path: &Path) -> bool {
-    matches!(path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(), Some("tif" | "tiff"))
+/// Context for a failed tissue read where a label volume was also possible: names the label formats
+/// too when the extension did not say "tissue".
+pub(super) fn reading_tissue(path: &Path) -> String {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("vtk" | "vtp") => format!("reading {}", path.display()),
+        _ => format!("reading {} (not a label volume either: those are {SUPPORTED_FORMATS})", path.display()),
+    }
 }
 
-fn read_labels(path: &Path, voxel_size: Option<[Real; 3]>, what: &str) -> anyhow::Result<LabelVolume> {
-    let read_options = LabelReadOptions { voxel_size, ..Default::default() };
-    let read = read_label_tiff(path, &read_options).with_context(|| format!("reading {what} {}", path.display()))?;
+fn read_label_volume(path: &Path, args: &MeshArgs, what: &str) -> anyhow::Result<LabelVolume> {
+    let read_options =
+        LabelReadOptions { voxel_size: args.voxel_size, zarr_level: args.zarr_level, ..Default::default() };
+    let read = read_labels(path, &read_options).with_context(|| format!("reading {what} {}", path.display()))?;
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }
@@ -179,16 +191,19 @@ fn progress_bar(len: u64) -> ProgressBar {
 }
 
 fn mesh_input(args: &MeshArgs, labels: &Path, options: &LabelMeshingOptions) -> anyhow::Result<Meshed> {
-    if !is_tiff(labels) {
+    if !is_label_volume(labels) {
         match labels.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
             Some("vtk" | "vtp") => {}
             _ => bail!(
-                "{}: give a label TIFF (.tif/.tiff) or a tissue mesh to re-triangulate (.vtk/.vtp)",
+                "{}: give a label volume ({SUPPORTED_FORMATS}) or a tissue mesh to re-triangulate (.vtk/.vtp)",
                 labels.display()
             ),
         }
         if args.nuclei.is_some() {
-            bail!("--nuclei applies to a label TIFF input, not to a mesh ({})", labels.display());
+            bail!("--nuclei applies to a label volume input, not to a mesh ({})", labels.display());
+        }
+        if args.zarr_level.is_some() {
+            bail!("--zarr-level applies to an OME-Zarr label input, not to a mesh ({})", labels.display());
         }
         let read_options = ReadOptions { length_scale: args.length_unit.unwrap_or_default(), orient: true };
         let read =
@@ -219,11 +234,11 @@ fn mesh_input(args: &MeshArgs, labels: &Path, options: &LabelMeshingOptions) -> 
         });
     }
     if args.length_unit.is_some() {
-        bail!("--length-unit applies to a mesh input (.vtk/.vtp); for a label TIFF use --voxel-size");
+        bail!("--length-unit applies to a mesh input (.vtk/.vtp); for a label volume use --voxel-size");
     }
-    let volume = read_labels(labels, args.voxel_size, "label volume")?;
+    let volume = read_label_volume(labels, args, "label volume")?;
     let nuclei = match &args.nuclei {
-        Some(path) => Some(read_labels(path, args.voxel_size, "nuclei volume")?),
+        Some(path) => Some(read_label_volume(path, args, "nuclei volume")?),
         None => None,
     };
     let label_count = volume.label_stats().len() + nuclei.as_ref().map_or(0, |n| n.label_stats().len());

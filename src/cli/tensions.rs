@@ -5,10 +5,10 @@
 //! written together (all or nothing). A label TIFF is meshed first as `tissuefit mesh` meshes it.
 
 use super::label_args::{describe_grid, parse_voxel_size};
-use super::measure::{is_tiff, parse_length};
+use super::measure::{is_labels, parse_length};
 use super::{InputArgs, Outcome, write_csv};
 use crate::geometry::Real;
-use crate::imaging::{LabelReadOptions, read_label_tiff};
+use crate::imaging::{LabelReadOptions, read_labels};
 use crate::io::{CellField, OutputGroup, OutputPolicy, read_tissue, vtp_bytes};
 use crate::mesh::Tissue;
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, mesh_labels};
@@ -21,8 +21,9 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct TensionsArgs {
-    /// Tissue file (.vtk or .vtp, per-cell or multi-material), or a label TIFF (.tif/.tiff; 0 =
-    /// background), meshed first as `tissuefit mesh` does (cell ids = labels).
+    /// Tissue file (.vtk or .vtp, per-cell or multi-material), or a label volume (0 = background: a
+    /// TIFF stack, an OME-Zarr .zarr folder or a NumPy .npy), meshed first as `tissuefit mesh` does
+    /// (cell ids = labels).
     pub tissue: PathBuf,
     /// Output directory (created if missing): interfaces.csv, cells.csv, summary.json, tensions.vtp.
     #[arg(long, value_name = "DIR")]
@@ -44,17 +45,22 @@ pub struct TensionsArgs {
     pub contact_distance: Option<Real>,
     #[command(flatten)]
     pub input: InputArgs,
-    /// Label TIFF only: voxel size z,y,x (or one for all) overriding the file's metadata (0.235,0.15,0.15um).
+    /// Label volume only: voxel size z,y,x (or one for all) overriding the file's metadata
+    /// (0.235,0.15,0.15um); a .npy file has none, so give it there.
     #[arg(long, value_name = "Z,Y,X", value_parser = parse_voxel_size)]
     pub voxel_size: Option<[Real; 3]>,
-    /// Label TIFF only: labels touching the image border are kept as cells (default, as `mesh`), meshed
+    /// OME-Zarr input only: the multiscales scale level to read (0 = full resolution, the default;
+    /// level N is usually 2^N times coarser in x and y). The voxel size is that level's.
+    #[arg(long, value_name = "N")]
+    pub zarr_level: Option<usize>,
+    /// Label volume only: labels touching the image border are kept as cells (default, as `mesh`), meshed
     /// as static cells (their tensions are estimated all the same), or dropped.
     #[arg(long, default_value_t = BorderPolicy::Keep, value_parser = |s: &str| s.parse::<BorderPolicy>())]
     pub border: BorderPolicy,
-    /// Label TIFF only: labels with fewer voxels are debris and are dropped (as `mesh`).
+    /// Label volume only: labels with fewer voxels are debris and are dropped (as `mesh`).
     #[arg(long, default_value_t = DEFAULT_MIN_VOXELS)]
     pub min_voxels: u64,
-    /// Label TIFF only: nodes of a median-sized cell's mesh (as `mesh --target-nodes`).
+    /// Label volume only: nodes of a median-sized cell's mesh (as `mesh --target-nodes`).
     #[arg(long, default_value_t = DEFAULT_TARGET_NODES)]
     pub target_nodes: usize,
 }
@@ -145,9 +151,10 @@ struct Summary<'a> {
 /// The tissue, `tissue` or `labels`, and for labels the largest voxel edge (m).
 fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Option<Real>)> {
     let path = &args.tissue;
-    if is_tiff(path) {
-        let read = read_label_tiff(path, &LabelReadOptions { voxel_size: args.voxel_size, ..Default::default() })
-            .with_context(|| format!("reading label volume {}", path.display()))?;
+    if is_labels(path) {
+        let options =
+            LabelReadOptions { voxel_size: args.voxel_size, zarr_level: args.zarr_level, ..Default::default() };
+        let read = read_labels(path, &options).with_context(|| format!("reading label volume {}", path.display()))?;
         for w in &read.warnings {
             tracing::warn!("{}: {w}", path.display());
         }
@@ -171,16 +178,18 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Opti
         return Ok((meshing.tissue, "labels", Some(voxel)));
     }
     if args.voxel_size.is_some()
+        || args.zarr_level.is_some()
         || args.border != BorderPolicy::Keep
         || args.min_voxels != DEFAULT_MIN_VOXELS
         || args.target_nodes != DEFAULT_TARGET_NODES
     {
         bail!(
-            "{} is a tissue mesh: --voxel-size, --border, --min-voxels and --target-nodes apply to label TIFFs",
+            "{} is a tissue mesh: --voxel-size, --zarr-level, --border, --min-voxels and --target-nodes apply to label \
+             volumes",
             path.display()
         );
     }
-    let read = read_tissue(path, &args.input.read_options()).with_context(|| format!("reading {}", path.display()))?;
+    let read = read_tissue(path, &args.input.read_options()).with_context(|| super::mesh::reading_tissue(path))?;
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }

@@ -5,7 +5,7 @@
 use super::label_args::{LabelOutputArgs, describe_grid, parse_shape, parse_voxel_size};
 use super::{InputArgs, Outcome};
 use crate::geometry::{Real, Vec3, bounding_box};
-use crate::imaging::{LabelReadOptions, VoxelGrid, read_label_tiff, voxelize_with_stats, write_label_tiff};
+use crate::imaging::{LabelReadOptions, VoxelGrid, read_labels, voxelize_with_stats, write_label_tiff};
 use crate::io::{Format, OutputPolicy, read_tissue};
 use anyhow::{Context, bail};
 use std::path::PathBuf;
@@ -18,10 +18,13 @@ pub struct VoxelizeArgs {
     /// Output label TIFF.
     #[arg(long)]
     pub out: PathBuf,
-    /// Use the grid (shape, voxel size, origin) of this label TIFF, e.g. the segmentation the tissue
-    /// was meshed from, so the two overlay voxel for voxel.
-    #[arg(long, value_name = "LABELS.tif", conflicts_with = "shape")]
+    /// Use the grid (shape, voxel size, origin) of this label volume (TIFF, OME-Zarr or .npy), e.g.
+    /// the segmentation the tissue was meshed from, so the two overlay voxel for voxel.
+    #[arg(long, value_name = "LABELS", conflicts_with = "shape")]
     pub like: Option<PathBuf>,
+    /// With an OME-Zarr --like: the scale level whose grid to use (0 = full resolution, the default).
+    #[arg(long, value_name = "N", requires = "like")]
+    pub zarr_level: Option<usize>,
     /// Voxel size z,y,x (or one for all): a unit suffix (0.235um, 235nm, 2.35e-7m), bare numbers
     /// are metres, one trailing unit applies to all (0.235,0.15,0.15um). With --like it overrides the
     /// voxel size of that file.
@@ -57,8 +60,8 @@ pub fn run(args: &VoxelizeArgs) -> anyhow::Result<Outcome> {
     let t1 = Instant::now();
     let grid = match (&args.like, args.voxel_size) {
         (Some(like), voxel_size) => {
-            let options = LabelReadOptions { voxel_size, ..Default::default() };
-            let labels = read_label_tiff(like, &options)
+            let options = LabelReadOptions { voxel_size, zarr_level: args.zarr_level, ..Default::default() };
+            let labels = read_labels(like, &options)
                 .with_context(|| format!("reading the grid of label volume {}", like.display()))?;
             labels.volume.grid()
         }

@@ -48,6 +48,18 @@ pub enum ImagingError {
     PageType { path: PathBuf, page: usize, page_type: String, first_type: String },
     #[error("{path}: {message}")]
     Unsupported { path: PathBuf, message: String },
+    /// Not a label volume of any format we read (by content, then by extension).
+    #[error(
+        "{path}: not a label volume in a format tissuefit reads; the formats read are {}",
+        super::labels::SUPPORTED_FORMATS
+    )]
+    UnknownFormat { path: PathBuf },
+    /// An OME-Zarr store that cannot be read as a label image.
+    #[error("{path}: not a readable OME-Zarr label image: {message}")]
+    Zarr { path: PathBuf, message: String },
+    /// A NumPy `.npy` file that cannot be read as a 3-D label array.
+    #[error("{path}: not a readable NumPy .npy label array: {message}")]
+    Npy { path: PathBuf, message: String },
     #[error("cannot write {path}: {message}")]
     Write { path: PathBuf, message: String },
     #[error("invalid voxel grid: {0}")]

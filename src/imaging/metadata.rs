@@ -15,6 +15,9 @@ pub enum VoxelSizeSource {
     Ome,
     /// TIFF `XResolution`/`YResolution` with `ResolutionUnit` = centimetre.
     Resolution,
+    /// OME-Zarr (NGFF) `multiscales`: the chosen level's `coordinateTransformations` scale and the
+    /// axes' units.
+    OmeZarr,
     /// Given by the caller.
     Caller,
     /// Not in the file and not given: the fallback size was assumed.
@@ -44,8 +47,9 @@ pub(crate) fn unit_metres(unit: &str) -> Option<Real> {
         "mm" | "millimeter" | "millimetre" => Some(1e-3),
         "cm" | "centimeter" | "centimetre" => Some(1e-2),
         "m" | "meter" | "metre" => Some(1.0),
-        "pm" => Some(1e-12),
+        "pm" | "picometer" | "picometre" => Some(1e-12),
         "Å" | "\\u00C5" | "angstrom" => Some(1e-10),
+        "dm" | "decimeter" | "decimetre" => Some(1e-1),
         "inch" | "in" => Some(0.0254),
         _ => None,
     }

@@ -6,7 +6,9 @@
 //!   ([`LabelMask`], the mesher's input) and border tests. The coordinate convention is stated once,
 //!   in `volume.rs`: voxel `[k, j, i]` has its centre at `origin + (i·sx, j·sy, k·sz)`, and mesh
 //!   coordinates are `(x, y, z)` metres.
-//! - TIFF in ([`read_label_tiff`]) and out ([`write_label_tiff`]) with ImageJ/OME voxel sizes.
+//! - [`read_labels`]: the one reader every command uses; it dispatches by content to the TIFF
+//!   ([`read_label_tiff`], ImageJ/OME voxel sizes), OME-Zarr (`zarr_read.rs`, NGFF multiscales) and
+//!   NumPy `.npy` (`npy_read.rs`) readers. TIFF out: [`write_label_tiff`].
 //! - [`voxelize`]: closed cell surfaces → labels, by exact ray–triangle crossings along x.
 //! - [`label_overlap`]: per-label IoU and χ = 1 − IoU of two label volumes on one grid.
 //! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate).
@@ -15,16 +17,22 @@
 
 mod error;
 mod generate;
+mod labels;
 mod limits;
 mod metadata;
+mod npy_read;
 mod overlap;
 mod tiff_read;
 mod tiff_write;
 mod volume;
 mod voxelize;
+mod zarr_read;
 
 pub use error::ImagingError;
 pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels, generate_nuclei};
+pub use labels::{
+    LabelFormat, SUPPORTED_FORMATS, detect_label_format, is_label_volume, label_format_from_extension, read_labels,
+};
 pub use limits::{DEFAULT_MEMORY_LIMIT, MEMORY_LIMIT_ENV, check_voxel_memory, format_bytes, memory_limit, parse_bytes};
 pub use metadata::VoxelSizeSource;
 pub use overlap::{LabelOverlap, label_overlap};

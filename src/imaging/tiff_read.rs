@@ -10,6 +10,7 @@
 //! total decoded size is checked against the memory limit ([`super::check_voxel_memory`]) before
 //! the first page is decoded.
 
+use super::labels::LabelFormat;
 use super::limits::check_voxel_memory;
 use super::metadata::{StackMetadata, VoxelSizeSource, parse_metadata};
 use super::{ImagingError, LabelVolume};
@@ -28,7 +29,7 @@ pub const MAX_EXPANSION: u64 = 4096;
 /// Voxel size assumed when neither the file nor the caller gives one: 1 µm.
 pub const FALLBACK_VOXEL_SIZE: Real = 1e-6;
 
-/// How to read a label TIFF.
+/// How to read a label volume (any format, see [`super::read_labels`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LabelReadOptions {
     /// Voxel size `[sz, sy, sx]` (m) to use instead of the file's metadata.
@@ -42,25 +43,37 @@ pub struct LabelReadOptions {
     /// Bytes per voxel the caller will need on top of the volume's own 4 (e.g. `measure`'s work
     /// arrays), so that the memory check before decoding covers the whole run. Default 0.
     pub work_bytes_per_voxel: u64,
+    /// OME-Zarr only: the multiscales level to read (0 = full resolution, the default). Given for
+    /// another format, it is an error.
+    pub zarr_level: Option<usize>,
 }
 
 impl Default for LabelReadOptions {
     fn default() -> Self {
-        Self { voxel_size: None, origin: None, fallback_voxel_size: FALLBACK_VOXEL_SIZE, work_bytes_per_voxel: 0 }
+        Self {
+            voxel_size: None,
+            origin: None,
+            fallback_voxel_size: FALLBACK_VOXEL_SIZE,
+            work_bytes_per_voxel: 0,
+            zarr_level: None,
+        }
     }
 }
 
-/// A label TIFF as read: the volume and how it was stored.
+/// A label volume as read: the volume and how it was stored.
 #[derive(Clone, Debug)]
 pub struct LabelRead {
     pub volume: LabelVolume,
+    /// The file's format.
+    pub format: LabelFormat,
     /// Where each voxel size (z, y, x) came from.
     pub voxel_size_source: [VoxelSizeSource; 3],
     /// Bits per stored label (8, 16, 32 or 64).
     pub bits: u16,
     /// Whether the labels were stored as signed integers.
     pub signed: bool,
-    /// TIFF compression code of the first page (1 none, 5 LZW, 8/32946 Deflate, 32773 PackBits).
+    /// TIFF compression code of the first page (1 none, 5 LZW, 8/32946 Deflate, 32773 PackBits); 0 for
+    /// the other formats.
     pub compression: u16,
     /// Things the user should know (assumed voxel sizes, ignored metadata).
     pub warnings: Vec<String>,
@@ -190,7 +203,15 @@ fn decode_label_tiff<R: std::io::Read + std::io::Seek>(
     let origin = options.origin.unwrap_or_else(|| Vec3::new(from_file(0, sx), from_file(1, sy), from_file(2, sz)));
     let volume = LabelVolume::new(labels, voxel_size, origin)
         .map_err(|e| ImagingError::Unsupported { path: path.to_path_buf(), message: e.to_string() })?;
-    Ok(LabelRead { volume, voxel_size_source, bits: pixel.bits, signed: pixel.signed, compression, warnings })
+    Ok(LabelRead {
+        volume,
+        format: LabelFormat::Tiff,
+        voxel_size_source,
+        bits: pixel.bits,
+        signed: pixel.signed,
+        compression,
+        warnings,
+    })
 }
 
 fn corrupt(path: &Path, e: tiff::TiffError) -> ImagingError {
@@ -361,30 +382,9 @@ fn resolve_voxel_size(
     warnings: &mut Vec<String>,
     path: &Path,
 ) -> ([Real; 3], [VoxelSizeSource; 3]) {
-    if let Some(v) = options.voxel_size {
-        return (v, [VoxelSizeSource::Caller; 3]);
-    }
-    let mut size = [options.fallback_voxel_size; 3];
-    let mut source = [VoxelSizeSource::Assumed; 3];
-    let mut missing = Vec::new();
-    for (a, axis) in ["z", "y", "x"].iter().enumerate() {
-        match (meta.voxel_size[a], meta.source) {
-            (Some(s), Some(src)) => {
-                size[a] = s;
-                source[a] = src;
-            }
-            _ => missing.push(*axis),
-        }
-    }
-    if !missing.is_empty() {
-        let msg = format!(
-            "{}: no voxel size along {} in the file's metadata; assuming {} µm (give the voxel size explicitly)",
-            path.display(),
-            missing.join(", "),
-            options.fallback_voxel_size * 1e6
-        );
-        tracing::warn!("{msg}");
-        warnings.push(msg);
-    }
-    (size, source)
+    let from_file = std::array::from_fn(|a| match (meta.voxel_size[a], meta.source) {
+        (Some(s), Some(src)) => Some((s, src)),
+        _ => None,
+    });
+    super::labels::resolve_voxel_size(from_file, options, warnings, path, "in the file's metadata")
 }

@@ -53,15 +53,20 @@ pub struct ObservedConfig {
     /// A tissue mesh file (.vtk or .vtp, lengths in `length_unit`).
     #[serde(default)]
     pub tissue: Option<PathBuf>,
-    /// A label TIFF, meshed first with `[observed.meshing]`.
+    /// A label volume (TIFF stack, OME-Zarr .zarr folder or NumPy .npy), meshed first with
+    /// `[observed.meshing]`.
     #[serde(default)]
     pub labels: Option<PathBuf>,
     /// Length unit of the tissue file's coordinates (as `--length-unit`). Default "m".
     #[serde(default = "default_length_unit")]
     pub length_unit: String,
-    /// Voxel size `[z, y, x]` (m) of the label TIFF instead of its metadata. Default: the metadata.
+    /// Voxel size `[z, y, x]` (m) of the label volume instead of its metadata. Default: the metadata
+    /// (a .npy has none: give it here).
     #[serde(default)]
     pub voxel_size: Option<[Real; 3]>,
+    /// OME-Zarr `labels` only: the multiscales scale level to read (0 = full resolution). Default 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zarr_level: Option<usize>,
     /// How the label TIFF is meshed. Default: [`MeshingConfig::default`].
     #[serde(default)]
     pub meshing: MeshingConfig,
@@ -463,6 +468,9 @@ impl FitConfig {
             (Some(_), Some(_)) => return Err("observed: give `tissue` or `labels`, not both".into()),
             (None, None) => return Err("observed: give `tissue` (a mesh file) or `labels` (a label TIFF)".into()),
             _ => {}
+        }
+        if observed.zarr_level.is_some() && observed.labels.is_none() {
+            return Err("observed.zarr_level: applies to an OME-Zarr `labels` input, not to a tissue".into());
         }
         if let Some(v) = observed.voxel_size
             && let Some(bad) = v.iter().find_map(|&l| crate::io::implausible_length("observed.voxel_size", l))

@@ -47,7 +47,8 @@ pub struct PipelineConfig {
 #[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InputSection {
-    /// Label TIFF (0 = background), meshed by the mesh stage. Relative to the pipeline file.
+    /// Label volume (0 = background), meshed by the mesh stage: a TIFF stack, an OME-Zarr label or
+    /// image group (a .zarr folder) or a NumPy .npy array. Relative to the pipeline file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub labels: Option<PathBuf>,
     /// A tissue mesh (.vtp or .vtk) instead of labels: the mesh stage checks it and copies it into
@@ -62,10 +63,14 @@ pub struct InputSection {
     /// unit). Default "m". Only with `mesh`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub length_unit: Option<String>,
-    /// Voxel size `[z, y, x]` (m) instead of the TIFF's metadata. Default: the metadata. Only with
-    /// `labels`.
+    /// Voxel size `[z, y, x]` (m) instead of the label file's metadata. Default: the metadata (a .npy
+    /// has none: give it here). Only with `labels`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub voxel_size: Option<[Real; 3]>,
+    /// OME-Zarr `labels` only: the multiscales scale level to read (0 = full resolution, level N
+    /// usually 2^N times coarser in x and y). Default 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zarr_level: Option<usize>,
     /// The run's seed: the meshing's sampling seed (`mesh.seed`) and the optimiser's
     /// (`fit.optimizer.seed`) unless those sections set their own. Default 0.
     #[serde(default)]
@@ -260,7 +265,9 @@ impl PipelineConfig {
             files.push(("fit.model", p.as_path()));
         }
         for (key, file) in files {
-            if !file.is_file() {
+            // An OME-Zarr label input is a folder.
+            let exists = file.is_file() || (key == "input.labels" && file.is_dir());
+            if !exists {
                 return Err(PipelineError::Config(format!("{origin}: {key}: {} does not exist", file.display())));
             }
         }
@@ -419,6 +426,15 @@ impl InputSection {
         self.generate.as_ref().map(|g| g.spec(self.seed)).transpose()
     }
 
+    /// How the mesh and fit stages read the `labels` input.
+    pub fn read_options(&self) -> crate::imaging::LabelReadOptions {
+        crate::imaging::LabelReadOptions {
+            voxel_size: self.voxel_size,
+            zarr_level: self.zarr_level,
+            ..Default::default()
+        }
+    }
+
     /// The length scale of a `mesh` input (metres when `length_unit` is absent).
     pub fn length_scale(&self) -> Result<LengthScale, String> {
         self.length_unit.as_deref().unwrap_or("m").parse().map_err(|e: String| format!("input.length_unit: {e}"))
@@ -435,10 +451,10 @@ impl InputSection {
             _ => return Err(format!("input: give one of {ONE_OF}, not several")),
         }
         if self.generate.is_some() {
-            if self.length_unit.is_some() || self.voxel_size.is_some() {
-                return Err(
-                    "input: `length_unit` and `voxel_size` apply to file inputs; `generate` is in metres".into()
-                );
+            if self.length_unit.is_some() || self.voxel_size.is_some() || self.zarr_level.is_some() {
+                return Err("input: `length_unit`, `voxel_size` and `zarr_level` apply to file inputs; `generate` is \
+                            in metres"
+                    .into());
             }
             self.generate_spec()?;
             return Ok(());
@@ -454,6 +470,9 @@ impl InputSection {
             (None, Some(m)) => {
                 if self.voxel_size.is_some() {
                     return Err("input.voxel_size: applies to a `labels` input, not to a mesh".into());
+                }
+                if self.zarr_level.is_some() {
+                    return Err("input.zarr_level: applies to an OME-Zarr `labels` input, not to a mesh".into());
                 }
                 let ext = m.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
                 if !matches!(ext.as_deref(), Some("vtp" | "vtk")) {
@@ -475,6 +494,7 @@ pub fn fit_config(fit: &FitConfig, input: &InputSection, mesh: &MeshingConfig) -
             labels: input.labels.clone(),
             length_unit: input.length_unit.clone().unwrap_or_else(|| "m".to_string()),
             voxel_size: input.voxel_size,
+            zarr_level: input.zarr_level,
             meshing: mesh.clone(),
         }),
         ..fit.clone()

@@ -140,9 +140,26 @@ impl Manifest {
     }
 }
 
-/// blake3 of a file's bytes, hex.
+/// blake3 of a file's bytes, hex. A folder (an OME-Zarr store) is hashed as every file under it:
+/// each one's relative name and bytes, in name order.
 pub fn hash_file(path: &Path) -> Result<String, PipelineError> {
     let mut hasher = blake3::Hasher::new();
+    if path.is_dir() {
+        for name in list_files(path)? {
+            let file = path.join(&name);
+            hasher.update(&(name.len() as u64).to_le_bytes());
+            hasher.update(name.as_bytes());
+            let len = std::fs::metadata(&file)
+                .map_err(|e| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") })?
+                .len();
+            hasher.update(&len.to_le_bytes());
+            let mut f = std::fs::File::open(&file)
+                .map_err(|e| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") })?;
+            std::io::copy(&mut f, &mut hasher)
+                .map_err(|e| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") })?;
+        }
+        return Ok(hasher.finalize().to_hex().to_string());
+    }
     let mut file = std::fs::File::open(path)
         .map_err(|e| PipelineError::Io { path: path.to_path_buf(), message: format!("hashing: {e}") })?;
     std::io::copy(&mut file, &mut hasher)

@@ -157,6 +157,10 @@ fn walk_table(
     let index = tables.len();
     tables.push(Table { header: String::new(), description: String::new(), rows: Vec::new() });
     let mut subtables = Vec::new();
+    // Keys in name order, whatever the map's own order (serde_json keeps insertion order when a
+    // dependency turns on its `preserve_order` feature, as zarrs does).
+    let mut props: Vec<(&String, &Value)> = props.iter().collect();
+    props.sort_by(|a, b| a.0.cmp(b.0));
     for (key, prop) in props {
         let full = if path.is_empty() { key.clone() } else { format!("{path}.{key}") };
         let (inner, optional) = resolve(prop, defs)?;

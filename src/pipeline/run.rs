@@ -224,6 +224,7 @@ fn run_locked(
     // mesh
     let mesh_section = toml_of(&MeshKey {
         voxel_size: config.input.voxel_size,
+        zarr_level: config.input.zarr_level,
         mesh_input: config.input.mesh.is_some(),
         length_unit: config.input.length_unit.as_deref(),
         generate: generate.as_ref(),
@@ -297,6 +298,8 @@ fn run_locked(
 #[derive(Serialize)]
 struct MeshKey<'a> {
     voxel_size: Option<[Real; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    zarr_level: Option<usize>,
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     mesh_input: bool,
     #[serde(skip_serializing_if = "Option::is_none")]

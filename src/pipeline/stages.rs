@@ -5,7 +5,7 @@
 use super::PipelineError;
 use super::config::{InputSection, MeasureSection, SimulateSection, fit_config};
 use crate::geometry::Real;
-use crate::imaging::{LabelReadOptions, read_label_tiff};
+use crate::imaging::read_labels;
 use crate::inference::{FitConfig, FitOptions, FitResult, MeshingConfig, Observation, run_fit_observed};
 use crate::io::{
     LengthScale, OutputGroup, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d,
@@ -80,8 +80,7 @@ pub fn run_mesh(input: &InputSection, mesh: &MeshingConfig, out: &Path) -> Resul
         (None, Some(tissue)) => return copy_mesh(input, tissue, out),
         (None, None) => return generate_input(input, out),
     };
-    let read = read_label_tiff(path, &LabelReadOptions { voxel_size: input.voxel_size, ..Default::default() })
-        .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
+    let read = read_labels(path, &input.read_options()).map_err(|e| err(format!("reading {}: {e}", path.display())))?;
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }
@@ -520,7 +519,7 @@ pub fn run_fit_stage(
         .map_err(|e| err(format!("reading {}: {e}", report_path.display())))?;
     let observation = match &input.labels {
         Some(path) => {
-            let read = read_label_tiff(path, &LabelReadOptions { voxel_size: input.voxel_size, ..Default::default() })
+            let read = read_labels(path, &input.read_options())
                 .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
             let mut options = mesh.options().map_err(|e| err(e.to_string()))?;
             // Simulations are measured like the data: the meshing's options with the l_min it used.
