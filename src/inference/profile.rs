@@ -280,6 +280,22 @@ fn crossing(
 mod tests {
     use super::*;
 
+    /// The model error widens a closed side in quadrature, keeps its side, leaves an open side open,
+    /// and with 0 changes nothing: a range of ±2 % from the objective and a 5 % model error give
+    /// ±√(2² + 4.88²) ≈ 5.27 % in log space.
+    #[test]
+    fn the_model_error_widens_closed_sides_in_quadrature() {
+        let (o, e) = (0.02_f64, 0.05_f64.ln_1p());
+        let lo = with_model_error(Some(-o), -1.0, 0.05).unwrap();
+        let hi = with_model_error(Some(o), 1.0, 0.05).unwrap();
+        assert!((lo + o.hypot(e)).abs() < 1e-15 && (hi - o.hypot(e)).abs() < 1e-15, "{lo} {hi}");
+        assert!(hi > e && hi < o + e);
+        assert_eq!(with_model_error(None, 1.0, 0.05), None);
+        assert_eq!(with_model_error(Some(-o), -1.0, 0.0), Some(-o));
+        // A side closed at the optimum itself still gets the model error.
+        assert!((with_model_error(Some(0.0), -1.0, 0.05).unwrap() + e).abs() < 1e-15);
+    }
+
     /// The noisy spring aggregate of the README: the best point scored 1.2 and a one-bit twin 3.56.
     /// A slice that rises to 2.5–2.6 at ±0.1 crossed best + 1 = 2.2 there and was called
     /// determined; with the replicates' noise (σ ≈ 1.2) the threshold is 2.25 + 1 + 2σ ≈ 5.6 and
