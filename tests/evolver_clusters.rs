@@ -132,13 +132,14 @@ fn planar_triplet_stays_at_the_evolver_equilibrium() {
     assert!(d[0] < 1.0, "far-field angles off by {:.2}°", d[0]);
     assert!(d[2] < 0.01, "contact areas off by {:.1} %", 100.0 * d[2]);
     assert!(d[3] < 1e-3, "sphericity off by {:.4}", d[3]);
-    // With the paper's l_max = 3·l_min the meshes of the three cells churn independently at the
-    // junction (hundreds of splits and collapses), its nodes stop coinciding, the junction opens and
-    // the contacts end ~9 % small (docs: validation, Surface Evolver clusters).
-    let (evolver, paper, residual) = relax_with("triplet", 3000, |p| p.numerics.max_edge_ratio = 3.0);
-    let p = differences(&evolver, &paper);
-    report("planar triplet, 0.85, l_max = 3·l_min (`max_edge_ratio = 3`)", &p, residual);
-    assert!(p[2] > 0.05, "l_max = 3·l_min no longer opens the triplet's junction: {p:?}");
+    // Before junction groups reached 2c the three cells' meshes churned at the junction (824 splits
+    // and 1,156 collapses in these 3,000 steps), its nodes stopped coinciding, the junction opened and
+    // the contacts ended 9 % small (docs: validation, Surface Evolver clusters). l_max = 3.5·l_min
+    // (`max_edge_ratio`) calms the churn: the same contacts, 4 splits.
+    let (evolver, slack, residual) = relax_with("triplet", 3000, |p| p.numerics.max_edge_ratio = 3.5);
+    let p = differences(&evolver, &slack);
+    report("planar triplet, 0.85, l_max = 3.5·l_min (`max_edge_ratio = 3.5`)", &p, residual);
+    assert!(p[0] < 1.0 && p[2] < 0.01, "{p:?}");
 }
 
 /// Evolver's meshes are conforming: a vertex on an interface, a junction line or a quadruple point
@@ -167,9 +168,12 @@ fn every_shared_evolver_vertex_of_the_twelve_cell_ball_is_one_tied_group() {
     let mut by_size = [[0usize; 2]; 5];
     for members in shared.values().filter(|m| m.len() > 1) {
         let k = members.len().min(4);
-        let whole = members
-            .iter()
-            .all(|m| group_of.get(m).is_some_and(|&(g, len)| len == members.len() && g == group_of[&members[0]].0));
+        // One group holds them all (with, at most, a node of a third cell nearby: the junction reach).
+        let whole = members.iter().all(|m| {
+            group_of
+                .get(m)
+                .is_some_and(|&(g, len)| len >= members.len() && Some(g) == group_of.get(&members[0]).map(|x| x.0))
+        });
         by_size[k][usize::from(whole)] += 1;
     }
     println!(

@@ -394,9 +394,9 @@ pub struct ProfileConfig {
     /// Relative error of the forward model itself, added in quadrature (in log space) to both sides
     /// of every closed range of a parameter or ratio: a range from the objective alone holds only
     /// the data's and the forward model's noise, not the model's systematic difference from a real
-    /// foam. Default 0.05, the largest error of the fits of the Surface Evolver doublet, triplet and
-    /// tetrahedral clusters at 10–40 voxels per diameter (docs: validation, "Surface Evolver
-    /// clusters"); 0: noise only.
+    /// foam. Default 0.05, the size of the systematic errors (3–7 %) of the fits of the Surface
+    /// Evolver doublet, triplet and tetrahedral clusters at 10–40 voxels per diameter (docs:
+    /// validation, "Surface Evolver clusters"); 0: noise only.
     #[serde(default = "default_model_error")]
     pub model_error: Real,
 }

@@ -17,6 +17,7 @@ The tissuefit binary is `target/release/tissuefit` (build it first) or `--tissue
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -38,7 +39,7 @@ def labels_for(tissuefit, cluster_dir, truth, per_diameter, work):
     return out
 
 
-def tabulate(row, result_path, ratio):
+def tabulate(row, result_path, ratio, model_error=0.05):
     """The row completed from a fit's result.json."""
     r = json.load(open(result_path))
     # the γ_lateral/γ_apical ratio of result.json (its key names the ratio)
@@ -46,8 +47,26 @@ def tabulate(row, result_path, ratio):
     x = r["ratios"][key] if key else None
     fitted = x["value"] if x else None
     lo_hi = x["range"] if x else None
+    # The range from the objective alone (the profile's noise bounds; without profile.model_error).
+    # A fit run before model_error existed has only that one: its model-error range is then
+    # computed here with the same formula (value · exp(±√(o² + ln(1 + m)²))) and marked "post hoc".
+    sl = next((s for s in r.get("profile", []) if key and s["name"] == key), None)
+    noise, post_hoc = None, False
+    if sl and fitted is not None:
+        lo_o, hi_o = sl.get("noise_lower", "absent"), sl.get("noise_upper", "absent")
+        if lo_o == "absent":
+            post_hoc = True
+            lo_o, hi_o = sl.get("lower"), sl.get("upper")
+            e = math.log1p(model_error)
+            if lo_o is not None and hi_o is not None and lo_hi:
+                lo_hi = [min(lo_hi[0], fitted * math.exp(-math.hypot(lo_o, e))),
+                         max(lo_hi[1], fitted * math.exp(math.hypot(hi_o, e)))]
+        if lo_o is not None and hi_o is not None:
+            noise = [fitted * math.exp(lo_o), fitted * math.exp(hi_o)]
     row.update({"fitted": fitted, "error_pct": None if fitted is None else 100 * (fitted - ratio) / ratio,
                 "range": lo_hi, "holds": None if not lo_hi else lo_hi[0] <= ratio <= lo_hi[1],
+                "noise_range": noise, "noise_holds": None if not noise else noise[0] <= ratio <= noise[1],
+                "post_hoc": post_hoc,
                 "determined": x.get("determined") if x else None,
                 "evaluations": r.get("evaluations"), "objective": r.get("objective"),
                 "poor_fit": r.get("poor_fit")})
@@ -124,16 +143,26 @@ def main():
             json.dump(rows, fh, indent=2)
     if a.markdown:
         with open(a.markdown, "w") as fh:
-            fh.write("| cluster | cells | vox/diam | truth | fitted | error | reported range | holds truth | evaluations | wall |\n")
-            fh.write("|---|---|---|---|---|---|---|---|---|---|\n")
+            fh.write("| cluster | cells | vox/diam | truth | fitted | error | reported range | holds truth "
+                     "| range from the objective alone | holds truth | evaluations | wall |\n")
+            fh.write("|---|---|---|---|---|---|---|---|---|---|---|---|\n")
             for r in rows:
                 f, rg, err, holds = r.get("fitted"), r.get("range"), r.get("error_pct"), r.get("holds")
                 fitted = "failed" if f is None else f"{f:.3f}"
                 error = "" if err is None else f"{err:+.1f} %"
                 rng = "" if not rg else f"[{rg[0]:.3f}, {rg[1]:.3f}]"
                 held = "" if holds is None else ("yes" if holds else "no")
+                if r.get("post_hoc") and rng:
+                    rng += " (post hoc)"
+                nr, nh = r.get("noise_range"), r.get("noise_holds")
+                nrng = "" if not nr else f"[{nr[0]:.3f}, {nr[1]:.3f}]"
+                nheld = "" if nh is None else ("yes" if nh else "no")
                 fh.write(f"| {r['cluster']} | {r['cells']} | {r['per_diameter']} | {r['truth']:.2f} | {fitted} | {error} | "
-                         f"{rng} | {held} | {r.get('evaluations', '')} | {r['wall_s']:.0f} s |\n")
+                         f"{rng} | {held} | {nrng} | {nheld} | {r.get('evaluations', '')} | {r['wall_s']:.0f} s |\n")
+            cover = [r["holds"] for r in rows if r.get("holds") is not None]
+            ncover = [r["noise_holds"] for r in rows if r.get("noise_holds") is not None]
+            fh.write(f"\nReported ranges hold the truth in {sum(cover)} of {len(cover)} fits; the ranges from the "
+                     f"objective alone in {sum(ncover)} of {len(ncover)}.\n")
 
 if __name__ == "__main__":
     main()

@@ -142,12 +142,10 @@ pub struct Numerics {
     /// Minimum edge length l_min [m]: remeshing collapses shorter edges and splits edges longer than
     /// l_max = `max_edge_ratio`·l_min ([`Numerics::max_edge_length`]). Default 2e-7 m.
     pub min_edge_length: Real,
-    /// l_max/l_min of the simulation's remeshing, at least 2. Default 3.5 (the paper: 3). With 3,
-    /// a collapse next to a junction often leaves an edge just above l_max, whose split makes a short
-    /// edge to collapse again: the meshes of the cells meeting there churn independently, their
-    /// junction nodes stop coinciding and the junction opens (a planar Surface Evolver triplet
-    /// relaxed at its own tensions lost 8 % of its contact area with 824 splits in 3,000 steps; with
-    /// 3.5 it kept it within 0.05 % after 4 splits; docs: validation, "Surface Evolver clusters").
+    /// l_max/l_min of the simulation's remeshing, at least 2. Default 3 (the paper's). Larger values
+    /// leave more slack between a collapse and the next split: on a planar Surface Evolver triplet
+    /// relaxed at its own tensions 3.5 made 4 splits in 3,000 steps where 3 made 824 (both keep its
+    /// contacts within 1 % now that junction groups reach 2c; see `contact::coupling`).
     #[serde(default = "default_max_edge_ratio")]
     pub max_edge_ratio: Real,
     /// Contact cutoff distance c [m]: faces of different cells farther apart do not interact; must
@@ -216,7 +214,7 @@ impl Numerics {
 }
 
 fn default_max_edge_ratio() -> Real {
-    3.5
+    3.0
 }
 
 impl Default for Numerics {

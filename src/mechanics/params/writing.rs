@@ -58,9 +58,8 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
     FieldDoc {
         path: "numerics.max_edge_ratio",
         unit: "",
-        text: "l_max/l_min of the simulation's remeshing, at least 2. The paper uses 3; 3.5 keeps the meshes of cells \
-               meeting at a junction from churning independently, which opened the junction (a Surface Evolver triplet \
-               relaxed at its own tensions lost 8 % of its contact area at 3 and kept it within 0.05 % at 3.5).",
+        text: "l_max/l_min of the simulation's remeshing, at least 2; 3 as in the paper. Larger values leave more \
+               slack between a collapse and the next split (fewer remeshing operations).",
     },
     FieldDoc {
         path: "numerics.contact_cutoff",

@@ -1,5 +1,6 @@
 //! Local remeshing of a cell surface (paper, Methods "Local mesh adaptation", Fig. S2): keep every
-//! edge length in `[l_min, l_max]`, `l_max = 3·l_min`, and remove slivers.
+//! edge length in `[l_min, l_max]`, `l_max = 3·l_min` ([`RemeshSettings::new`]; the simulation uses
+//! `numerics.max_edge_ratio`·l_min, default 3), and remove slivers.
 //!
 //! * [`split_edge`]: an edge longer than `l_max` gets a node at its midpoint (2 faces → 4). The new
 //!   node takes a third of each end node's momentum; the ends keep two thirds (momentum conserved).
