@@ -150,7 +150,7 @@ fn mesh_refuses_unknown_inputs_and_nuclei_with_a_mesh() {
     let out = dir.path().join("t.vtp");
     let o = run_cli(&["mesh", input.to_str().unwrap(), "--nuclei", "n.tif", "--out", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--nuclei applies to a label TIFF"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--nuclei applies to a label volume"));
     let stl = dir.path().join("x.stl");
     std::fs::write(&stl, "solid x").unwrap();
     let o = run_cli(&["mesh", stl.to_str().unwrap(), "--out", out.to_str().unwrap()]);
