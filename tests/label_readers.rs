@@ -462,15 +462,7 @@ fn npy_arrays_read_in_c_and_fortran_order_and_both_byte_orders() {
 #[test]
 fn the_same_labels_through_tiff_zarr_and_npy_measure_the_same() {
     let dir = tempfile::tempdir().unwrap();
-    let spec = LabelSpec {
-        pattern: LabelPattern::Doublet,
-        shape: [14, 20, 24],
-        voxel_size: [1e-6, 0.5e-6, 0.5e-6],
-        cells: 2,
-        seed: 0,
-        lumen: false,
-    };
-    let volume = generate_labels(&spec).unwrap().volume;
+    let volume = doublet([14, 20, 24]);
     let labels = volume.labels().clone();
     let tif = dir.path().join("doublet.tif");
     write_label_tiff(&tif, &volume, &LabelWriteOptions::default()).unwrap();
@@ -570,15 +562,7 @@ fn bad_stores_and_npy_files_exit_2_naming_the_file() {
 #[test]
 fn a_pipeline_reads_an_ome_zarr_level_from_its_input_section() {
     let dir = tempfile::tempdir().unwrap();
-    let spec = LabelSpec {
-        pattern: LabelPattern::Doublet,
-        shape: [14, 40, 48],
-        voxel_size: [1e-6, 0.5e-6, 0.5e-6],
-        cells: 2,
-        seed: 0,
-        lumen: false,
-    };
-    let labels = generate_labels(&spec).unwrap().volume.labels().clone();
+    let labels = doublet([14, 40, 48]).labels().clone();
     let coarse = downsample(&labels);
     let root = dir.path().join("doublet.zarr");
     Store {
@@ -660,15 +644,7 @@ fn statuses(run: &Path) -> Vec<String> {
 #[test]
 fn a_pipeline_run_hashes_a_zarr_store_and_reruns_when_a_chunk_or_the_level_changes() {
     let dir = tempfile::tempdir().unwrap();
-    let spec = LabelSpec {
-        pattern: LabelPattern::Doublet,
-        shape: [14, 20, 24],
-        voxel_size: [1e-6, 0.5e-6, 0.5e-6],
-        cells: 2,
-        seed: 0,
-        lumen: false,
-    };
-    let labels = generate_labels(&spec).unwrap().volume.labels().clone();
+    let labels = doublet([14, 20, 24]).labels().clone();
     let root = dir.path().join("doublet.zarr");
     let store = |labels: &Array3<u32>| Store {
         zarr_version: 2,
@@ -719,4 +695,17 @@ fn zarr_level_in_a_fit_config_needs_a_labels_input() {
     let e =
         tissuefit::pipeline::PipelineConfig::load_text(text, Path::new("p.toml")).map(|_| ()).unwrap_err().to_string();
     assert!(e.contains("input.zarr_level") && e.contains("not to a mesh"), "{e}");
+}
+
+/// The generated two-cell label volume of `shape` (z, y, x) at 1 × 0.5 × 0.5 µm voxels.
+fn doublet(shape: [usize; 3]) -> LabelVolume {
+    let spec = LabelSpec {
+        pattern: LabelPattern::Doublet,
+        shape,
+        voxel_size: [1e-6, 0.5e-6, 0.5e-6],
+        cells: 2,
+        seed: 0,
+        lumen: false,
+    };
+    generate_labels(&spec).unwrap().volume
 }

@@ -44,7 +44,7 @@ pub struct Slice {
     /// Log-space offsets from the optimum (of the varied quantity) and their objectives, ascending.
     pub offsets: Vec<Real>,
     pub objectives: Vec<Real>,
-    /// Acceptable range of the offset `[lo, hi]`, model error included (see [`with_model_error`]);
+    /// Acceptable range of the offset `[lo, hi]`, model error included (widened in quadrature by `profile.model_error`);
     /// `None` on a side that never crossed.
     pub lower: Option<Real>,
     pub upper: Option<Real>,
@@ -55,7 +55,7 @@ pub struct Slice {
 
 /// A closed side's log offset (`sign` −1 below the optimum, +1 above) widened by the model's
 /// relative error `model_error` in quadrature: sign·√(o² + ln(1 + m)²). An open side stays open.
-pub fn with_model_error(offset: Option<Real>, sign: Real, model_error: Real) -> Option<Real> {
+fn with_model_error(offset: Option<Real>, sign: Real, model_error: Real) -> Option<Real> {
     let e = model_error.ln_1p();
     offset.map(|o| sign * o.hypot(e))
 }

@@ -166,9 +166,10 @@ impl CouplingWorkspace {
         }
         self.boxes.clear();
         self.boxes.extend(self.positions.iter().map(|p| (*p, *p)));
-        // Cubes of edge 2c: a query box [p − c, p + c] then spans 2 cubes per axis (4 rows of
-        // cubes to look up) instead of 3 (9 rows) with cubes of edge c; the extra nodes it returns
-        // are rejected by the distance test. Every pair closer than c is found either way.
+        // Candidates reach c, or the junction reach when groups may form (pairs beyond c are kept
+        // only to join a third or fourth cell to a group). Cubes of edge 2·reach: a query box
+        // [p − reach, p + reach] then spans 2 cubes per axis (4 rows of cubes to look up) instead of
+        // 3 (9 rows) with cubes of edge reach; the distance test rejects the extra nodes.
         let reach = if junctions { JUNCTION_REACH * cutoff } else { cutoff };
         let cell_size = 2.0 * reach;
         let grid = self.grid.get_or_insert_with(|| SpatialGrid::new(cell_size));

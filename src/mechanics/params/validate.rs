@@ -42,13 +42,14 @@ impl Parameters {
                     .to_owned(),
             );
         }
-        if l_min_ok && cutoff_ok && numerics.contact_cutoff > 3.0 * numerics.min_edge_length {
+        let paper_l_max = 3.0 * numerics.min_edge_length;
+        if l_min_ok && cutoff_ok && numerics.contact_cutoff > paper_l_max {
             report.errors.push(format!(
                 "numerics.contact_cutoff = {} m exceeds 3·numerics.min_edge_length = {} m (the paper's l_max); the \
                  reference model requires c ≤ l_max so that a contact stays within one edge of the surface; lower \
                  contact_cutoff or raise min_edge_length",
                 fmt_real(numerics.contact_cutoff),
-                fmt_real(3.0 * numerics.min_edge_length)
+                fmt_real(paper_l_max)
             ));
         }
         let ratio = numerics.max_edge_ratio;
