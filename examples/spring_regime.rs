@@ -11,16 +11,17 @@
 //! (w/(2γ), 0.3), `--start touch|over` (touch: spheres 0.5·c apart; over: truncated spheres whose
 //! flat contact starts 15° beyond Young–Dupré's half-angle), `--normal` (simulation.normal_relaxation),
 //! `--steps N` (8000), `--settle N` (0: simulation.settle_steps), `--xi X` (repulsion, Pa/m; 1e12),
-//! `--method fire|integrate` (fire), `--remesh N` (50). One line per run, `key=value` separated by
+//! `--method fire|integrate` (fire), `--remesh N` (50), `--quadrature vertices|faces`
+//! (numerics.contact_quadrature, vertices). One line per run, `key=value` separated by
 //! spaces, so that a shell loop over a grid makes a table (see docs: the Young–Dupré regime note).
 
 use std::time::Instant;
-use tissuefit::geometry::{Real, Vec3};
-use tissuefit::mechanics::{ContactModel, Observer, Parameters, Polarity, RelaxMethod, Sample, Simulation};
-use tissuefit::mechanics::{SimulationMode, SimulationSummary};
-use tissuefit::mesh::shapes::icosphere;
-use tissuefit::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
-use tissuefit::morphology::far_field::fit_sphere;
+use tissuefit::geometry::Real;
+use tissuefit::mechanics::{ContactQuadrature, Observer, Sample, Simulation, SimulationSummary};
+
+#[path = "../tests/support/young_dupre.rs"]
+mod young_dupre;
+use young_dupre::{Doublet, far_field_half_angles, params, start, young_dupre};
 
 struct Quiet;
 impl Observer for Quiet {
@@ -29,36 +30,8 @@ impl Observer for Quiet {
     }
 }
 
-const GAMMA: Real = 1e-3;
-
-struct Args {
-    radius: Real,
-    lmin: Real,
-    cutoff: Real,
-    ratio: Real,
-    over: bool,
-    normal: bool,
-    steps: u64,
-    settle: u64,
-    xi: Real,
-    integrate: bool,
-    remesh: u64,
-}
-
-fn parse() -> Result<Args, String> {
-    let mut a = Args {
-        radius: 2e-6,
-        lmin: 2e-7,
-        cutoff: 2e-7,
-        ratio: 0.3,
-        over: false,
-        normal: false,
-        steps: 8000,
-        settle: 0,
-        xi: 1e12,
-        integrate: false,
-        remesh: 50,
-    };
+fn parse() -> Result<Doublet, String> {
+    let mut a = Doublet::default();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
     while i < args.len() {
@@ -86,6 +59,13 @@ fn parse() -> Result<Args, String> {
                     _ => return Err(format!("--start {value}: touch or over")),
                 }
             }
+            "--quadrature" => {
+                a.quadrature = match value.as_str() {
+                    "vertices" => ContactQuadrature::Vertices,
+                    "faces" => ContactQuadrature::Faces,
+                    _ => return Err(format!("--quadrature {value}: vertices or faces")),
+                }
+            }
             "--method" => {
                 a.integrate = match value.as_str() {
                     "fire" => false,
@@ -100,92 +80,10 @@ fn parse() -> Result<Args, String> {
     Ok(a)
 }
 
-/// Young–Dupré half-angle (degrees) for w/(2γ) = `ratio`.
-fn young_dupre(ratio: Real) -> Real {
-    (1.0 - ratio).clamp(-1.0, 1.0).acos().to_degrees()
-}
-
-/// An icosphere of radius `r` fine enough for edges near `lmin`, centred at x = `x`; with `flat`,
-/// its nodes beyond the plane x = `plane` (on the side away from the centre) are moved onto it.
-fn cell(id: u32, r: Real, lmin: Real, x: Real, flat: Option<Real>) -> Cell {
-    let subdivisions = ((1.1 * r / lmin).log2().round() as u32).clamp(2, 5);
-    let mut mesh = icosphere(r, subdivisions, Vec3::new(x, 0.0, 0.0));
-    if let Some(plane) = flat {
-        let side = (plane - x).signum();
-        for p in mesh.positions_mut() {
-            if (p.x - plane) * side > 0.0 {
-                p.x = plane;
-            }
-        }
-    }
-    let types = vec![FaceType::Basal; mesh.face_count()];
-    Cell::new(CellId(id), CellKind::Epithelial, 0, mesh).with_face_types(types).expect("one type per face")
-}
-
-fn params(a: &Args) -> Parameters {
-    let mut p = Parameters::default();
-    p.numerics.contact_model = ContactModel::Spring;
-    p.numerics.polarity = Polarity::None;
-    p.numerics.min_edge_length = a.lmin;
-    p.numerics.contact_cutoff = a.cutoff;
-    // Only integration uses it (and validation checks it against the contact stiffness).
-    p.numerics.time_step = 2e-8;
-    let omega = 4.0 * a.ratio * GAMMA / (a.cutoff * a.cutoff);
-    let t = &mut p.cell_types[0];
-    for ft in FaceType::ALL {
-        let f = t.faces.get_mut(ft);
-        f.surface_tension = GAMMA;
-        f.adhesion = omega;
-        f.repulsion = a.xi;
-        f.bending_modulus = 0.0;
-    }
-    t.area_elasticity = 0.0;
-    t.max_pressure = Real::INFINITY;
-    t.growth_rate = 0.0;
-    t.laplace_target_volume = true;
-    let s = &mut p.simulation;
-    s.mode = SimulationMode::Equilibrium;
-    s.method = if a.integrate { RelaxMethod::Integrate } else { RelaxMethod::Fire };
-    s.remesh_every_steps = a.remesh;
-    s.max_steps = a.steps;
-    s.settle_steps = a.settle;
-    s.normal_relaxation = a.normal;
-    s.sample_every_steps = a.steps + 1;
-    p
-}
-
-/// Far-field half-angles of both cells: each free cap (nodes farther than `margin` from the other
-/// cell's centre side of the midplane) fitted by a sphere; cos ψ = h/ρ with h the distance from the
-/// cap's centre to the midplane (positive on its own side).
-fn far_field_half_angles(t: &Tissue, margin: Real) -> [Real; 2] {
-    let centroid = |c: &Cell| c.mesh().positions().iter().sum::<Vec3>() / c.mesh().node_count() as Real;
-    let [a, b] = [&t.cells()[0], &t.cells()[1]];
-    let (ca, cb) = (centroid(a), centroid(b));
-    let axis = (cb - ca).normalize();
-    let mid = 0.5 * (ca + cb);
-    let mut out = [0.0; 2];
-    for (k, (cell, towards)) in [(a, -axis), (b, axis)].into_iter().enumerate() {
-        let cap: Vec<Vec3> =
-            cell.mesh().positions().iter().copied().filter(|p| (p - mid).dot(&towards) > margin).collect();
-        let (sphere, _) = fit_sphere(&cap).expect("a free cap fixes a sphere");
-        let h = (sphere.centre - mid).dot(&towards);
-        out[k] = (h / sphere.radius).clamp(-1.0, 1.0).acos().to_degrees();
-    }
-    out
-}
-
-fn run(a: &Args) -> Result<(), String> {
+fn run(a: &Doublet) -> Result<(), String> {
     let yd = young_dupre(a.ratio);
-    let (r, c) = (a.radius, a.cutoff);
-    let tissue = if a.over {
-        let psi = (yd + 15.0).min(80.0).to_radians();
-        let x = r * psi.cos() + 0.25 * c;
-        Tissue::from_cells(vec![cell(1, r, a.lmin, -x, Some(-0.25 * c)), cell(2, r, a.lmin, x, Some(0.25 * c))])
-    } else {
-        let x = r + 0.25 * c;
-        Tissue::from_cells(vec![cell(1, r, a.lmin, -x, None), cell(2, r, a.lmin, x, None)])
-    }
-    .map_err(|e| e.to_string())?;
+    let r = a.radius;
+    let tissue = start(a);
     let p = params(a);
     for warning in p.validate().map_err(|e| e.to_string())? {
         eprintln!("spring_regime: {warning}");
@@ -198,7 +96,7 @@ fn run(a: &Args) -> Result<(), String> {
     let [ha, hb] = far_field_half_angles(sim.tissue(), 0.3 * r);
     let measured = 0.5 * (ha + hb);
     println!(
-        "radius_um={} lmin_um={} cutoff_um={} ratio={} start={} normal={} yd_deg={yd:.2} half_angle_deg={measured:.2} \
+        "radius_um={} lmin_um={} cutoff_um={} ratio={} start={} normal={} quadrature={} yd_deg={yd:.2} half_angle_deg={measured:.2} \
          error_deg={:+.2} cells_deg={ha:.2}/{hb:.2} overlap_pct={:.3} nodes_per_cell={nodes} steps={} converged={} \
          residual={:.3e} splits={} collapses={} wall_s={wall:.1} stop={:?}",
         a.radius * 1e6,
@@ -207,6 +105,7 @@ fn run(a: &Args) -> Result<(), String> {
         a.ratio,
         if a.over { "over" } else { "touch" },
         a.normal,
+        if a.quadrature == ContactQuadrature::Faces { "faces" } else { "vertices" },
         measured - yd,
         100.0 * summary.max_overlap_fraction,
         summary.steps,

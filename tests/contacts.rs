@@ -3,8 +3,8 @@
 
 use tissuefit::geometry::{Real, Vec3};
 use tissuefit::mechanics::{
-    ContactModel, ContactWorkspace, Dynamics, Observer, Parameters, Polarity, RelaxMethod, Sample, Simulation,
-    SimulationMode, TermSet, TissueForces, cell_parameters,
+    ContactModel, ContactQuadrature, ContactWorkspace, Dynamics, Observer, Parameters, Polarity, RelaxMethod, Sample,
+    Simulation, SimulationMode, TermSet, TissueForces, cell_parameters,
 };
 use tissuefit::mesh::shapes::icosphere;
 use tissuefit::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
@@ -58,13 +58,28 @@ fn evaluate(t: &Tissue, p: &Parameters) -> (Real, Vec<Vec<Vec3>>, usize, Real) {
     let mut f = TissueForces::default();
     f.compute(t, &cp, TermSet::ALL);
     let mut c = ContactWorkspace::default();
+    c.set_model(p.numerics.contact_model);
+    c.set_quadrature(p.numerics.contact_quadrature);
     let contact = c.add_contacts(t, &cp, p.numerics.contact_cutoff, &mut f.cells);
     (f.energy().total(), f.cells.iter().map(|w| w.forces.clone()).collect(), c.pair_count, contact)
 }
 
 #[test]
 fn contact_forces_are_minus_the_gradient_of_the_contact_energy() {
-    let p = params();
+    check_doublet_gradient(&params());
+}
+
+/// The face quadrature's contact energy (exact face means of Φ with d linear on each face) is an
+/// exact potential too: its forces include the distances of corners out to c plus an edge.
+#[test]
+fn face_quadrature_contact_forces_are_minus_the_gradient_of_the_contact_energy() {
+    let mut p = params();
+    p.numerics.contact_quadrature = ContactQuadrature::Faces;
+    check_doublet_gradient(&p);
+}
+
+fn check_doublet_gradient(p: &Parameters) {
+    let p = p.clone();
     // Surfaces 0.3c apart with 1e-8 noise: some nodes adhere, some slightly overlap (d > −c/2).
     let t = doublet(0.3 * 2e-7, 3, 7);
     let (_, forces, pairs, contact) = evaluate(&t, &p);
@@ -260,13 +275,26 @@ fn a_coarse_aggregate_at_unit_adhesion_keeps_valid_surfaces_and_bounded_area() {
 /// The saturated adhesion of nodes that sense several cells is an exact gradient too.
 #[test]
 fn contact_forces_of_nodes_near_several_cells_are_minus_the_gradient() {
-    let p = unit_adhesion_params();
+    check_multi_partner_gradient(&unit_adhesion_params());
+}
+
+/// The same with the face quadrature, whose faces combine the face means of several partners.
+#[test]
+fn face_quadrature_forces_of_faces_near_several_cells_are_minus_the_gradient() {
+    let mut p = unit_adhesion_params();
+    p.numerics.contact_quadrature = ContactQuadrature::Faces;
+    check_multi_partner_gradient(&p);
+}
+
+fn check_multi_partner_gradient(p: &Parameters) {
+    let p = p.clone();
     let t = coarse_spheroid();
     let c = p.numerics.contact_cutoff;
     let cp = cell_parameters(&t, &p).unwrap();
     let mut f = TissueForces::default();
     f.compute(&t, &cp, TermSet::ALL);
     let mut contacts = ContactWorkspace::default();
+    contacts.set_quadrature(p.numerics.contact_quadrature);
     contacts.add_contacts(&t, &cp, c, &mut f.cells);
     let fmax = f.cells.iter().flat_map(|w| &w.forces).map(|v| v.amax()).fold(0.0, Real::max);
     // Nodes with two or more pairs, all inside the cutoff band away from −c (where Eq. 2's stress ends).

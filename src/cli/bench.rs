@@ -218,6 +218,7 @@ fn contact_step_times(
     let mut forces = TissueForces::default();
     let mut contacts = ContactWorkspace::default();
     contacts.set_model(params.numerics.contact_model);
+    contacts.set_quadrature(params.numerics.contact_quadrature);
     let coupled = params.numerics.contact_model == ContactModel::Coupling;
     let mut coupling = CouplingWorkspace::default();
     let mut moving = tissue.clone();

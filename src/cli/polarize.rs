@@ -93,6 +93,7 @@ pub fn run(args: &PolarizeArgs) -> anyhow::Result<Outcome> {
             forces.compute(&tissue, &cell_params, TermSet::ALL);
             let mut contacts = ContactWorkspace::default();
             contacts.set_model(params.numerics.contact_model);
+            contacts.set_quadrature(params.numerics.contact_quadrature);
             contacts.add_contacts(&tissue, &cell_params, cutoff, &mut forces.cells);
             let changed = polarize_from_contacts(&mut tissue, &contacts);
             report.insert("contact_cutoff".into(), cutoff.into());

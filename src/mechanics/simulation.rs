@@ -449,6 +449,7 @@ impl<'p> Simulation<'p> {
         let energy_scale = gamma * tissue.cells().iter().map(|c| c.mesh().area()).sum::<Real>();
         let mut contacts = ContactWorkspace::default();
         contacts.set_model(params.numerics.contact_model);
+        contacts.set_quadrature(params.numerics.contact_quadrature);
         Ok(Self {
             cell_params,
             forces: TissueForces::default(),
@@ -561,6 +562,7 @@ impl<'p> Simulation<'p> {
         let cell_params = cell_parameters(&tissue, params)?;
         let mut contacts = ContactWorkspace::default();
         contacts.set_model(params.numerics.contact_model);
+        contacts.set_quadrature(params.numerics.contact_quadrature);
         let mut coupling = CouplingWorkspace::default();
         coupling.restore_pairs(state.coupled.into_iter().map(|(a, b)| super::CoupledPair { a, b }).collect());
         if let Phase::Relax { fire: Some(fire), .. } = &state.phase

@@ -108,6 +108,13 @@ def make_clusters() -> dict[str, Cluster]:
     for k, p in enumerate(pairs):
         het.pair_tension[p] = 0.9 + 0.16 * k
     c["hetero4"] = het
+    # Held out: made after profile.model_error was calibrated on the clusters above, at ratios and
+    # cell counts none of them has, to check the fit's accuracy and coverage on cases it was not
+    # tuned on (docs: Surface Evolver clusters, held-out fits).
+    c["heldout_ball8"] = Cluster("heldout_ball8", ball_seeds(8, np.random.default_rng(5), d), 0.75 * d, 0.70,
+                                 description="held out: 8 cells packed in a ball, 0.70")
+    c["heldout_triplet"] = Cluster("heldout_triplet", tri, 0.8 * d, 0.70,
+                                   description="held out: planar triplet, gamma_l/gamma_a = 0.70")
     return c
 
 

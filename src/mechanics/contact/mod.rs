@@ -50,6 +50,7 @@
 //! fixed order (cell, node), so results do not depend on the thread count.
 
 mod coupling;
+mod face_quadrature;
 mod spring;
 
 pub use coupling::{CoupledPair, CouplingWorkspace};
@@ -59,7 +60,7 @@ pub use spring::{
 };
 
 use super::CellForces;
-use super::{CellTypeParams, ContactModel};
+use super::{CellTypeParams, ContactModel, ContactQuadrature};
 use crate::geometry::{Real, SpatialGrid, TriangleRegion, Vec3, closest_point_on_triangle, triangle_area_gradients};
 use crate::mesh::{Adjacency, CellKind, FaceType, Tissue};
 use rayon::prelude::*;
@@ -129,6 +130,11 @@ struct Pair {
     /// The pair's own adhesion well A(d) (J/m²) and its slope dA/dd (Pa), before combining.
     well: Real,
     well_slope: Real,
+    /// Largest ω this pair may adhere with (Pa/m): 0 between two coupling cells, the nucleus's own
+    /// mean ω towards a nucleus, unbounded otherwise. Used by the face quadrature.
+    adhesion_cap: Real,
+    /// ∂E/∂d of the face quadrature (J/m): the sum over the faces around the node of A_f·∂Φ_f/∂d.
+    coefficient: Real,
 }
 
 /// Combines the pairs of one node (all other cells within the cutoff) into the node's energy density
@@ -168,6 +174,31 @@ fn combine_wells(pairs: &mut [Pair], depth: Real) {
     }
 }
 
+/// The face quadrature's version of [`combine_wells`]: for the partners of one face (their face
+/// means, [`face_quadrature::FaceTerm`]), Φ_f = Σ_k R̄_k − W·(1 − Π_k (1 − s_k)), s_k = Ā_k/(−W),
+/// W the face's well depth, and ∂Φ_f/∂d at the three corners for each partner. With one partner
+/// Φ_f = R̄ + Ā exactly.
+fn combine_face_wells(terms: &[face_quadrature::FaceTerm], depth: Real) -> (Real, Vec<[Real; 3]>) {
+    if let [t] = terms {
+        let g = std::array::from_fn(|k| t.repulsion_grad[k] + t.well_grad[k]);
+        return (t.repulsion + t.well, vec![g]);
+    }
+    let mut phi: Real = terms.iter().map(|t| t.repulsion).sum();
+    if depth <= 0.0 {
+        return (phi, terms.iter().map(|t| t.repulsion_grad).collect());
+    }
+    let free = |t: &face_quadrature::FaceTerm| 1.0 - (-t.well / depth).clamp(0.0, 1.0);
+    let all_free: Real = terms.iter().map(free).product();
+    phi -= depth * (1.0 - all_free);
+    let slopes = (0..terms.len())
+        .map(|k| {
+            let others: Real = terms.iter().enumerate().filter(|&(j, _)| j != k).map(|(_, t)| free(t)).product();
+            std::array::from_fn(|c| terms[k].repulsion_grad[c] + terms[k].well_grad[c] * others)
+        })
+        .collect();
+    (phi, slopes)
+}
+
 /// Reusable buffers of the contact stage.
 #[derive(Default)]
 pub struct ContactWorkspace {
@@ -183,6 +214,12 @@ pub struct ContactWorkspace {
     /// Which contact model the springs serve: with [`ContactModel::Coupling`], two coupling cells
     /// (epithelial or static) only repel each other (their adhesion is the coupling).
     model: ContactModel,
+    /// How the energy density is integrated over the surface (default: at the nodes).
+    quadrature: ContactQuadrature,
+    /// The cutoff of the last evaluation (pairs are searched farther with the face quadrature).
+    cutoff: Real,
+    /// Per cell, the face quadrature's energy density Φ_f of every face (J/m²).
+    face_density: Vec<Vec<Real>>,
     /// Time spent in the last evaluation, per phase.
     pub timings: ContactTimings,
 }
@@ -255,11 +292,23 @@ impl ContactWorkspace {
         self.model = model;
     }
 
+    /// Sets how the contact energy is integrated over the surface (default
+    /// [`ContactQuadrature::Vertices`]).
+    pub fn set_quadrature(&mut self, quadrature: ContactQuadrature) {
+        self.quadrature = quadrature;
+    }
+
     /// For each node of cell `cell` within the cutoff of another cell's surface at the last
     /// evaluation: (node, index of the other cell, signed distance d), one entry per other cell,
     /// nodes ascending.
     pub fn node_contacts(&self, cell: usize) -> impl Iterator<Item = (u32, u32, Real)> + '_ {
-        self.pairs.get(cell).into_iter().flatten().map(|p| (p.node, p.other, p.distance))
+        let cutoff = self.cutoff;
+        self.pairs
+            .get(cell)
+            .into_iter()
+            .flatten()
+            .filter(move |p| p.distance.abs() <= cutoff)
+            .map(|p| (p.node, p.other, p.distance))
     }
 
     /// Adds contact forces to `forces` (one entry per cell, internal forces already computed, so
@@ -275,6 +324,8 @@ impl ContactWorkspace {
         let cells = tissue.cells();
         let n = cells.len();
         self.pair_count = 0;
+        self.cutoff = cutoff;
+        let faces_mode = self.quadrature == ContactQuadrature::Faces;
         self.timings = ContactTimings::default();
         let started = std::time::Instant::now();
         if n < 2 || cutoff <= 0.0 {
@@ -285,7 +336,26 @@ impl ContactWorkspace {
         // Per-cell topology (cached until the triangles change).
         self.topology.par_iter_mut().zip(cells.par_iter()).for_each(|(topo, cell)| topo.update(cell.mesh()));
 
-        // Broad phase: every face's box padded by the cutoff, in one grid.
+        // Search radius: the cutoff; with the face quadrature, also every corner of a face that has
+        // a corner within the cutoff, which (the distance being 1-Lipschitz) lies within the cutoff
+        // plus the face's longest edge.
+        let search = if faces_mode {
+            let longest = cells
+                .par_iter()
+                .map(|cell| {
+                    let p = cell.mesh().positions();
+                    cell.mesh().triangles().iter().fold(0.0 as Real, |m, t| {
+                        let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+                        m.max((a - b).norm_squared()).max((b - c).norm_squared()).max((c - a).norm_squared())
+                    })
+                })
+                .reduce(|| 0.0, Real::max)
+                .sqrt();
+            cutoff + longest
+        } else {
+            cutoff
+        };
+        // Broad phase: every face's box padded by the search radius, in one grid.
         self.face_offsets.clear();
         self.face_offsets.push(0);
         self.boxes.clear();
@@ -294,8 +364,8 @@ impl ContactWorkspace {
             let p = cell.mesh().positions();
             for t in cell.mesh().triangles() {
                 let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
-                let lo = a.inf(&b).inf(&c).add_scalar(-cutoff);
-                let hi = a.sup(&b).sup(&c).add_scalar(cutoff);
+                let lo = a.inf(&b).inf(&c).add_scalar(-search);
+                let hi = a.sup(&b).sup(&c).add_scalar(search);
                 largest = largest.max((hi - lo).max());
                 self.boxes.push((lo, hi));
             }
@@ -424,12 +494,12 @@ impl ContactWorkspace {
                     let mut best: Option<(u32, crate::geometry::PointTriangle)> = None;
                     // Faces whose box lies farther than this cannot be the closest face within the
                     // cutoff (see `box_distance_squared`).
-                    let mut bound = cutoff + prune_margin;
+                    let mut bound = search + prune_margin;
                     for &g in &candidates[group_start..k] {
                         // A face farther than the cutoff cannot matter: skip it unless its padded
                         // box holds p (a few comparisons instead of an exact distance).
                         let bx = &boxes[g as usize];
-                        if !inside(p, bx) || box_distance_squared(p, bx, cutoff) > bound * bound {
+                        if !inside(p, bx) || box_distance_squared(p, bx, search) > bound * bound {
                             continue;
                         }
                         let f = g - face_offsets[b];
@@ -442,7 +512,7 @@ impl ContactWorkspace {
                         }
                     }
                     let Some((f, q)) = best else { continue };
-                    if q.distance > cutoff {
+                    if q.distance > search {
                         continue;
                     }
                     let t = mesh_b.triangles()[f as usize];
@@ -463,7 +533,7 @@ impl ContactWorkspace {
                         sign = -sign;
                     }
                     let d = sign * q.distance;
-                    if d < -cutoff {
+                    if d < -search {
                         continue;
                     }
                     let direction = match separation.try_normalize(0.0) {
@@ -472,12 +542,14 @@ impl ContactWorkspace {
                     };
                     let faces_a = topology[a].faces_of(node as u32);
                     let (mut omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
+                    let mut adhesion_cap = Real::INFINITY;
                     if coupling && cell_a.kind().is_cell() && cells[b].kind().is_cell() {
-                        omega = 0.0;
+                        adhesion_cap = 0.0;
                     }
                     if cells[b].kind() == CellKind::Nucleus {
-                        omega = omega.min(nucleus_adhesion[b]);
+                        adhesion_cap = adhesion_cap.min(nucleus_adhesion[b]);
                     }
+                    omega = omega.min(adhesion_cap);
                     let area: Real =
                         faces_a.iter().map(|&g| forces_ro[a].geometry.areas[g as usize]).sum::<Real>() / 3.0;
                     pairs.push(Pair {
@@ -492,9 +564,11 @@ impl ContactWorkspace {
                         sigma: repulsion_stress(d, cutoff, xi),
                         well: adhesion_energy_density(d, cutoff, omega),
                         well_slope: adhesion_stress(d, cutoff, omega),
+                        adhesion_cap,
+                        coefficient: 0.0,
                     });
                 }
-                if pairs.len() > first_pair {
+                if !faces_mode && pairs.len() > first_pair {
                     let faces_a = topology[a].faces_of(node as u32);
                     let (omega, _) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
                     combine_wells(&mut pairs[first_pair..], 0.25 * omega * cutoff * cutoff);
@@ -502,8 +576,31 @@ impl ContactWorkspace {
             }
         });
 
+        if faces_mode {
+            self.face_density.resize_with(n, Vec::new);
+            let topology = &self.topology;
+            self.pairs.par_iter_mut().zip(self.face_density.par_iter_mut()).enumerate().for_each(
+                |(a, (pairs, density))| {
+                    face_quadrature::assemble(
+                        &cells[a],
+                        cell_params[a],
+                        &forces_ro[a].geometry.areas,
+                        &topology[a],
+                        cutoff,
+                        pairs,
+                        density,
+                    )
+                },
+            );
+        }
+
         self.timings.narrow = started.elapsed();
         let started = std::time::Instant::now();
+        if faces_mode {
+            let total = self.apply_faces(tissue, forces);
+            self.timings.apply = started.elapsed();
+            return total;
+        }
         // Apply in a fixed order.
         let mut total = 0.0;
         for a in 0..n {
@@ -535,6 +632,46 @@ impl ContactWorkspace {
             total += energy;
         }
         self.timings.apply = started.elapsed();
+        total
+    }
+
+    /// Applies the face quadrature's pair coefficients and face densities in a fixed order: each
+    /// pair's −(∂E/∂d)·∂d/∂x on the node and the other cell's closest face, and each face's
+    /// −Φ_f·∇A_f. Returns the total contact energy Σ_f A_f·Φ_f.
+    fn apply_faces(&mut self, tissue: &Tissue, forces: &mut [CellForces]) -> Real {
+        let cells = tissue.cells();
+        let mut total = 0.0;
+        for a in 0..cells.len() {
+            for pair in &self.pairs[a] {
+                self.pair_count += 1;
+                if pair.coefficient == 0.0 {
+                    continue;
+                }
+                let push = pair.coefficient * pair.direction;
+                forces[a].forces[pair.node as usize] -= push;
+                let t = cells[pair.other as usize].mesh().triangles()[pair.face as usize];
+                for (k, &v) in t.iter().enumerate() {
+                    forces[pair.other as usize].forces[v as usize] += pair.weights[k] * push;
+                }
+            }
+            let mesh_a = cells[a].mesh();
+            let pa = mesh_a.positions();
+            let mut energy = 0.0;
+            for (g, &phi) in self.face_density[a].iter().enumerate() {
+                if phi == 0.0 {
+                    continue;
+                }
+                energy += forces[a].geometry.areas[g] * phi;
+                let tri = mesh_a.triangles()[g].map(|x| x as usize);
+                let scaled = phi * forces[a].geometry.normals[g];
+                let grad = triangle_area_gradients(&pa[tri[0]], &pa[tri[1]], &pa[tri[2]], &scaled);
+                for (v, gv) in tri.iter().zip(grad) {
+                    forces[a].forces[*v] -= gv;
+                }
+            }
+            forces[a].energy.contact = energy;
+            total += energy;
+        }
         total
     }
 }

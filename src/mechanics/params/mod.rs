@@ -94,6 +94,23 @@ impl ContactModel {
     pub const ALL: [ContactModel; 2] = [ContactModel::Spring, ContactModel::Coupling];
 }
 
+/// How the spring contact energy Σ a·Φ(d) is integrated over a cell's surface.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactQuadrature {
+    /// At the nodes: Σ_p a_p·Φ(d_p), a_p a third of the node's faces' areas (the paper's sampling).
+    #[default]
+    Vertices,
+    /// Over each face, exactly, with d linear between the face's corners (`contact::face_quadrature`):
+    /// the energy no longer depends on where nodes sit along an unchanged surface.
+    Faces,
+}
+
+impl ContactQuadrature {
+    /// All variants.
+    pub const ALL: [ContactQuadrature; 2] = [ContactQuadrature::Vertices, ContactQuadrature::Faces];
+}
+
 /// How face types (apical/lateral/basal) are assigned during a simulation.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -161,6 +178,10 @@ pub struct Numerics {
     pub dynamics: Dynamics,
     /// Contact model. Default [`ContactModel::Spring`].
     pub contact_model: ContactModel,
+    /// How spring contacts integrate their energy over the surface. Default
+    /// [`ContactQuadrature::Vertices`].
+    #[serde(default)]
+    pub contact_quadrature: ContactQuadrature,
     /// Coupling contacts tie the nodes of three or four cells where they meet (junction lines,
     /// quadruple points) into one group, not only pairs; false: one partner per node, as in the paper
     /// (see `contact::coupling`). Default true.
@@ -198,6 +219,7 @@ impl Numerics {
             time_step: 1e-7,
             dynamics,
             contact_model: ContactModel::Spring,
+            contact_quadrature: ContactQuadrature::Vertices,
             coupling_junctions: true,
             polarity: Polarity::None,
             polarity_voxel_size: 0.0,

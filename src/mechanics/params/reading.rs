@@ -29,6 +29,9 @@ pub(super) fn resolve(mut user: Table) -> Result<Parameters, Vec<String>> {
         if let Some(value) = user_numerics.get("contact_model") {
             parse_choice(value, &ContactModel::ALL, "numerics.contact_model", &mut problems);
         }
+        if let Some(value) = user_numerics.get("contact_quadrature") {
+            parse_choice(value, &ContactQuadrature::ALL, "numerics.contact_quadrature", &mut problems);
+        }
         if let Some(value) = user_numerics.get("polarity") {
             parse_choice(value, &Polarity::ALL, "numerics.polarity", &mut problems);
         }

@@ -373,3 +373,16 @@ fn the_mesh_dependent_numerics_a_model_and_its_overrides_set_are_told_apart_from
     assert!(fit.derived.is_empty());
     assert_eq!(fit.warnings.len(), 2, "Table 2's 0.2 µm on a 1 µm mesh: {fit:?}");
 }
+
+#[test]
+fn contact_quadrature_reads_defaults_to_vertices_and_rejects_bad_values() {
+    assert_eq!(load("").expect("loads").numerics.contact_quadrature, ContactQuadrature::Vertices);
+    let params = load("[numerics]\ncontact_quadrature = \"faces\"\n").expect("loads");
+    assert_eq!(params.numerics.contact_quadrature, ContactQuadrature::Faces);
+    let message = rejection("[numerics]\ncontact_quadrature = \"face\"\n");
+    assert!(
+        message
+            .contains("numerics.contact_quadrature = \"face\": unknown value, expected one of \"vertices\", \"faces\""),
+        "{message}"
+    );
+}

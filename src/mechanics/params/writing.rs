@@ -91,6 +91,15 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
                lumen and nuclei use springs).",
     },
     FieldDoc {
+        path: "numerics.contact_quadrature",
+        unit: "",
+        text: "Spring contacts only: how the energy density Φ(d) is integrated over a cell's surface. \"vertices\" (the \
+               paper's sampling: each node's area times Φ at the node) or \"faces\" (each face's exact mean of Φ with d \
+               linear between its corners; nodes are searched out to c plus the longest edge). With vertices the energy \
+               changes when nodes slide along an unchanged surface, which pushes the contact line of adhering cells off \
+               Young–Dupré (see the docs book: Design notes, Spring contacts and Young–Dupré).",
+    },
+    FieldDoc {
         path: "numerics.coupling_junctions",
         unit: "",
         text: "Coupling contacts only: where three or four cells meet (junction lines, quadruple points), tie one node of \
