@@ -79,17 +79,17 @@ fn report(case: &str, d: &[Real; 4], residual: Real) {
 fn differences(evolver: &Morphology, ours: &Morphology) -> [Real; 4] {
     assert_eq!(evolver.contacts.len(), ours.contacts.len(), "the contacts changed");
     let mut worst = [0.0; 4];
-    let volume = |m: &Morphology, c: u32| m.cells.iter().find(|x| x.cell == c).unwrap().volume;
     for (e, o) in evolver.contacts.iter().zip(&ours.contacts) {
         assert_eq!((e.cell_a, e.cell_b), (o.cell_a, o.cell_b));
-        let (fe, fo) =
-            (e.far_field_angle_deg.expect("evolver far field"), o.far_field_angle_deg.expect("our far field"));
-        worst[0] = Real::max(worst[0], (fo - fe).abs());
-        worst[1] = Real::max(worst[1], (o.contact_angle_deg.unwrap() - e.contact_angle_deg.unwrap()).abs());
-        let scaled = |m: &Morphology, c: &tissuefit::morphology::ContactMorphology| {
-            c.area / (0.5 * (volume(m, c.cell_a) + volume(m, c.cell_b))).powf(2.0 / 3.0)
-        };
-        worst[2] = Real::max(worst[2], (scaled(ours, o) / scaled(evolver, e) - 1.0).abs());
+        // Contacts enclosed by others (in the ball) have no free caps, so no far-field angle, and
+        // may have no rim; those columns skip them.
+        if let (Some(fe), Some(fo)) = (e.far_field_angle_deg, o.far_field_angle_deg) {
+            worst[0] = Real::max(worst[0], (fo - fe).abs());
+        }
+        if let (Some(re), Some(ro)) = (e.contact_angle_deg, o.contact_angle_deg) {
+            worst[1] = Real::max(worst[1], (ro - re).abs());
+        }
+        worst[2] = Real::max(worst[2], (scaled_area(ours, o) / scaled_area(evolver, e) - 1.0).abs());
     }
     for (e, o) in evolver.cells.iter().zip(&ours.cells) {
         worst[3] = Real::max(worst[3], (o.sphericity - e.sphericity).abs());
@@ -140,6 +140,41 @@ fn planar_triplet_stays_at_the_evolver_equilibrium() {
     let p = differences(&evolver, &slack);
     report("planar triplet, 0.85, l_max = 3.5·l_min (`max_edge_ratio = 3.5`)", &p, residual);
     assert!(p[0] < 1.0 && p[2] < 0.01, "{p:?}");
+}
+
+/// The 12-cell ball (151 junction vertices shared by three cells, 18 quadruple points), relaxed
+/// from Evolver's mesh at its own tensions like the others. Measured 2026-11-27: the total contact
+/// area stays within 0.5 % and 36 of its 38 contacts within 5 % (27 within 2 %), sphericity within
+/// 1.1e-3; the two smallest contacts (both of cell 4, 40 % of the mean contact area) grow by
+/// 10.5–10.8 % and their far-field angles by 5–6°. The bounds keep that with a margin; the docs'
+/// table row shows the worst contact.
+#[test]
+fn twelve_cell_ball_stays_near_the_evolver_equilibrium() {
+    let (evolver, ours, residual) = relax("ball12", true, 3000);
+    let d = differences(&evolver, &ours);
+    report("12-cell ball, 0.85 (worst of 38 contacts; see the text)", &d, residual);
+    let changes = contact_area_changes(&evolver, &ours);
+    let total = changes.iter().map(|c| c.1).sum::<Real>() / changes.iter().map(|c| c.0).sum::<Real>() - 1.0;
+    let off = changes.iter().filter(|c| (c.1 / c.0 - 1.0).abs() > 0.05).count();
+    eprintln!(
+        "ball12: total contact area {:+.2} %, {off} of {} contacts off by more than 5 %",
+        100.0 * total,
+        changes.len()
+    );
+    assert!(total.abs() < 0.01, "total contact area off by {:.2} %", 100.0 * total);
+    assert!(off <= 2, "{off} contacts off by more than 5 %: {changes:?}");
+    assert!(d[3] < 2e-3, "sphericity off by {:.4}", d[3]);
+}
+
+/// (Evolver, ours) scale-free contact areas A/V^(2/3) of every contact.
+fn contact_area_changes(evolver: &Morphology, ours: &Morphology) -> Vec<(Real, Real)> {
+    evolver.contacts.iter().zip(&ours.contacts).map(|(e, o)| (scaled_area(evolver, e), scaled_area(ours, o))).collect()
+}
+
+/// The scale-free area A/V^(2/3) of a contact (V: the mean volume of its two cells).
+fn scaled_area(m: &Morphology, c: &tissuefit::morphology::ContactMorphology) -> Real {
+    let volume = |id: u32| m.cells.iter().find(|x| x.cell == id).unwrap().volume;
+    c.area / (0.5 * (volume(c.cell_a) + volume(c.cell_b))).powf(2.0 / 3.0)
 }
 
 /// Evolver's meshes are conforming: a vertex on an interface, a junction line or a quadruple point

@@ -6,7 +6,8 @@
 #                                        (tests/evolver_clusters.rs, ~2 min)
 #   docs/src/generated/evolver-fits.md   `tissuefit run` fits of the label volumes (validation/evolver/
 #                                        run_fits.py; minutes to an hour: RESOLUTIONS, CLUSTERS narrow it)
-# Usage: docs/scripts/evolver.sh [relax|fits|all]   (default all)
+#   docs/src/generated/evolver-heldout.md the same for the held-out clusters (heldout_*; about 40 min)
+# Usage: docs/scripts/evolver.sh [relax|fits|heldout|all]   (default all)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 what=${1:-all}
@@ -24,4 +25,10 @@ if [ "$what" = fits ] || [ "$what" = all ]; then
     python3 validation/evolver/run_fits.py --only "${CLUSTERS:-doublet,triplet,tetra,ball12}" \
         --resolutions "${RESOLUTIONS:-10,20,40}" --work "$work" --markdown "$out/evolver-fits.md" \
         --json "$out/evolver-fits.json"
+fi
+if [ "$what" = heldout ] || [ "$what" = all ]; then
+    cargo build --release
+    work=$(mktemp -d)
+    python3 validation/evolver/run_fits.py --only heldout_triplet,heldout_ball8 \
+        --resolutions "${RESOLUTIONS:-10,20,40}" --work "$work" --markdown "$out/evolver-heldout.md"
 fi
