@@ -22,6 +22,13 @@
 //! ≥ γ − W; a configuration with W ≥ γ (complete wetting) has no equilibrium, and validation flags
 //! W ≥ 0.7γ (see `FaceParams::MAX_ADHESION_TENSION_RATIO`).
 //!
+//! **Quadrature.** The sum over nodes is the default (`numerics.contact_quadrature = "vertices"`).
+//! With `"faces"` the energy is Σ_f A_f·Φ_f instead, Φ_f the exact mean of Φ over face f with d
+//! linear between its corners ([`face_quadrature`]): the energy then no longer changes when nodes
+//! slide along an unchanged surface, which moves a doublet's contact line to Young–Dupré (docs:
+//! design note "Spring contacts and Young–Dupré"). Pairs are then searched out to c plus the
+//! longest edge, and kept down to that depth.
+//!
 //! **Forces** (exact: the distance's gradient is the unit separation û for p and −w_i·û for the
 //! vertices of B's closest face, w the barycentric weights): p gets −a_p σ û, the vertices of the face
 //! get +a_p σ w_i û (equal and opposite), and the faces around p get −Φ·∇a_p (the area term).
