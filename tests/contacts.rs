@@ -331,7 +331,18 @@ fn check_multi_partner_gradient(p: &Parameters) {
 /// Nodes near several cells (combined wells) give the same result on one and two threads.
 #[test]
 fn the_coarse_aggregate_is_bitwise_identical_on_one_and_two_threads() {
+    check_thread_independence(unit_adhesion_params());
+}
+
+/// The face quadrature (faces near several cells, pairs beyond the cutoff) too.
+#[test]
+fn the_face_quadrature_aggregate_is_bitwise_identical_on_one_and_two_threads() {
     let mut p = unit_adhesion_params();
+    p.numerics.contact_quadrature = ContactQuadrature::Faces;
+    check_thread_independence(p);
+}
+
+fn check_thread_independence(mut p: Parameters) {
     p.simulation.duration = 5e-6; // 50 steps
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
