@@ -127,7 +127,8 @@ struct Pair {
     weights: [Real; 3],
     /// ∂d/∂p: unit vector from B's closest point towards p, signed so that d grows along it.
     direction: Vec3,
-    /// Node area a_p (m²).
+    /// Node area a_p (m²); 0 with the face quadrature, which weights faces instead (as are `phi`,
+    /// `sigma`, `well` and `well_slope`).
     area: Real,
     /// Signed distance d (m).
     distance: Real,
@@ -473,6 +474,7 @@ impl ContactWorkspace {
                     continue;
                 }
                 let first_pair = pairs.len();
+                let mut node_terms: Option<(Real, Real, Real)> = None;
                 candidates.clear();
                 if oversized {
                     grid.for_each_at(p, |item| candidates.push(item));
@@ -547,8 +549,6 @@ impl ContactWorkspace {
                         Some(u) => sign * u,
                         None => sign * normals_b[f as usize],
                     };
-                    let faces_a = topology[a].faces_of(node as u32);
-                    let (mut omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
                     let mut adhesion_cap = Real::INFINITY;
                     if coupling && cell_a.kind().is_cell() && cells[b].kind().is_cell() {
                         adhesion_cap = 0.0;
@@ -556,9 +556,20 @@ impl ContactWorkspace {
                     if cells[b].kind() == CellKind::Nucleus {
                         adhesion_cap = adhesion_cap.min(nucleus_adhesion[b]);
                     }
-                    omega = omega.min(adhesion_cap);
-                    let area: Real =
-                        faces_a.iter().map(|&g| forces_ro[a].geometry.areas[g as usize]).sum::<Real>() / 3.0;
+                    // The node's own area and mean ω, ξ (once per node): the vertex quadrature's
+                    // energy; the face quadrature integrates per face in `face_quadrature::assemble`.
+                    let (area, omega, xi) = if faces_mode {
+                        (0.0, 0.0, 0.0)
+                    } else {
+                        *node_terms.get_or_insert_with(|| {
+                            let faces_a = topology[a].faces_of(node as u32);
+                            let (omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
+                            let area =
+                                faces_a.iter().map(|&g| forces_ro[a].geometry.areas[g as usize]).sum::<Real>() / 3.0;
+                            (area, omega, xi)
+                        })
+                    };
+                    let omega = omega.min(adhesion_cap);
                     pairs.push(Pair {
                         node: node as u32,
                         other: b as u32,
@@ -575,9 +586,7 @@ impl ContactWorkspace {
                         coefficient: 0.0,
                     });
                 }
-                if !faces_mode && pairs.len() > first_pair {
-                    let faces_a = topology[a].faces_of(node as u32);
-                    let (omega, _) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
+                if let Some((_, omega, _)) = node_terms {
                     combine_wells(&mut pairs[first_pair..], 0.25 * omega * cutoff * cutoff);
                 }
             }
