@@ -282,6 +282,59 @@ fn vertex_pseudo_normal(mesh: &crate::mesh::CellMesh, topo: &CellTopology, verte
     sum
 }
 
+/// +1 if `p` lies outside the closed surface `mesh`, −1 inside, from its closest point `q` on face
+/// `f`: the angle-weighted pseudo-normal of the closest feature (exact for a surface without
+/// self-overlap, Bærentzen & Aanæs 2005), or the winding number where the surface folds back on
+/// itself there ([`folded_feature`]; rare, so its O(faces) cost does not matter).
+fn outside_sign(
+    mesh: &crate::mesh::CellMesh,
+    topo: &CellTopology,
+    f: u32,
+    q: &crate::geometry::PointTriangle,
+    p: &Vec3,
+    normals: &[Vec3],
+) -> Real {
+    let t = mesh.triangles()[f as usize];
+    if folded_feature(topo, t, f, q.region, normals) {
+        return if mesh.winding_number(p) > 0.5 { -1.0 } else { 1.0 };
+    }
+    let pseudo = match q.region {
+        TriangleRegion::Face => normals[f as usize],
+        TriangleRegion::Edge(s) => {
+            let g = topo.face_neighbours[f as usize][s as usize];
+            normals[f as usize] + if g == u32::MAX { Vec3::zeros() } else { normals[g as usize] }
+        }
+        TriangleRegion::Vertex(v) => vertex_pseudo_normal(mesh, topo, t[v as usize], normals),
+    };
+    if (p - q.point).dot(&pseudo) < 0.0 { -1.0 } else { 1.0 }
+}
+
+/// Cosine of the angle between two adjacent faces' normals beyond which the surface is taken to
+/// fold back on itself (120°: sharper than any crease of a cell at a contact rim or junction, whose
+/// normals turn by at most about 90°).
+const FOLD_COS: Real = -0.5;
+
+/// Whether the surface folds back on itself at the closest feature (`region` of face `f`, corners
+/// `tri`): a face holding the feature whose normal is more than 120° from a neighbour's. The sign of the
+/// distance from a pseudo-normal is exact for a surface without self-overlap; at a fold (an inverted
+/// sliver at a sharp contact rim, a few nanometres high) it is arbitrary, and a node far away whose
+/// closest point lands there would be read as deep inside the other cell: a jump of the contact
+/// energy by the whole repulsion, at fixed geometry (issue 20: the w/(2γ) = 0.5 doublets).
+fn folded_feature(topo: &CellTopology, tri: [u32; 3], f: u32, region: TriangleRegion, normals: &[Vec3]) -> bool {
+    // Each face holding the feature against the faces across its three sides.
+    let folds = |g: u32| {
+        g != u32::MAX
+            && topo.face_neighbours[g as usize]
+                .iter()
+                .any(|&h| h != u32::MAX && normals[g as usize].dot(&normals[h as usize]) < FOLD_COS)
+    };
+    match region {
+        TriangleRegion::Face => folds(f),
+        TriangleRegion::Edge(s) => folds(f) || folds(topo.face_neighbours[f as usize][s as usize]),
+        TriangleRegion::Vertex(v) => topo.faces_of(tri[v as usize]).iter().any(|&g| folds(g)),
+    }
+}
+
 /// Mean of ω and ξ over the faces around a node.
 fn node_contact_parameters(faces: &[u32], face_types: &[FaceType], p: &CellTypeParams) -> (Real, Real) {
     let (mut w, mut x) = (0.0, 0.0);
@@ -317,6 +370,12 @@ impl ContactWorkspace {
             .flatten()
             .filter(move |p| p.distance.abs() <= cutoff)
             .map(|p| (p.node, p.other, p.distance))
+    }
+
+    /// The face quadrature's contact energy density Φ_f (J/m²) of every face of cell `cell` at the
+    /// last evaluation (empty with the vertex quadrature).
+    pub fn face_density(&self, cell: usize) -> &[Real] {
+        self.face_density.get(cell).map_or(&[], Vec::as_slice)
     }
 
     /// Adds contact forces to `forces` (one entry per cell, internal forces already computed, so
@@ -524,20 +583,9 @@ impl ContactWorkspace {
                     if q.distance > search {
                         continue;
                     }
-                    let t = mesh_b.triangles()[f as usize];
                     let normals_b = &forces_ro[b].geometry.normals;
-                    let pseudo = match q.region {
-                        TriangleRegion::Face => normals_b[f as usize],
-                        TriangleRegion::Edge(s) => {
-                            let g = topology[b].face_neighbours[f as usize][s as usize];
-                            normals_b[f as usize] + if g == u32::MAX { Vec3::zeros() } else { normals_b[g as usize] }
-                        }
-                        TriangleRegion::Vertex(v) => {
-                            vertex_pseudo_normal(mesh_b, &topology[b], t[v as usize], normals_b)
-                        }
-                    };
                     let separation = p - q.point;
-                    let mut sign = if separation.dot(&pseudo) < 0.0 { -1.0 } else { 1.0 };
+                    let mut sign = outside_sign(mesh_b, &topology[b], f, &q, p, normals_b);
                     if (cells[b].kind() == CellKind::Ecm && cell_a.kind() != CellKind::Ecm) || host[a] == Some(b) {
                         sign = -sign;
                     }
@@ -689,5 +737,112 @@ impl ContactWorkspace {
             total += energy;
         }
         total
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::closest_point_on_triangle;
+    use crate::mesh::CellMesh;
+
+    /// A box x ∈ [0, 1], y, z ∈ [−1, 1] whose front face (x = 0, outward −x) has an "ear" (c2, v,
+    /// c3) between its top edge c2–c3 and a rim node v at (0, y_v, 0). Oriented outward with
+    /// y_v > 1; moving v below 1 inverts the ear over the front face's triangle (k, c2, c3): the
+    /// fold the doublets at w/(2γ) = 0.5 made at their contact rim (issue 20).
+    fn box_with_ear(y_v: Real) -> (CellMesh, u32) {
+        let positions = vec![
+            Vec3::new(0.0, 0.0, 0.0),   // 0 k
+            Vec3::new(0.0, -1.0, -1.0), // 1 c1
+            Vec3::new(0.0, 1.0, -1.0),  // 2 c2
+            Vec3::new(0.0, 1.02, 0.0),  // 3 v (outside the chord while orienting)
+            Vec3::new(0.0, 1.0, 1.0),   // 4 c3
+            Vec3::new(0.0, -1.0, 1.0),  // 5 c4
+            Vec3::new(1.0, -1.0, -1.0), // 6 b1
+            Vec3::new(1.0, 1.0, -1.0),  // 7 b2
+            Vec3::new(1.0, 1.0, 1.0),   // 8 b3
+            Vec3::new(1.0, -1.0, 1.0),  // 9 b4
+        ];
+        let mut triangles: Vec<[u32; 3]> = vec![
+            [0, 1, 2],
+            [0, 2, 4],
+            [2, 3, 4], // the ear
+            [0, 4, 5],
+            [0, 5, 1],
+            [3, 2, 7],
+            [3, 7, 8],
+            [3, 8, 4],
+            [1, 6, 9],
+            [1, 9, 5],
+            [6, 7, 8],
+            [6, 8, 9],
+            [1, 2, 7],
+            [1, 7, 6],
+            [5, 4, 8],
+            [5, 8, 9],
+        ];
+        let centre = Vec3::new(0.5, 0.0, 0.0);
+        for t in &mut triangles {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            if (b - a).cross(&(c - a)).dot(&((a + b + c) / 3.0 - centre)) < 0.0 {
+                t.swap(1, 2);
+            }
+        }
+        let mut mesh = CellMesh::from_triangles(positions, triangles).expect("a closed box");
+        mesh.positions_mut()[3].y = y_v;
+        (mesh, 2)
+    }
+
+    fn unit_normals(mesh: &CellMesh) -> Vec<Vec3> {
+        let p = mesh.positions();
+        mesh.triangles()
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| p[i as usize]);
+                (b - a).cross(&(c - a)).normalize()
+            })
+            .collect()
+    }
+
+    /// Issue 20 regression: a node 0.3 in front of an inverted sliver at a contact rim was read as
+    /// 0.3 deep inside the other cell (the pseudo-normal of a folded feature points the wrong way),
+    /// and the contact energy jumped by the full repulsion at fixed geometry. Where the surface
+    /// folds, the winding number decides.
+    #[test]
+    fn a_folded_sliver_does_not_turn_an_outside_node_inside() {
+        let (mesh, ear) = box_with_ear(0.98);
+        let mut topo = CellTopology::default();
+        topo.update(&mesh);
+        let normals = unit_normals(&mesh);
+        let p = mesh.positions();
+        let [a, b, c] = mesh.triangles()[ear as usize].map(|i| p[i as usize]);
+        // The ear is inverted: its normal points into the box (+x).
+        assert!(normals[ear as usize].x > 0.99, "{:?}", normals[ear as usize]);
+        // In front of the ear (outside) and behind it, below the top face (inside).
+        for (x, y, expected) in [(-0.3, 0.993, 1.0), (0.3, 0.97, -1.0)] {
+            let node = Vec3::new(x, y, 0.0);
+            let q = closest_point_on_triangle(&node, &a, &b, &c);
+            assert!(folded_feature(&topo, mesh.triangles()[ear as usize], ear, q.region, &normals));
+            // The ear's own normal gives the wrong side: the trap is real.
+            if q.region == TriangleRegion::Face {
+                let naive = if (node - q.point).dot(&normals[ear as usize]) < 0.0 { -1.0 } else { 1.0 };
+                assert_eq!(naive, -expected, "x = {x}");
+            }
+            assert_eq!(outside_sign(&mesh, &topo, ear, &q, &node, &normals), expected, "x = {x}");
+        }
+        // Unfolded (v outside the chord), the same feature is not flagged and the pseudo-normal decides.
+        let (mesh, ear) = box_with_ear(1.02);
+        topo.update(&mesh);
+        let normals = unit_normals(&mesh);
+        assert!(!mesh.triangles().iter().enumerate().any(|(f, &t)| {
+            [TriangleRegion::Face, TriangleRegion::Edge(0), TriangleRegion::Vertex(0)]
+                .into_iter()
+                .any(|r| folded_feature(&topo, t, f as u32, r, &normals))
+        }));
+        let p = mesh.positions();
+        let [a, b, c] = mesh.triangles()[ear as usize].map(|i| p[i as usize]);
+        let node = Vec3::new(-0.3, 1.005, 0.0);
+        let q = closest_point_on_triangle(&node, &a, &b, &c);
+        assert_eq!(outside_sign(&mesh, &topo, ear, &q, &node, &normals), 1.0);
     }
 }
