@@ -10,7 +10,7 @@
 //! Options (lengths in µm): `--radius R` (2), `--lmin L` (0.2), `--cutoff C` (0.2), `--ratio r`
 //! (w/(2γ), 0.3), `--start touch|over` (touch: spheres 0.5·c apart; over: truncated spheres whose
 //! flat contact starts 15° beyond Young–Dupré's half-angle), `--normal` (simulation.normal_relaxation),
-//! `--steps N` (8000), `--settle N` (0: simulation.settle_steps), `--xi X` (repulsion, Pa/m; 1e12),
+//! `--steps N` (8000), `--settle N` (0: simulation.settle_steps), `--xi X` (repulsion, Pa/m; default ξ·c = 25 × 2γ/R, `laplace_repulsion`),
 //! `--method fire|integrate` (fire), `--remesh N` (50), `--quadrature vertices|faces`
 //! (numerics.contact_quadrature, vertices). One line per run, `key=value` separated by
 //! spaces, so that a shell loop over a grid makes a table (see docs: the Young–Dupré regime note).
@@ -21,7 +21,7 @@ use tissuefit::mechanics::{ContactQuadrature, Observer, Sample, Simulation, Simu
 
 #[path = "../tests/support/young_dupre.rs"]
 mod young_dupre;
-use young_dupre::{Doublet, far_field_half_angles, params, start, young_dupre};
+use young_dupre::{Doublet, far_field_half_angles, params, repulsion, start, young_dupre};
 
 struct Quiet;
 impl Observer for Quiet {
@@ -48,7 +48,7 @@ fn parse() -> Result<Doublet, String> {
             "--lmin" => a.lmin = number()? * 1e-6,
             "--cutoff" => a.cutoff = number()? * 1e-6,
             "--ratio" => a.ratio = number()?,
-            "--xi" => a.xi = number()?,
+            "--xi" => a.xi = Some(number()?),
             "--steps" => a.steps = number()? as u64,
             "--settle" => a.settle = number()? as u64,
             "--remesh" => a.remesh = number()? as u64,
@@ -96,13 +96,14 @@ fn run(a: &Doublet) -> Result<(), String> {
     let [ha, hb] = far_field_half_angles(sim.tissue(), 0.3 * r);
     let measured = 0.5 * (ha + hb);
     println!(
-        "radius_um={} lmin_um={} cutoff_um={} ratio={} start={} normal={} quadrature={} yd_deg={yd:.2} half_angle_deg={measured:.2} \
+        "radius_um={} lmin_um={} cutoff_um={} ratio={} xi={:.2e} start={} normal={} quadrature={} yd_deg={yd:.2} half_angle_deg={measured:.2} \
          error_deg={:+.2} cells_deg={ha:.2}/{hb:.2} overlap_pct={:.3} nodes_per_cell={nodes} steps={} converged={} \
          residual={:.3e} splits={} collapses={} wall_s={wall:.1} stop={:?}",
         a.radius * 1e6,
         a.lmin * 1e6,
         a.cutoff * 1e6,
         a.ratio,
+        repulsion(a),
         if a.over { "over" } else { "touch" },
         a.normal,
         if a.quadrature == ContactQuadrature::Faces { "faces" } else { "vertices" },

@@ -79,6 +79,21 @@ fn a_doublet_meshed_from_labels_and_simulated_with_defaults_gets_the_mesh_l_min_
     assert!((l_min / l_mesh - 1.0).abs() < 0.05, "derived {l_min:e} vs the meshing's {l_mesh:e}");
     assert_eq!(derived("numerics.contact_cutoff"), Some(l_min), "{defaults}");
     assert!(defaults["warnings"].as_array().unwrap().is_empty(), "{defaults}");
+    // Issue 20 item 3: the default spring repulsion (1e9 Pa/m, ξ·c = 570 Pa at this cutoff) let the
+    // cells sink into each other (3.5 % of a cell's volume after this run); the derived one holds 25 × the Laplace pressure 2γ̄/R of the
+    // cells (about 1.1 kPa at R ≈ 1.8 µm and 1 mN/m) at depth c, and the overlap stays small.
+    let repulsion = defaults["derived"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|d| d["key"].as_str().unwrap().ends_with(".faces.*.repulsion"))
+        .map(|d| d["value"].as_f64().unwrap())
+        .unwrap_or_else(|| panic!("no derived repulsion: {defaults}"));
+    let held = repulsion * l_min / 25.0;
+    assert!((800.0..1500.0).contains(&held), "ξ = {repulsion:e} Pa/m holds {held} Pa per 1/25 of c");
+    assert!(stderr.contains(".faces.*.repulsion = "), "{stderr}");
+    let overlap = summary["max_overlap_fraction"].as_f64().unwrap_or_else(|| panic!("{summary}"));
+    assert!(overlap <= 0.005, "overlap {overlap}");
     let mean_edge = defaults["mesh_mean_edge"].as_f64().unwrap();
     assert!((mean_edge / MEAN_EDGE_PER_MIN_EDGE - l_min).abs() < 1e-15, "{defaults}");
     // The resolved config holds them too, so the run can be repeated from it.
@@ -110,7 +125,9 @@ fn a_config_whose_l_min_and_cutoff_contradict_the_mesh_is_warned_about_with_the_
     let summary = json(&out.join("summary.json"));
     let defaults = &summary["mesh_defaults"];
     let l = defaults["mesh_min_edge_length"].as_f64().unwrap();
-    assert!(defaults["derived"].as_array().unwrap().is_empty(), "{defaults}");
+    // Only the spring repulsion, which the config leaves unset, is derived (from the cells' pressure).
+    let derived = defaults["derived"].as_array().unwrap();
+    assert!(derived.iter().all(|d| d["key"].as_str().unwrap().ends_with(".repulsion")), "{defaults}");
     let warnings: Vec<&str> = defaults["warnings"].as_array().unwrap().iter().map(|w| w.as_str().unwrap()).collect();
     assert_eq!(warnings.len(), 2, "{warnings:?}");
     let fix = format!("{l:.3e}");
@@ -249,4 +266,29 @@ fn simulate_two_steps(tissue: &Path, config: &Path, out: &Path) -> Output {
         ],
         &[],
     )
+}
+
+/// Issue 20 item 3: `config check --tissue` says what `simulate` would derive for that tissue and
+/// warns when a config's spring repulsion cannot hold the cells' Laplace pressure.
+#[test]
+fn config_check_against_a_tissue_derives_the_repulsion_and_warns_when_a_set_one_is_too_weak() {
+    let dir = tempfile::tempdir().unwrap();
+    let (tissue, _) = meshed_doublet(dir.path());
+    let weak = dir.path().join("weak.toml");
+    let mut text = String::from("[numerics]\ncontact_model = \"spring\"\n[[cell_types]]\n");
+    for face in ["apical", "lateral", "basal"] {
+        text += &format!("[cell_types.faces.{face}]\nrepulsion = 1e9\n");
+    }
+    std::fs::write(&weak, text).unwrap();
+    let unset = dir.path().join("unset.toml");
+    std::fs::write(&unset, "[numerics]\ncontact_model = \"spring\"\n").unwrap();
+    let check = |config: &Path| {
+        let o = tissuefit(&["config", "check", config.to_str().unwrap(), "--tissue", tissue.to_str().unwrap()], &[]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let stderr = check(&weak);
+    assert!(stderr.contains("its weakest repulsion ξ = 1.000e9 Pa/m") && stderr.contains("(1 warnings)"), "{stderr}");
+    let stderr = check(&unset);
+    assert!(stderr.contains("note: cell_types[0].faces.*.repulsion = ") && stderr.contains("(0 warnings)"), "{stderr}");
 }

@@ -16,8 +16,8 @@ use crate::io::{
     read_tissue, write_bytes_atomically, write_checkpoint, write_events, write_simucell3d,
 };
 use crate::mechanics::{
-    CellInside, CheckpointRequest, ExplicitNumerics, MeshFit, MeshScale, Observer, Parameters, RelaxMethod, Sample,
-    Simulation, SimulationError, SimulationMode, SimulationState, SimulationSummary,
+    CellInside, CheckpointRequest, ExplicitNumerics, MeshFit, Observer, Parameters, RelaxMethod, Sample, Simulation,
+    SimulationError, SimulationMode, SimulationState, SimulationSummary,
 };
 use crate::pipeline::{PipelineConfig, is_pipeline_file, run_simulate};
 use anyhow::{Context, bail};
@@ -168,10 +168,7 @@ fn fit_and_validate(
     tissue: &crate::mesh::Tissue,
     origin: &str,
 ) -> anyhow::Result<MeshFit> {
-    let fit = match MeshScale::of(tissue) {
-        Some(scale) => params.fit_to_mesh(explicit, &scale),
-        None => MeshFit::default(),
-    };
+    let fit = params.fit_to_tissue(explicit, tissue);
     for line in fit.lines() {
         eprintln!("note: {line}");
     }

@@ -11,7 +11,7 @@ use crate::io::{
     LengthScale, OutputGroup, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d,
     write_tissue,
 };
-use crate::mechanics::{MeshFit, MeshScale, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationMode};
+use crate::mechanics::{MeshFit, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationMode};
 use crate::mesh::{CellKind, Tissue};
 use crate::meshing::{LabelReport, LabelStatus, generate_tissue, mesh_labels};
 use crate::morphology::{MeasureSettings, Morphology, compare_tissues, measure_tissue};
@@ -480,10 +480,7 @@ fn fit_model_to_mesh(section: &SimulateSection, t: &Tissue) -> Result<(Parameter
         Parameters::load_with_overrides_explicit(section.model.as_deref(), section.model_overrides.as_ref())
             .map_err(|e| e.to_string())?;
     let before = params.validate().map_err(|e| format!("{origin}: {e}"))?;
-    let fit = match MeshScale::of(t) {
-        Some(scale) => params.fit_to_mesh(&explicit, &scale),
-        None => MeshFit::default(),
-    };
+    let fit = params.fit_to_tissue(&explicit, t);
     for w in &fit.warnings {
         tracing::warn!("{origin}: {w}");
     }

@@ -12,6 +12,14 @@
 //! ratio 0.5) when the estimate ([`super::TimeStepLimit`]) at the new l_min puts the default above
 //! half the limit. What a config sets is kept, but contradictions with the mesh are warned about
 //! with the numbers and the change to make.
+//!
+//! With the spring contact model and no `repulsion` set anywhere in the config, the repulsion ξ of
+//! each moving cell type is derived from its cells ([`Parameters::fit_to_tissue`], issue 20 item 3):
+//! ξ·c = [`crate::mechanics::REPULSION_PER_PRESSURE`] × the largest Laplace pressure 2γ̄/R of its
+//! cells (capped at max_pressure), so that contacts sink c/25 and cells never pass through each
+//! other; the default 1e9 Pa/m holds only 200 Pa at c = 0.2 µm, below the 480 Pa of an 8 µm cell at
+//! 1 mN/m. The time step is then derived again (the stiffer contacts lower the stable step) unless
+//! the config sets it.
 
 use super::writing::fmt_real_short;
 use super::*;
@@ -38,20 +46,30 @@ pub struct ExplicitNumerics {
     pub min_edge_length: bool,
     pub contact_cutoff: bool,
     pub time_step: bool,
+    /// The config sets `repulsion` on some face type of some cell type (then no ξ is derived).
+    pub repulsion: bool,
 }
 
 impl ExplicitNumerics {
     /// Everything set: nothing is derived (a resumed run keeps its resolved parameters).
-    pub const ALL: Self = Self { min_edge_length: true, contact_cutoff: true, time_step: true };
+    pub const ALL: Self = Self { min_edge_length: true, contact_cutoff: true, time_step: true, repulsion: true };
 
     /// The keys a user's TOML table (a parameter file, with any overrides merged in) sets.
     pub fn of_table(table: &Table) -> Self {
         let numerics = table.get("numerics").and_then(Value::as_table);
         let set = |key: &str| numerics.is_some_and(|n| n.contains_key(key));
+        let repulsion = table.get("cell_types").and_then(Value::as_array).is_some_and(|types| {
+            types.iter().any(|t| {
+                t.get("faces").and_then(Value::as_table).is_some_and(|faces| {
+                    faces.values().any(|f| f.as_table().is_some_and(|f| f.contains_key("repulsion")))
+                })
+            })
+        });
         Self {
             min_edge_length: set("min_edge_length"),
             contact_cutoff: set("contact_cutoff"),
             time_step: set("time_step"),
+            repulsion,
         }
     }
 }
@@ -108,7 +126,13 @@ impl MeshFit {
             .iter()
             .map(|d| {
                 let show = |v: Real| {
-                    if d.key == "numerics.time_step" { format!("{} s", fmt_real_short(v)) } else { um(v) }
+                    if d.key == "numerics.time_step" {
+                        format!("{} s", fmt_real_short(v))
+                    } else if d.key.ends_with(".repulsion") {
+                        format!("{v:.3e} Pa/m")
+                    } else {
+                        um(v)
+                    }
                 };
                 format!(
                     "{} = {} (default {}): {}; set it in the config to choose another",
@@ -200,34 +224,119 @@ impl Parameters {
         }
         // Only a derived l_min moves the stability estimate away from what validating the config saw.
         if !explicit.time_step && !explicit.min_edge_length {
-            // The largest stable step over the moving cell types, and how close the default is.
-            let limits: Vec<TimeStepLimit> = self.time_step_limits().into_iter().filter(|t| !t.immobile).collect();
-            let worst = limits
-                .iter()
-                .map(|t| match self.numerics.dynamics {
-                    Dynamics::Dynamic => t.damping_ratio.max(t.oscillation_ratio),
-                    Dynamics::Overdamped => t.overdamped_ratio,
-                })
-                .fold(0.0, Real::max);
-            let max_step = limits.iter().map(|t| t.max_time_step).fold(Real::INFINITY, Real::min);
-            if worst > TimeStepLimit::LIMIT / 2.0 && max_step.is_finite() && max_step > 0.0 {
-                let dt = max_step / 4.0;
-                self.numerics.time_step = dt;
-                derived.push(DerivedValue {
-                    key: "numerics.time_step".to_string(),
-                    value: dt,
-                    default: defaults.time_step,
-                    from: format!(
-                        "a quarter of the largest stable step {} s estimated at min_edge_length = {} (the default's \
-                         stability ratio {:.2} is above half the limit {})",
-                        fmt_real_short(max_step),
-                        um(self.numerics.min_edge_length),
-                        worst,
-                        TimeStepLimit::LIMIT
-                    ),
-                });
-            }
+            derived.extend(self.derive_time_step());
         }
         MeshFit { mesh_mean_edge: Some(scale.mean_edge), mesh_min_edge_length: Some(l), derived, warnings }
+    }
+
+    /// [`Parameters::fit_to_mesh`] with the scale of `tissue`, then, with the spring contact model and
+    /// no `repulsion` in the config, the repulsion of each moving cell type derived from its cells
+    /// (module doc), and the time step derived again for the stiffer contacts unless the config sets
+    /// it. What the simulate command and the pipeline's simulate stage call.
+    pub fn fit_to_tissue(&mut self, explicit: &ExplicitNumerics, tissue: &Tissue) -> MeshFit {
+        let mut fit = match MeshScale::of(tissue) {
+            Some(scale) => self.fit_to_mesh(explicit, &scale),
+            None => MeshFit::default(),
+        };
+        if explicit.repulsion || self.numerics.contact_model != ContactModel::Spring || tissue.len() < 2 {
+            return fit;
+        }
+        let repulsions = self.derive_repulsion(tissue);
+        if repulsions.is_empty() {
+            return fit;
+        }
+        fit.derived.extend(repulsions);
+        if !explicit.time_step
+            && let Some(step) = self.derive_time_step()
+        {
+            fit.derived.retain(|d| d.key != step.key);
+            fit.derived.push(step);
+        }
+        fit
+    }
+
+    /// Sets the repulsion of every face type of each cell type with moving (epithelial) cells in
+    /// `tissue` to [`crate::mechanics::laplace_repulsion`] of its largest-pressure cell.
+    fn derive_repulsion(&mut self, tissue: &Tissue) -> Vec<DerivedValue> {
+        let c = self.numerics.contact_cutoff;
+        if !(c.is_finite() && c > 0.0) {
+            return Vec::new();
+        }
+        // Per cell type: (largest pressure, radius of that cell).
+        let mut worst: Vec<Option<(Real, Real)>> = vec![None; self.cell_types.len()];
+        for cell in tissue.cells() {
+            if cell.kind() != CellKind::Epithelial {
+                continue;
+            }
+            let Some(p) = self.cell_types.get(cell.cell_type() as usize) else { continue };
+            let radius = (3.0 * cell.mesh().signed_volume() / (4.0 * std::f64::consts::PI)).cbrt();
+            let pressure = (2.0 * p.mean_tension(cell) / radius).min(p.max_pressure);
+            if !(pressure.is_finite() && pressure > 0.0) {
+                continue;
+            }
+            let slot = &mut worst[cell.cell_type() as usize];
+            if slot.is_none_or(|(q, _)| pressure > q) {
+                *slot = Some((pressure, radius));
+            }
+        }
+        let mut derived = Vec::new();
+        for (t, entry) in worst.into_iter().enumerate() {
+            let Some((pressure, radius)) = entry else { continue };
+            let xi = crate::mechanics::REPULSION_PER_PRESSURE * pressure / c;
+            let faces = &mut self.cell_types[t].faces;
+            let default = faces.get(FaceType::Lateral).repulsion;
+            for ft in FaceType::ALL {
+                faces.get_mut(ft).repulsion = xi;
+            }
+            derived.push(DerivedValue {
+                key: format!("cell_types[{t}].faces.*.repulsion"),
+                value: xi,
+                default,
+                from: format!(
+                    "ξ·c = {} × the Laplace pressure 2γ̄/R = {:.0} Pa of its largest-pressure cell (R ≈ {}, cutoff c = {}), \
+                     so that contacts sink c/{}",
+                    crate::mechanics::REPULSION_PER_PRESSURE,
+                    pressure,
+                    um(radius),
+                    um(c),
+                    crate::mechanics::REPULSION_PER_PRESSURE
+                ),
+            });
+        }
+        derived
+    }
+
+    /// The time step lowered to a quarter of the largest stable one when the current one's stability
+    /// ratio is above half the limit ([`TimeStepLimit`]); `None` when it is kept.
+    fn derive_time_step(&mut self) -> Option<DerivedValue> {
+        let defaults = Numerics::default_for(self.numerics.dynamics);
+        // The largest stable step over the moving cell types, and how close the current one is.
+        let limits: Vec<TimeStepLimit> = self.time_step_limits().into_iter().filter(|t| !t.immobile).collect();
+        let worst = limits
+            .iter()
+            .map(|t| match self.numerics.dynamics {
+                Dynamics::Dynamic => t.damping_ratio.max(t.oscillation_ratio),
+                Dynamics::Overdamped => t.overdamped_ratio,
+            })
+            .fold(0.0, Real::max);
+        let max_step = limits.iter().map(|t| t.max_time_step).fold(Real::INFINITY, Real::min);
+        if !(worst > TimeStepLimit::LIMIT / 2.0 && max_step.is_finite() && max_step > 0.0) {
+            return None;
+        }
+        let dt = max_step / 4.0;
+        self.numerics.time_step = dt;
+        Some(DerivedValue {
+            key: "numerics.time_step".to_string(),
+            value: dt,
+            default: defaults.time_step,
+            from: format!(
+                "a quarter of the largest stable step {} s estimated at min_edge_length = {} (the stability ratio \
+                 {:.2} was above half the limit {})",
+                fmt_real_short(max_step),
+                um(self.numerics.min_edge_length),
+                worst,
+                TimeStepLimit::LIMIT
+            ),
+        })
     }
 }

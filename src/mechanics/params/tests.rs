@@ -351,13 +351,19 @@ fn the_mesh_dependent_numerics_a_model_and_its_overrides_set_are_told_apart_from
     std::fs::write(&model, "[numerics]\nmin_edge_length = 5e-7\ncontact_cutoff = 5e-7\n").unwrap();
     let (params, explicit) = Parameters::load_explicit(&model).unwrap();
     assert_eq!(params.numerics.min_edge_length, 5e-7);
-    assert_eq!(explicit, ExplicitNumerics { min_edge_length: true, contact_cutoff: true, time_step: false });
+    assert_eq!(
+        explicit,
+        ExplicitNumerics { min_edge_length: true, contact_cutoff: true, time_step: false, repulsion: false }
+    );
     // A value equal to its default still counts as set: it is the user's choice.
     let overrides: Table = toml::from_str("[numerics]\ntime_step = 1e-7\n[simulation]\nmax_steps = 10\n").unwrap();
     let (_, explicit) = Parameters::load_with_overrides_explicit(None, Some(&overrides)).unwrap();
-    assert_eq!(explicit, ExplicitNumerics { min_edge_length: false, contact_cutoff: false, time_step: true });
+    assert_eq!(
+        explicit,
+        ExplicitNumerics { min_edge_length: false, contact_cutoff: false, time_step: true, repulsion: false }
+    );
     let (_, explicit) = Parameters::load_with_overrides_explicit(Some(&model), Some(&overrides)).unwrap();
-    assert_eq!(explicit, ExplicitNumerics::ALL);
+    assert_eq!(explicit, ExplicitNumerics { repulsion: false, ..ExplicitNumerics::ALL });
     // Nothing set: everything is derived from the mesh; the cutoff follows l_min.
     let mut params = Parameters::default();
     let scale = MeshScale { mean_edge: 1.4e-6, min_edge_length: 1e-6 };
@@ -385,4 +391,43 @@ fn contact_quadrature_reads_defaults_to_vertices_and_rejects_bad_values() {
             .contains("numerics.contact_quadrature = \"face\": unknown value, expected one of \"vertices\", \"faces\""),
         "{message}"
     );
+}
+
+/// Issue 20 item 3: with the spring model and no `repulsion` in the config, each moving cell type's ξ
+/// holds 25 × the Laplace pressure of its cells at depth c; a config's own ξ, or the coupling model,
+/// keeps the values it has.
+#[test]
+fn spring_repulsion_is_derived_from_the_laplace_pressure_unless_the_config_sets_it() {
+    use crate::geometry::Vec3;
+    use crate::mesh::{Cell, CellId, CellKind, Tissue, shapes::icosphere};
+    let cell = |id: u32, x: Real| {
+        let mesh = icosphere(3e-6, 3, Vec3::new(x, 0.0, 0.0));
+        Cell::new(CellId(id), CellKind::Epithelial, 0, mesh)
+    };
+    let tissue = Tissue::from_cells(vec![cell(1, -3.05e-6), cell(2, 3.05e-6)]).unwrap();
+    let table: Table = toml::from_str("[[cell_types]]\n[cell_types.faces.basal]\nrepulsion = 2e10\n").unwrap();
+    assert!(ExplicitNumerics::of_table(&table).repulsion);
+    let mut params = Parameters::default();
+    let explicit = ExplicitNumerics { min_edge_length: true, contact_cutoff: true, ..ExplicitNumerics::default() };
+    let fit = params.fit_to_tissue(&explicit, &tissue);
+    let xi = fit.derived_value("cell_types[0].faces.*.repulsion").expect("derived");
+    // The icosphere's volume is a little below the sphere's: R from the volume, 2γ/R ≈ 670 Pa.
+    let radius = (3.0 * tissue.cells()[0].mesh().signed_volume() / (4.0 * std::f64::consts::PI)).cbrt();
+    let expected = 25.0 * 2.0 * 1e-3 / radius / params.numerics.contact_cutoff;
+    assert!((xi / expected - 1.0).abs() < 1e-12, "{xi:e} vs {expected:e}");
+    for ft in FaceType::ALL {
+        assert_eq!(params.cell_types[0].faces.get(ft).repulsion, xi);
+    }
+    assert!(fit.lines().iter().any(|l| l.contains("Pa/m (default 1.000e9 Pa/m)")), "{:?}", fit.lines());
+    // Set by the config, or the coupling model: nothing derived.
+    for (explicit, model) in
+        [(ExplicitNumerics { repulsion: true, ..explicit }, ContactModel::Spring), (explicit, ContactModel::Coupling)]
+    {
+        let mut params = Parameters::default();
+        params.numerics.contact_model = model;
+        let before = params.clone();
+        let fit = params.fit_to_tissue(&explicit, &tissue);
+        assert!(fit.derived.is_empty(), "{fit:?}");
+        assert_eq!(params, before);
+    }
 }
