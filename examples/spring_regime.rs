@@ -10,7 +10,7 @@
 //! Options (lengths in µm): `--radius R` (2), `--lmin L` (0.2), `--cutoff C` (0.2), `--ratio r`
 //! (w/(2γ), 0.3), `--start touch|over` (touch: spheres 0.5·c apart; over: truncated spheres whose
 //! flat contact starts 15° beyond Young–Dupré's half-angle), `--normal` (simulation.normal_relaxation),
-//! `--steps N` (8000), `--settle N` (0: simulation.settle_steps), `--xi X` (repulsion, Pa/m; default ξ·c = 25 × 2γ/R, `laplace_repulsion`),
+//! `--steps N` (8000), `--settle N` (0: simulation.settle_steps), `--xi X` (repulsion, Pa/m; 1e12),
 //! `--method fire|integrate` (fire), `--remesh N` (50), `--quadrature vertices|faces`
 //! (numerics.contact_quadrature, vertices). One line per run, `key=value` separated by
 //! spaces, so that a shell loop over a grid makes a table (see docs: the Young–Dupré regime note).
@@ -21,7 +21,7 @@ use tissuefit::mechanics::{ContactQuadrature, Observer, Sample, Simulation, Simu
 
 #[path = "../tests/support/young_dupre.rs"]
 mod young_dupre;
-use young_dupre::{Doublet, far_field_half_angles, params, repulsion, start, young_dupre};
+use young_dupre::{Doublet, far_field_half_angles, params, start, young_dupre};
 
 struct Quiet;
 impl Observer for Quiet {
@@ -48,7 +48,7 @@ fn parse() -> Result<Doublet, String> {
             "--lmin" => a.lmin = number()? * 1e-6,
             "--cutoff" => a.cutoff = number()? * 1e-6,
             "--ratio" => a.ratio = number()?,
-            "--xi" => a.xi = Some(number()?),
+            "--xi" => a.xi = number()?,
             "--steps" => a.steps = number()? as u64,
             "--settle" => a.settle = number()? as u64,
             "--remesh" => a.remesh = number()? as u64,
@@ -103,7 +103,7 @@ fn run(a: &Doublet) -> Result<(), String> {
         a.lmin * 1e6,
         a.cutoff * 1e6,
         a.ratio,
-        repulsion(a),
+        a.xi,
         if a.over { "over" } else { "touch" },
         a.normal,
         if a.quadrature == ContactQuadrature::Faces { "faces" } else { "vertices" },

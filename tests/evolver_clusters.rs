@@ -143,11 +143,12 @@ fn planar_triplet_stays_at_the_evolver_equilibrium() {
 }
 
 /// The 12-cell ball (151 junction vertices shared by three cells, 18 quadruple points), relaxed
-/// from Evolver's mesh at its own tensions like the others. Measured 2026-11-27: the total contact
-/// area stays within 0.5 % and 36 of its 38 contacts within 5 % (27 within 2 %), sphericity within
-/// 1.1e-3; the two smallest contacts (both of cell 4, 40 % of the mean contact area) grow by
-/// 10.5–10.8 % and their far-field angles by 5–6°. The bounds keep that with a margin; the docs'
-/// table row shows the worst contact.
+/// from Evolver's mesh at its own tensions like the others. Measured 2026-11-27 (after the contact
+/// sign at folded features came from the winding number): the total contact area stays within
+/// 0.9 % and 35 of its 38 contacts within 5 % (30 within 2 %), the worst at −6.3 %, sphericity within
+/// 2e-3. Before that fix two contacts of cell 4 grew by 10.5 and 10.8 %: a node a few nanometres
+/// from a folded junction sliver had been read as inside its neighbour and pushed out. The bounds
+/// keep the measured values with a margin; the docs' table row shows the worst contact.
 #[test]
 fn twelve_cell_ball_stays_near_the_evolver_equilibrium() {
     let (evolver, ours, residual) = relax("ball12", true, 3000);
@@ -161,8 +162,10 @@ fn twelve_cell_ball_stays_near_the_evolver_equilibrium() {
         100.0 * total,
         changes.len()
     );
+    let worst = changes.iter().map(|c| (c.1 / c.0 - 1.0).abs()).fold(0.0, Real::max);
     assert!(total.abs() < 0.01, "total contact area off by {:.2} %", 100.0 * total);
-    assert!(off <= 2, "{off} contacts off by more than 5 %: {changes:?}");
+    assert!(worst < 0.08, "a contact off by {:.1} %: {changes:?}", 100.0 * worst);
+    assert!(off <= 3, "{off} contacts off by more than 5 %: {changes:?}");
     assert!(d[3] < 2e-3, "sphericity off by {:.4}", d[3]);
 }
 

@@ -341,7 +341,12 @@ fn the_pipeline_fit_line_says_a_value_is_at_its_search_bound_as_tissuefit_fit_do
         serde_json::from_str(&std::fs::read_to_string(run.join("simulate/simulation.json")).unwrap()).unwrap();
     let derived = simulation["mesh_defaults"]["derived"].as_array().unwrap();
     let keys: Vec<&str> = derived.iter().map(|d| d["key"].as_str().unwrap()).collect();
-    assert_eq!(keys, ["numerics.min_edge_length", "numerics.contact_cutoff"], "{simulation}");
+    // And the default spring model's repulsion, from the cells' Laplace pressure (issue 20 item 3).
+    assert_eq!(
+        keys,
+        ["numerics.min_edge_length", "numerics.contact_cutoff", "cell_types[0].faces.*.repulsion"],
+        "{simulation}"
+    );
     let l_mesh: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("mesh/report.json")).unwrap()).unwrap();
     let (l_min, l_mesh) = (derived[0]["value"].as_f64().unwrap(), l_mesh["l_min"].as_f64().unwrap());

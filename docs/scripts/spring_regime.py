@@ -41,12 +41,16 @@ def grid(quick):
     return runs
 
 
-def run_one(binary, steps, spec):
+def run_one(binary, steps, timeout, spec):
     quadrature, r, l, c, ratio, start = spec
     args = [binary, "--quadrature", quadrature, "--radius", str(r), "--lmin", str(l), "--cutoff", str(c),
             "--ratio", str(ratio), "--start", start, "--steps", str(steps)]
     env = dict(os.environ, RAYON_NUM_THREADS="1")
-    proc = subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        proc = subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                              timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return {"spec": spec, "error": f"did not finish in {timeout:.0f} s (stopped)"}
     if proc.returncode != 0:
         return {"spec": spec, "error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "failed"}
     line = proc.stdout.strip().splitlines()[-1]
@@ -65,12 +69,13 @@ def main():
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--steps", type=int, default=40000)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--timeout", type=float, default=600.0, help="seconds per run before it is stopped")
     ap.add_argument("--markdown", help="write the table here")
     a = ap.parse_args()
     runs = grid(a.quick)
     rows = []
     with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
-        for row in pool.map(lambda s: run_one(a.binary, a.steps, s), runs):
+        for row in pool.map(lambda s: run_one(a.binary, a.steps, a.timeout, s), runs):
             q, r, l, c, ratio, start = row["spec"]
             msg = row.get("error") or f"half-angle {row['half_angle_deg']}° vs {row['yd_deg']}° ({row['error_deg']}°)"
             print(f"{q} R={r} l={l} c={c} w/2γ={ratio} {start}: {msg}", file=sys.stderr, flush=True)
@@ -79,17 +84,18 @@ def main():
     verts = [float(x["error_deg"]) for x in rows if "error" not in x and x["spec"][0] == "vertices"]
     failed = {q: sum(1 for x in rows if "error" in x and x["spec"][0] == q) for q in ("faces", "vertices")}
     out = ["| quadrature | R (µm) | l_min (µm) | c (µm) | l_min/c | w/(2γ) | start | Young–Dupré | measured | error "
-           "| overlap | nodes/cell | splits + collapses | wall |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+           "| overlap | ξ (Pa/m) | steps | residual | nodes/cell | splits + collapses | wall |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for x in rows:
         q, r, l, c, ratio, start = x["spec"]
         if "error" in x:
-            out.append(f"| {q} | {r} | {l} | {c} | {l / c:.1f} | {ratio} | {start} | | failed: {x['error']} | | | | | |")
+            out.append(f"| {q} | {r} | {l} | {c} | {l / c:.1f} | {ratio} | {start} | | failed: {x['error']} | | | | | | | | |")
             continue
         ops = int(x["splits"]) + int(x["collapses"])
         out.append(f"| {q} | {r} | {l} | {c} | {l / c:.1f} | {ratio} | {start} | {float(x['yd_deg']):.1f}° | "
                    f"{float(x['half_angle_deg']):.1f}° | {float(x['error_deg']):+.1f}° | {float(x['overlap_pct']):.3f} % | "
-                   f"{x['nodes_per_cell']} | {ops} | {float(x['wall_s']):.0f} s |")
+                   f"{float(x['xi']):.1e} | {x['steps']}{'' if x['converged'] == 'true' else ' (max)'} | "
+                   f"{float(x['residual']):.1e} | {x['nodes_per_cell']} | {ops} | {float(x['wall_s']):.0f} s |")
     summary = []
     for name, errs in (("faces", faces), ("vertices", verts)):
         if errs:

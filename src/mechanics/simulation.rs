@@ -373,18 +373,23 @@ pub const OVERLAP_WARNING: Real = 5e-3;
 /// How many times the Laplace pressure the largest repulsive stress ξ·c must be
 /// ([`Simulation::repulsion_shortfalls`]): then the equilibrium depth p/ξ stays below c/4.
 pub const REPULSION_MARGIN: Real = 4.0;
-/// The spring repulsion [`laplace_repulsion`] derives: ξ·c this many times the Laplace pressure, so
-/// that a contact at that pressure sinks c/25 (a few nanometres at c = 0.2 µm), and two cells
-/// overlap by well under 0.5 % of their volume at c/R ≤ 0.2. Stiffer costs relaxation speed: the
-/// repulsion's stiffness ξ·l² against the tension γ sets how many steps FIRE needs (an R = 10 µm
-/// doublet at ξ = 1e12 Pa/m, 500 times the Laplace pressure, ended 29° short of Young–Dupré after
-/// 40,000 steps; at this value it converges).
+/// The spring repulsion [`derived_repulsion`] takes at least: ξ·c this many times the Laplace
+/// pressure, so that a contact at that pressure sinks c/25 (a few nanometres at c = 0.2 µm) and two
+/// cells overlap by well under 0.5 % of their volume at c/R ≤ 0.2.
 pub const REPULSION_PER_PRESSURE: Real = 25.0;
+/// And at least this many times the adhesion ω, so that the repulsion's barrier ξc²/2 at depth c is
+/// 40 times the well's depth ωc²/4: at w/(2γ) = 0.5 on an R = 2 µm doublet (ω = 5e10 Pa/m),
+/// ξ = 2.5·ω let the contact collapse under FIRE (far-field angle 19° off Young–Dupré) where 20·ω
+/// reached it within 2° (docs: design note "Spring contacts and Young–Dupré").
+pub const REPULSION_PER_ADHESION: Real = 20.0;
 
-/// The spring repulsion ξ (Pa/m) that holds cells of mean tension γ̄ (N/m) and radius `radius` (m)
-/// with contact cutoff c (m): ξ·c = [`REPULSION_PER_PRESSURE`] × 2γ̄/R.
-pub fn laplace_repulsion(mean_tension: Real, radius: Real, cutoff: Real) -> Real {
-    REPULSION_PER_PRESSURE * 2.0 * mean_tension / radius / cutoff
+/// The spring repulsion ξ (Pa/m) that holds cells of mean tension γ̄ (N/m), radius `radius` (m) and
+/// adhesion ω (Pa/m) with contact cutoff c (m): the larger of ξ·c = [`REPULSION_PER_PRESSURE`] × 2γ̄/R
+/// and [`REPULSION_PER_ADHESION`] × ω. Stiffer costs relaxation speed: the stiffness ξ·l_min²
+/// against γ sets how many steps FIRE needs (an R = 10 µm doublet at ξ = 1e12 Pa/m stopped 29°
+/// short of Young–Dupré after 40,000 steps, at 2.5e10 Pa/m 2.2° short).
+pub fn derived_repulsion(mean_tension: Real, radius: Real, cutoff: Real, adhesion: Real) -> Real {
+    (REPULSION_PER_PRESSURE * 2.0 * mean_tension / radius / cutoff).max(REPULSION_PER_ADHESION * adhesion)
 }
 
 /// Area of every node: a third of the areas of its faces.

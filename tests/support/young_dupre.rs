@@ -6,9 +6,7 @@
 #![allow(dead_code)]
 
 use tissuefit::geometry::{Real, Vec3};
-use tissuefit::mechanics::{
-    ContactModel, ContactQuadrature, Parameters, Polarity, RelaxMethod, SimulationMode, laplace_repulsion,
-};
+use tissuefit::mechanics::{ContactModel, ContactQuadrature, Parameters, Polarity, RelaxMethod, SimulationMode};
 use tissuefit::mesh::shapes::icosphere;
 use tissuefit::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
 use tissuefit::morphology::far_field::fit_sphere;
@@ -30,8 +28,8 @@ pub struct Doublet {
     pub normal: bool,
     pub steps: u64,
     pub settle: u64,
-    /// Repulsion ξ (Pa/m); `None`: [`laplace_repulsion`] of the cells (ξ·c = 25 × 2γ/R).
-    pub xi: Option<Real>,
+    /// Repulsion ξ (Pa/m).
+    pub xi: Real,
     pub integrate: bool,
     pub remesh: u64,
     pub quadrature: ContactQuadrature,
@@ -48,7 +46,7 @@ impl Default for Doublet {
             normal: false,
             steps: 8000,
             settle: 0,
-            xi: None,
+            xi: 1e12,
             integrate: false,
             remesh: 50,
             quadrature: ContactQuadrature::Vertices,
@@ -88,13 +86,12 @@ pub fn params(a: &Doublet) -> Parameters {
     // Only integration uses it (and validation checks it against the contact stiffness).
     p.numerics.time_step = 2e-8;
     let omega = 4.0 * a.ratio * GAMMA / (a.cutoff * a.cutoff);
-    let xi = repulsion(a);
     let t = &mut p.cell_types[0];
     for ft in FaceType::ALL {
         let f = t.faces.get_mut(ft);
         f.surface_tension = GAMMA;
         f.adhesion = omega;
-        f.repulsion = xi;
+        f.repulsion = a.xi;
         f.bending_modulus = 0.0;
     }
     t.area_elasticity = 0.0;
@@ -110,11 +107,6 @@ pub fn params(a: &Doublet) -> Parameters {
     s.normal_relaxation = a.normal;
     s.sample_every_steps = a.steps + 1;
     p
-}
-
-/// The repulsion ξ (Pa/m) of run `a`.
-pub fn repulsion(a: &Doublet) -> Real {
-    a.xi.unwrap_or_else(|| laplace_repulsion(GAMMA, a.radius, a.cutoff))
 }
 
 /// Far-field half-angles of both cells: each free cap (nodes farther than `margin` from the other

@@ -17,7 +17,7 @@
 //! each moving cell type is derived from its cells ([`Parameters::fit_to_tissue`], issue 20 item 3):
 //! ξ·c = [`crate::mechanics::REPULSION_PER_PRESSURE`] × the largest Laplace pressure 2γ̄/R of its
 //! cells (capped at max_pressure), so that contacts sink c/25 and cells never pass through each
-//! other; the default 1e9 Pa/m holds only 200 Pa at c = 0.2 µm, below the 480 Pa of an 8 µm cell at
+//! other, and at least [`crate::mechanics::REPULSION_PER_ADHESION`] × its strongest adhesion ω; the default 1e9 Pa/m holds only 200 Pa at c = 0.2 µm, below the 480 Pa of an 8 µm cell at
 //! 1 mN/m. The time step is then derived again (the stiffer contacts lower the stable step) unless
 //! the config sets it.
 
@@ -256,7 +256,8 @@ impl Parameters {
     }
 
     /// Sets the repulsion of every face type of each cell type with moving (epithelial) cells in
-    /// `tissue` to [`crate::mechanics::laplace_repulsion`] of its largest-pressure cell.
+    /// `tissue` to [`crate::mechanics::derived_repulsion`] of its largest-pressure cell and its
+    /// strongest adhesion.
     fn derive_repulsion(&mut self, tissue: &Tissue) -> Vec<DerivedValue> {
         let c = self.numerics.contact_cutoff;
         if !(c.is_finite() && c > 0.0) {
@@ -282,26 +283,27 @@ impl Parameters {
         let mut derived = Vec::new();
         for (t, entry) in worst.into_iter().enumerate() {
             let Some((pressure, radius)) = entry else { continue };
-            let xi = crate::mechanics::REPULSION_PER_PRESSURE * pressure / c;
             let faces = &mut self.cell_types[t].faces;
+            let omega = FaceType::ALL.iter().map(|&ft| faces.get(ft).adhesion).fold(0.0, Real::max);
+            let xi = crate::mechanics::derived_repulsion(0.5 * pressure * radius, radius, c, omega);
             let default = faces.get(FaceType::Lateral).repulsion;
             for ft in FaceType::ALL {
                 faces.get_mut(ft).repulsion = xi;
             }
-            derived.push(DerivedValue {
-                key: format!("cell_types[{t}].faces.*.repulsion"),
-                value: xi,
-                default,
-                from: format!(
-                    "ξ·c = {} × the Laplace pressure 2γ̄/R = {:.0} Pa of its largest-pressure cell (R ≈ {}, cutoff c = {}), \
-                     so that contacts sink c/{}",
-                    crate::mechanics::REPULSION_PER_PRESSURE,
-                    pressure,
+            let (k_p, k_w) = (crate::mechanics::REPULSION_PER_PRESSURE, crate::mechanics::REPULSION_PER_ADHESION);
+            let from = if xi > k_p * pressure / c {
+                format!(
+                    "{k_w} × its strongest adhesion ω = {omega:.3e} Pa/m (above ξ·c = {k_p} × its cells' Laplace pressure)"
+                )
+            } else {
+                format!(
+                    "ξ·c = {k_p} × the Laplace pressure 2γ̄/R = {pressure:.0} Pa of its largest-pressure cell (R ≈ {}, \
+                     cutoff c = {}), so that contacts sink c/{k_p}",
                     um(radius),
-                    um(c),
-                    crate::mechanics::REPULSION_PER_PRESSURE
-                ),
-            });
+                    um(c)
+                )
+            };
+            derived.push(DerivedValue { key: format!("cell_types[{t}].faces.*.repulsion"), value: xi, default, from });
         }
         derived
     }

@@ -419,6 +419,11 @@ fn spring_repulsion_is_derived_from_the_laplace_pressure_unless_the_config_sets_
         assert_eq!(params.cell_types[0].faces.get(ft).repulsion, xi);
     }
     assert!(fit.lines().iter().any(|l| l.contains("Pa/m (default 1.000e9 Pa/m)")), "{:?}", fit.lines());
+    // A strong adhesion raises it to 20·ω (the barrier ξc²/2 then 40× the well ωc²/4).
+    let mut strong = Parameters::default();
+    strong.cell_types[0].faces.get_mut(FaceType::Lateral).adhesion = 1e12;
+    let fit = strong.fit_to_tissue(&explicit, &tissue);
+    assert_eq!(fit.derived_value("cell_types[0].faces.*.repulsion"), Some(2e13), "{fit:?}");
     // Set by the config, or the coupling model: nothing derived.
     for (explicit, model) in
         [(ExplicitNumerics { repulsion: true, ..explicit }, ContactModel::Spring), (explicit, ContactModel::Coupling)]

@@ -249,7 +249,8 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         unit: "Pa/m",
         text: "Repulsion strength ξ: contact stress per unit penetration. With the spring contact model and no \
                `repulsion` anywhere in the config, `simulate` and the pipeline derive it per moving cell type from the \
-               input tissue: ξ·c = 25 × the largest Laplace pressure 2γ̄/R of its cells, so contacts sink c/25.",
+               input tissue: ξ·c = 25 × the largest Laplace pressure 2γ̄/R of its cells (contacts sink c/25), and at least \
+               20 × its strongest adhesion ω.",
     },
     FieldDoc {
         path: "simulation",
