@@ -39,9 +39,7 @@ use super::{
 };
 use crate::geometry::{Real, Vec3};
 use crate::mesh::remesh::{RemeshError, RemeshReport, RemeshSettings};
-use crate::mesh::{
-    Cell, CellId, CellKind, Daughter, DivisionError, DivisionPlane, FaceType, MeshDefect, Tissue, divide_mesh,
-};
+use crate::mesh::{Cell, CellId, Daughter, DivisionError, DivisionPlane, FaceType, MeshDefect, Tissue, divide_mesh};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, UnitSphere};
@@ -966,19 +964,7 @@ impl<'p> Simulation<'p> {
             return Vec::new();
         }
         let c = n.contact_cutoff;
-        // Per cell type: (largest pressure, radius of that cell).
-        let mut worst: Vec<Option<(Real, Real)>> = vec![None; self.params.cell_types.len()];
-        for (cell, p) in self.tissue.cells().iter().zip(&self.cell_params) {
-            if cell.kind() != CellKind::Epithelial {
-                continue;
-            }
-            let radius = (3.0 * cell.mesh().signed_volume() / (4.0 * std::f64::consts::PI)).cbrt();
-            let pressure = (2.0 * p.mean_tension(cell) / radius).min(p.max_pressure);
-            let slot = &mut worst[cell.cell_type() as usize];
-            if slot.is_none_or(|(q, _)| pressure > q) {
-                *slot = Some((pressure, radius));
-            }
-        }
+        let worst = self.params.largest_laplace_pressures(&self.tissue);
         let mut lines = Vec::new();
         for (t, entry) in worst.iter().enumerate() {
             let Some((pressure, radius)) = *entry else { continue };

@@ -263,23 +263,7 @@ impl Parameters {
         if !(c.is_finite() && c > 0.0) {
             return Vec::new();
         }
-        // Per cell type: (largest pressure, radius of that cell).
-        let mut worst: Vec<Option<(Real, Real)>> = vec![None; self.cell_types.len()];
-        for cell in tissue.cells() {
-            if cell.kind() != CellKind::Epithelial {
-                continue;
-            }
-            let Some(p) = self.cell_types.get(cell.cell_type() as usize) else { continue };
-            let radius = (3.0 * cell.mesh().signed_volume() / (4.0 * std::f64::consts::PI)).cbrt();
-            let pressure = (2.0 * p.mean_tension(cell) / radius).min(p.max_pressure);
-            if !(pressure.is_finite() && pressure > 0.0) {
-                continue;
-            }
-            let slot = &mut worst[cell.cell_type() as usize];
-            if slot.is_none_or(|(q, _)| pressure > q) {
-                *slot = Some((pressure, radius));
-            }
-        }
+        let worst = self.largest_laplace_pressures(tissue);
         let mut derived = Vec::new();
         for (t, entry) in worst.into_iter().enumerate() {
             let Some((pressure, radius)) = entry else { continue };
@@ -306,6 +290,29 @@ impl Parameters {
             derived.push(DerivedValue { key: format!("cell_types[{t}].faces.*.repulsion"), value: xi, default, from });
         }
         derived
+    }
+
+    /// Per cell type: the largest Laplace pressure 2γ̄/R (Pa, capped at max_pressure) among its
+    /// moving (epithelial) cells in `tissue`, R from the cell's volume, and that cell's R (m); `None`
+    /// for a type without such cells.
+    pub fn largest_laplace_pressures(&self, tissue: &Tissue) -> Vec<Option<(Real, Real)>> {
+        let mut worst: Vec<Option<(Real, Real)>> = vec![None; self.cell_types.len()];
+        for cell in tissue.cells() {
+            if cell.kind() != CellKind::Epithelial {
+                continue;
+            }
+            let Some(p) = self.cell_types.get(cell.cell_type() as usize) else { continue };
+            let radius = (3.0 * cell.mesh().signed_volume() / (4.0 * std::f64::consts::PI)).cbrt();
+            let pressure = (2.0 * p.mean_tension(cell) / radius).min(p.max_pressure);
+            if !(pressure.is_finite() && pressure > 0.0) {
+                continue;
+            }
+            let slot = &mut worst[cell.cell_type() as usize];
+            if slot.is_none_or(|(q, _)| pressure > q) {
+                *slot = Some((pressure, radius));
+            }
+        }
+        worst
     }
 
     /// The time step lowered to a quarter of the largest stable one when the current one's stability
