@@ -380,12 +380,6 @@ impl ContactWorkspace {
             .map(|p| (p.node, p.other, p.distance))
     }
 
-    /// The face quadrature's contact energy density Φ_f (J/m²) of every face of cell `cell` at the
-    /// last evaluation (empty with the vertex quadrature).
-    pub fn face_density(&self, cell: usize) -> &[Real] {
-        self.face_density.get(cell).map_or(&[], Vec::as_slice)
-    }
-
     /// Adds contact forces to `forces` (one entry per cell, internal forces already computed, so
     /// face normals and areas are current) and their energy to each cell's `energy.contact`.
     /// Returns the total contact energy (J).
