@@ -72,10 +72,11 @@ pub struct SimulationSettings {
     pub normal_relaxation: bool,
     /// Equilibrium mode: a relaxation that does not converge ends at its lowest-residual state since
     /// the last remeshing (unless that state's energy lies more than 1e-3·γ̄A above the last one's)
-    /// instead of at its last step, and `ended_at_step` says which — for a run whose end still rings
-    /// (e.g. integration after a FIRE stall). Default false: the state it picks shifts what the spring
-    /// aggregate fit reads (w/(2γ) 0.2 recovered at −11.9 % instead of within ±10 %; measured
-    /// 2026-11-26), so the fit and its round trips keep reading the last state.
+    /// instead of at its last step, and `ended_at_step` says which. A relaxation whose FIRE stalled
+    /// does so from the stall on whatever this says (its integration may still ring at the end).
+    /// Default false: the state it picks shifts what the spring aggregate fit reads (w/(2γ) 0.2
+    /// recovered at −11.9 % instead of within ±10 %; measured 2026-11-26), so the fit and its round
+    /// trips keep reading the last state of runs that did not stall.
     pub end_at_lowest_residual: bool,
     /// Equilibrium when the largest nodal force is below this fraction of the typical tension force
     /// γ·l_min (γ: the mean surface tension of the moving cells' faces). Default 1e-3.

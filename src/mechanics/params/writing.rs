@@ -316,7 +316,8 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         path: "simulation.end_at_lowest_residual",
         unit: "",
         text: "Equilibrium mode: a relaxation that does not converge ends at its lowest-residual state since the last \
-               remeshing instead of its last step (summary: ended_at_step), e.g. for an integration still ringing at the end.",
+               remeshing instead of its last step (summary: ended_at_step). A relaxation whose FIRE stalled does so from \
+               the stall on whatever this says (the integration it continues with may still ring at the end).",
     },
     FieldDoc {
         path: "simulation.force_tolerance",
