@@ -1726,6 +1726,28 @@ mod tests {
         }
     }
 
+    /// Checks that an unconverged run ended at or below its last residual, within BEST_GAIN of the
+    /// lowest residual of its second half, in the state the simulation holds, and that a restored
+    /// run names its step; returns whether it ended at an earlier state.
+    fn ended_at_best(max_steps: u64, summary: &SimulationSummary, seen: &Residuals, sim: &Simulation<'_>) -> bool {
+        let reason = summary.stop_reason.clone().expect("a run that did not converge says why");
+        let late = &seen.0[seen.0.len() / 2..];
+        let lowest = late.iter().copied().fold(Real::INFINITY, Real::min);
+        let last = *seen.0.last().unwrap();
+        assert!(summary.residual <= last, "{max_steps}: ended at {} above the last {last}", summary.residual);
+        assert!(
+            summary.residual * BEST_GAIN <= lowest * (1.0 + 1e-12),
+            "{max_steps}: ended at {} where {lowest} was reached",
+            summary.residual
+        );
+        // The summary describes the state the simulation holds.
+        assert_eq!(sim.residual(), summary.residual);
+        let Some(step) = summary.ended_at_step else { return false };
+        assert!(step < summary.steps && summary.residual < last);
+        assert!(reason.contains(&format!("lowest-residual state, step {step}")), "{reason}");
+        true
+    }
+
     /// Issue 20 item 4: a relaxation stopped by max_steps says why, and ends at its lowest-residual
     /// state (within the BEST_GAIN granularity of what is kept), not wherever its last step left it.
     /// The tolerance is out of reach, so every run ends unconverged; the comparison uses the last
@@ -1745,21 +1767,8 @@ mod tests {
             assert!(!summary.converged, "a force tolerance of 1e-12 is out of reach");
             let reason = summary.stop_reason.clone().expect("a run that did not converge says why");
             assert!(reason.contains(&format!("max_steps = {max_steps} reached")), "{reason}");
-            let late = &seen.0[seen.0.len() / 2..];
-            let lowest = late.iter().copied().fold(Real::INFINITY, Real::min);
-            let last = *seen.0.last().unwrap();
-            assert!(summary.residual <= last, "{max_steps}: ended at {} above the last {last}", summary.residual);
-            assert!(
-                summary.residual * BEST_GAIN <= lowest * (1.0 + 1e-12),
-                "{max_steps}: ended at {} where {lowest} was reached",
-                summary.residual
-            );
-            // The summary describes the state the simulation holds.
-            assert_eq!(sim.residual(), summary.residual);
-            if let Some(step) = summary.ended_at_step {
+            if ended_at_best(max_steps, &summary, &seen, &sim) {
                 restored += 1;
-                assert!(step < summary.steps && summary.residual < last);
-                assert!(reason.contains(&format!("lowest-residual state, step {step}")), "{reason}");
             }
         }
         assert!(restored > 0, "FIRE's residual is not monotone: some of these runs end above their best");
@@ -1794,19 +1803,8 @@ mod tests {
             assert!(!summary.converged);
             let reason = summary.stop_reason.clone().expect("says why");
             assert!(reason.contains("FIRE stalled"), "{reason}");
-            let late = &seen.0[seen.0.len() / 2..];
-            let lowest = late.iter().copied().fold(Real::INFINITY, Real::min);
-            let last = *seen.0.last().unwrap();
-            assert!(summary.residual <= last, "{max_steps}: ended at {} above the last {last}", summary.residual);
-            assert!(
-                summary.residual * BEST_GAIN <= lowest * (1.0 + 1e-12),
-                "{max_steps}: ended at {} where {lowest} was reached",
-                summary.residual
-            );
-            assert_eq!(sim.residual(), summary.residual);
-            if let Some(step) = summary.ended_at_step {
+            if ended_at_best(max_steps, &summary, &seen, &sim) {
                 restored += 1;
-                assert!(reason.contains(&format!("lowest-residual state, step {step}")), "{reason}");
             }
         }
         // The integration after the stall rings: runs end above their best.
