@@ -102,6 +102,60 @@ fn multimaterial_mesh_gives_outward_cells_in_either_label_convention() {
     }
 }
 
+/// The faces of a multi-material mesh name the cell on their other side; `measure` takes the contacts
+/// from those labels: the shared face's exact area on both sides, no face near it counted. The two
+/// tetrahedra are a case where the distance rule is badly off: every face of tetrahedron 1 has its
+/// centroid 0.19 from the shared face's plane, inside the default δ = mean edge / 4 ≈ 0.33, so the
+/// rule counts the whole of it as contact (checked below, so the test tells the rules apart).
+#[test]
+fn multimaterial_contacts_come_from_the_interface_labels_and_survive_a_vtp_round_trip() {
+    use tissuefit::io::write_tissue;
+    use tissuefit::morphology::{ContactRule, MeasureSettings, measure_tissue};
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(&dir, "mm.vtk", &multimaterial_51());
+    let tissue = read_tissue(&p, &ReadOptions::default()).unwrap().tissue;
+    for c in tissue.cells() {
+        let labels = c.interface_labels().expect("a multi-material cell carries its interface labels");
+        let other = if c.id().0 == 1 { 2 } else { 1 };
+        assert_eq!(labels.iter().filter(|&&l| l == other).count(), 1, "cell {}: {labels:?}", c.id());
+        assert_eq!(labels.iter().filter(|&&l| l == 0).count(), 3, "cell {}: {labels:?}", c.id());
+    }
+    let shared = 3.0_f64.sqrt() / 2.0;
+    let check = |tissue: &tissuefit::mesh::Tissue| {
+        let m = measure_tissue(tissue, &MeasureSettings::default()).unwrap();
+        assert_eq!(m.summary.contact_rule, ContactRule::InterfaceLabels);
+        assert_eq!(m.summary.contact_distance, None);
+        assert_eq!(m.contacts.len(), 1);
+        let c = &m.contacts[0];
+        for area in [c.area, c.area_a, c.area_b] {
+            assert!((area - shared).abs() < 1e-12, "contact area {area}, exact {shared}");
+        }
+        assert!((m.cells[0].free_area - 1.5).abs() < 1e-12, "free area of tetrahedron 1: {}", m.cells[0].free_area);
+    };
+    check(&tissue);
+    let by_distance =
+        measure_tissue(&tissue, &MeasureSettings { interface_labels: false, ..Default::default() }).unwrap();
+    assert_eq!(by_distance.summary.contact_rule, ContactRule::Distance);
+    assert!(
+        by_distance.contacts[0].area_a > 2.0 * shared,
+        "the distance rule should count tetrahedron 1's other faces here: {}",
+        by_distance.contacts[0].area_a
+    );
+    // The labels travel through .vtp (`interface_label`), and moving a node drops them.
+    let vtp = dir.path().join("mm.vtp");
+    write_tissue(&vtp, &tissue, &[]).unwrap();
+    let back = read_tissue(&vtp, &ReadOptions::default()).unwrap().tissue;
+    for (a, b) in tissue.cells().iter().zip(back.cells()) {
+        assert_eq!(a.interface_labels(), b.interface_labels(), "cell {}", a.id());
+    }
+    check(&back);
+    let mut moved = back.clone();
+    moved.cells_mut()[0].positions_mut()[0].x += 1e-3;
+    assert_eq!(moved.cells()[0].interface_labels(), None);
+    let m = measure_tissue(&moved, &MeasureSettings::default()).unwrap();
+    assert_eq!(m.summary.contact_rule, ContactRule::Distance, "one cell without labels: the distance rule for all");
+}
+
 /// Reads `text` as a file and returns the error message, which must name the file.
 fn error_of(text: &str) -> String {
     let dir = tempfile::tempdir().unwrap();

@@ -446,3 +446,91 @@ fn embryo_1_voxelised_measures_like_its_mesh() {
         );
     }
 }
+
+/// Per unordered pair of labels (0 = medium), the total area of the triangles between them, parsed
+/// straight from a meshio VTK 5.1 multi-material file (POINTS, CONNECTIVITY of triangles, label1,
+/// label2), independently of the reader under test.
+fn pair_areas_from_file(path: &Path) -> std::collections::BTreeMap<(u32, u32), f64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut tokens = text.split_whitespace();
+    // Advances past `keyword` and the `skip` tokens after it; returns the first of those.
+    fn after<'a>(tokens: &mut impl Iterator<Item = &'a str>, keyword: &str, skip: usize) -> &'a str {
+        while tokens.next().is_some_and(|t| t != keyword) {}
+        let first = tokens.next().unwrap();
+        for _ in 1..skip {
+            tokens.next();
+        }
+        first
+    }
+    let n_points: usize = after(&mut tokens, "POINTS", 2).parse().unwrap();
+    let points: Vec<[f64; 3]> =
+        (0..n_points).map(|_| [0; 3].map(|_| tokens.next().unwrap().parse::<f64>().unwrap())).collect();
+    after(&mut tokens, "CONNECTIVITY", 1);
+    let n_faces: usize =
+        text.lines().find(|l| l.starts_with("CELL_DATA")).unwrap().split_whitespace().nth(1).unwrap().parse().unwrap();
+    let triangles: Vec<[usize; 3]> =
+        (0..n_faces).map(|_| [0; 3].map(|_| tokens.next().unwrap().parse().unwrap())).collect();
+    after(&mut tokens, "label1", 3);
+    let l1: Vec<u32> = (0..n_faces).map(|_| tokens.next().unwrap().parse().unwrap()).collect();
+    after(&mut tokens, "label2", 3);
+    let l2: Vec<u32> = (0..n_faces).map(|_| tokens.next().unwrap().parse().unwrap()).collect();
+    let mut areas = std::collections::BTreeMap::new();
+    for (f, t) in triangles.iter().enumerate() {
+        let [a, b, c] = t.map(|i| points[i]);
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+        let area = 0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        *areas.entry((l1[f].min(l2[f]), l1[f].max(l2[f]))).or_insert(0.0) += area;
+    }
+    areas
+}
+
+/// foambryo's benchmark mesh names both materials of every face: `measure` reads its contacts from
+/// those labels, so every contact area is the file's own (to rounding), seen alike from both cells,
+/// and each cell's free area is its area against label 0. The distance rule's areas are printed next
+/// to them (the bias the labels remove; docs/src/guide/measure.md).
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn multimaterial_contact_areas_are_the_files_own() {
+    use tissuefit::morphology::{ContactRule, MeasureSettings, measure_tissue};
+    let path = real("foambryo-runner__Cshaper_4_cells_min-d-3.vtk");
+    let truth = pair_areas_from_file(&path);
+    let t = read_tissue(&path, &ReadOptions::default()).unwrap().tissue;
+    let m = measure_tissue(&t, &MeasureSettings::default()).unwrap();
+    assert_eq!(m.summary.contact_rule, ContactRule::InterfaceLabels);
+    let by_distance = measure_tissue(&t, &MeasureSettings { interface_labels: false, ..Default::default() }).unwrap();
+    let cell_pairs: Vec<_> = truth.keys().filter(|(a, _)| *a != 0).copied().collect();
+    assert_eq!(
+        m.contacts.iter().map(|c| (c.cell_a, c.cell_b)).collect::<Vec<_>>(),
+        cell_pairs,
+        "the contacts are the file's pairs"
+    );
+    for c in &m.contacts {
+        let exact = truth[&(c.cell_a, c.cell_b)];
+        for area in [c.area_a, c.area_b] {
+            assert!(
+                (area - exact).abs() <= 1e-9 * exact,
+                "contact {}-{}: {area} vs the file's {exact}",
+                c.cell_a,
+                c.cell_b
+            );
+        }
+        let d = by_distance.contacts.iter().find(|d| (d.cell_a, d.cell_b) == (c.cell_a, c.cell_b));
+        eprintln!(
+            "foambryo contact {}-{}: labels {exact:.1} voxel², distance rule {}",
+            c.cell_a,
+            c.cell_b,
+            d.map_or("no contact".into(), |d| format!("{:.1} ({:+.1} %)", d.area, 100.0 * (d.area / exact - 1.0)))
+        );
+    }
+    for cell in &m.cells {
+        let exact = truth[&(0, cell.cell)];
+        assert!(
+            (cell.free_area - exact).abs() <= 1e-9 * exact,
+            "cell {} free area {} vs {exact}",
+            cell.cell,
+            cell.free_area
+        );
+    }
+}

@@ -11,8 +11,8 @@ use crate::io::{LengthScale, OutputGroup, OutputPolicy, read_tissue};
 use crate::mesh::{CellKind, Tissue};
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
 use crate::morphology::{
-    ContactMorphology, DEFAULT_EXTERIOR_FREE_FRACTION, DroppedLabel, LabelMeasureSettings, MeasureSettings, Morphology,
-    compare_shapes, compare_tissues, mean_edge_length, measure_labels, measure_tissue,
+    ContactMorphology, ContactRule, DEFAULT_EXTERIOR_FREE_FRACTION, DroppedLabel, LabelMeasureSettings,
+    MeasureSettings, Morphology, compare_shapes, compare_tissues, mean_edge_length, measure_labels, measure_tissue,
 };
 use crate::pipeline::{PipelineConfig, run_measure};
 use anyhow::{Context, bail};
@@ -36,16 +36,23 @@ pub struct MeasureArgs {
         long,
         value_name = "PIPELINE.toml",
         conflicts_with_all = [
-            "contact_distance", "include_static", "exterior_free_fraction", "length_unit", "orient", "voxel_size",
+            "contact_distance", "distance_contacts", "include_static", "exterior_free_fraction", "length_unit", "orient", "voxel_size",
             "border", "lumen_labels", "min_voxels", "normal_smoothing", "compare", "compare_voxel_size",
             "zarr_level",
         ]
     )]
     pub config: Option<PathBuf>,
     /// Contact distance δ: a face whose centroid lies within δ of another cell's surface is in contact
-    /// with it. A length with unit (0.1um, 1e-7). Default: 0.25 × the tissue's mean edge length.
+    /// with it. A length with unit (0.1um, 1e-7). Default: 0.25 × the tissue's mean edge length. Not
+    /// used for the contacts of a multi-material mesh, whose faces name the cells on both sides
+    /// (see --distance-contacts).
     #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
     pub contact_distance: Option<Real>,
+    /// Find contacts by the contact distance δ even when the input's faces carry interface labels (a
+    /// multi-material mesh: label1/label2, or a .vtp with `interface_label`), whose contacts are
+    /// otherwise read from the labels: exact areas and rims.
+    #[arg(long)]
+    pub distance_contacts: bool,
     /// Count static cells in the tissue statistics (they are left out by default).
     #[arg(long)]
     pub include_static: bool,
@@ -223,9 +230,16 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
                 contact_distance: args.contact_distance,
                 include_static: args.include_static,
                 exterior_free_fraction: args.exterior_free_fraction,
+                interface_labels: !args.distance_contacts,
             };
             let m =
                 measure_tissue(tissue, &settings).with_context(|| format!("measuring {}", args.tissue.display()))?;
+            if m.summary.contact_rule == ContactRule::InterfaceLabels && args.contact_distance.is_some() {
+                tracing::warn!(
+                    "{}: contacts were read from the file's interface labels, so --contact-distance only bounds                      the rim search; add --distance-contacts to find contacts by distance",
+                    args.tissue.display()
+                );
+            }
             (m, None)
         }
         Input::Labels(volume) => {
@@ -350,7 +364,11 @@ fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_second
         s.cells,
         s.bodies.total,
         s.cell_contacts,
-        s.contact_distance.map_or("voxel-face contacts".to_string(), |d| format!("δ = {d:.3e} m")),
+        match (s.contact_rule, s.contact_distance) {
+            (ContactRule::Distance, Some(d)) => format!("δ = {d:.3e} m"),
+            (ContactRule::InterfaceLabels, _) => "contacts from interface labels".to_string(),
+            _ => "voxel-face contacts".to_string(),
+        },
         wall_seconds
     )?;
     writeln!(

@@ -12,6 +12,7 @@ use crate::imaging::{LabelReadOptions, read_labels};
 use crate::io::{CellField, OutputGroup, OutputPolicy, read_tissue, vtp_bytes};
 use crate::mesh::Tissue;
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, mesh_labels};
+use crate::morphology::ContactRule;
 use crate::morphology::tensions::{Gauge, TensionMap, TensionSettings, estimate_tensions};
 use anyhow::{Context, bail};
 use serde::Serialize;
@@ -43,6 +44,10 @@ pub struct TensionsArgs {
     /// interface with it. A length with unit (0.1um, 1e-7). Default: 0.25 × the mean edge length.
     #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
     pub contact_distance: Option<Real>,
+    /// Find the interfaces by the contact distance even when the input's faces carry interface labels
+    /// (a multi-material mesh), from which they are otherwise read exactly.
+    #[arg(long)]
+    pub distance_contacts: bool,
     #[command(flatten)]
     pub input: InputArgs,
     /// Label volume only: voxel size z,y,x (or one for all) overriding the file's metadata
@@ -131,6 +136,8 @@ struct Summary<'a> {
     one_medium_tension: bool,
     uncertainty: &'static str,
     contact_distance_um: Real,
+    /// How the interfaces were found: `distance` (δ) or `interface_labels` (the input's own).
+    contact_rule: ContactRule,
     junction_samples: usize,
     junction_samples_skipped: usize,
     junction_samples_near_vertices: usize,
@@ -205,6 +212,7 @@ pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
         gauge: args.gauge,
         gauge_value: args.gauge_tension.unwrap_or(1.0),
         rounding_scale: voxel,
+        interface_labels: !args.distance_contacts,
     };
     let start = Instant::now();
     let map = estimate_tensions(&tissue, &settings)
@@ -236,6 +244,7 @@ pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
         uncertainty: "tension_sd and pressure_sd: first-order propagation of the force-balance residuals, \
                       cluster-robust by junction line; biases shared by all junctions are not in it",
         contact_distance_um: map.contact_distance * 1e6,
+        contact_rule: map.contact_rule,
         junction_samples: map.samples,
         junction_samples_skipped: map.samples_skipped,
         junction_samples_near_vertices: map.samples_near_vertices,

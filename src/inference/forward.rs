@@ -94,9 +94,11 @@ impl Metrics {
 
     /// The summary metrics of a tissue (not the shape term), faces within `contact_distance` δ (m) of
     /// another cell counting as contact (`None`: a quarter of the tissue's own mean edge length), and
-    /// the δ used.
+    /// the δ used. Always the distance rule, even on an observed tissue whose faces carry interface
+    /// labels: the simulated tissues carry none, and the fit compares like with like (the rule's bias,
+    /// +0.2…+12 % on contact areas of a multi-material mesh, then cancels).
     pub fn measure(tissue: &Tissue, contact_distance: Option<Real>) -> Result<(Self, Real), String> {
-        let settings = MeasureSettings { contact_distance, ..MeasureSettings::default() };
+        let settings = MeasureSettings { contact_distance, interface_labels: false, ..MeasureSettings::default() };
         let m = measure_tissue(tissue, &settings).map_err(|e| format!("measuring: {e}"))?;
         let s = &m.summary;
         let delta = s.contact_distance.ok_or("measuring: no contact distance")?;

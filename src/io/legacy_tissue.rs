@@ -211,8 +211,10 @@ fn multi_material(
     // label → (faces where it is label1, faces where it is label2).
     let mut cells: BTreeMap<u32, (Vec<usize>, Vec<usize>)> = BTreeMap::new();
     let mut same = 0usize;
+    let mut sides = Vec::with_capacity(faces.len());
     for f in 0..faces.len() {
         let (a, b) = (integer(path, l1, f)?, integer(path, l2, f)?);
+        sides.push((a, b));
         if a == b {
             same += 1;
             continue;
@@ -234,7 +236,7 @@ fn multi_material(
     // label2. Build each cell with faces kept where it is label1 and flipped where it is label2, and
     // flip the whole convention if most cells come out inside-out. Some tools also wind a few
     // triangles arbitrarily (deltaMic), so each cell is then made consistent and outward.
-    let mut built: Vec<(u32, CellMesh)> = cells
+    let mut built: Vec<(u32, CellMesh, Vec<u32>)> = cells
         .par_iter()
         .map(|(&label, (as1, as2))| {
             let polys: Vec<Vec<u32>> = as1
@@ -242,21 +244,32 @@ fn multi_material(
                 .map(|&f| faces[f].to_vec())
                 .chain(as2.iter().map(|&f| faces[f].iter().rev().copied().collect()))
                 .collect();
-            cell_mesh(path, g, CellId(label), &polys).map(|(mesh, _)| (label, mesh))
+            // Each triangle's interface label: the material on the other side of its source face.
+            let other = |k: usize| match as1.get(k) {
+                Some(&f) => sides[f].1,
+                None => sides[as2[k - as1.len()]].0,
+            };
+            cell_mesh(path, g, CellId(label), &polys)
+                .map(|(mesh, source)| (label, mesh, source.iter().map(|&k| other(k as usize)).collect()))
         })
         .collect::<Result<_, _>>()?;
-    let inverted = built.iter().filter(|(_, m)| m.signed_volume() < 0.0).count();
+    let inverted = built.iter().filter(|(_, m, _)| m.signed_volume() < 0.0).count();
     if 2 * inverted > built.len() {
-        built.iter_mut().for_each(|(_, m)| m.flip_all());
+        built.iter_mut().for_each(|(_, m, _)| m.flip_all());
     }
-    for (label, mesh) in &mut built {
+    for (label, mesh, _) in &mut built {
         let flipped = mesh.orient_outward();
         if flipped > 0 {
             warnings.push(format!("cell {label}: {flipped} faces wound against their neighbours were re-oriented"));
         }
     }
-    let cells =
-        built.into_iter().map(|(label, mesh)| Cell::new(CellId(label), CellKind::Epithelial, 0, mesh)).collect();
+    let cells = built
+        .into_iter()
+        .map(|(label, mesh, others)| {
+            Cell::new(CellId(label), CellKind::Epithelial, 0, mesh).with_interface_labels(others)
+        })
+        .collect::<Result<_, _>>()
+        .map_err(|source| IoError::Tissue { path: path.into(), source })?;
     Tissue::from_cells(cells).map_err(|source| IoError::Tissue { path: path.into(), source })
 }
 

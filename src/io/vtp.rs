@@ -9,8 +9,10 @@
 //! Cell data (one tuple per triangle): `cell_id` (Int64), `kind` (Int32, [`CellKind::code`]),
 //! `cell_type` (Int32), `face_type` (Int32, [`FaceType::code`]), `face_area` (Float64, m²),
 //! `cell_volume` (m³), `cell_area` (m²), `target_volume` (m³) and any extra per-cell fields, each
-//! repeated on the cell's faces so that ParaView can colour by them. An optional dataset-level
-//! `TimeValue` field carries the simulated time (s).
+//! repeated on the cell's faces so that ParaView can colour by them; `interface_label` (Int64, the
+//! id of the body on the face's other side, 0 = the medium) when every cell carries interface labels
+//! ([`Cell::interface_labels`], a multi-material input). An optional dataset-level `TimeValue` field
+//! carries the simulated time (s).
 //!
 //! The reader takes what the writer writes plus inline ASCII arrays (and big-endian, UInt32 headers,
 //! any integer or float type, polygons with more than three corners, several pieces). Base64 and
@@ -93,7 +95,7 @@ fn vtp_header(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Optio
 
     let (volumes, areas) = cell_measures(tissue);
     let frame = Frame { tissue, volumes: &volumes, areas: &areas };
-    Ok(xml_header(&frame, &arrays(extra), time))
+    Ok(xml_header(&frame, &arrays(tissue, extra), time))
 }
 
 fn cell_measures(tissue: &Tissue) -> (Vec<Real>, Vec<Real>) {
@@ -101,7 +103,7 @@ fn cell_measures(tissue: &Tissue) -> (Vec<Real>, Vec<Real>) {
     (cells.iter().map(|c| c.mesh().signed_volume()).collect(), cells.iter().map(|c| c.mesh().area()).collect())
 }
 
-fn arrays<'a>(extra: &[CellField<'a>]) -> Vec<Array<'a>> {
+fn arrays<'a>(tissue: &Tissue, extra: &[CellField<'a>]) -> Vec<Array<'a>> {
     let mut arrays = vec![
         Array::Points,
         Array::Connectivity,
@@ -115,6 +117,9 @@ fn arrays<'a>(extra: &[CellField<'a>]) -> Vec<Array<'a>> {
         Array::CellArea,
         Array::TargetVolume,
     ];
+    if !tissue.is_empty() && tissue.cells().iter().all(|c| c.interface_labels().is_some()) {
+        arrays.push(Array::InterfaceLabel);
+    }
     arrays.extend(extra.iter().map(|f| Array::Extra(f.name, f.values)));
     arrays
 }
@@ -125,7 +130,7 @@ fn write_vtp_body(w: &mut impl Write, header: &str, tissue: &Tissue, extra: &[Ce
     let frame = Frame { tissue, volumes: &volumes, areas: &areas };
     w.write_all(header.as_bytes())?;
     let mut buf = Vec::new();
-    for array in &arrays(extra) {
+    for array in &arrays(tissue, extra) {
         buf.clear();
         array.fill(&frame, &mut buf);
         debug_assert_eq!(buf.len(), array.byte_len(&frame));
@@ -155,6 +160,7 @@ enum Array<'a> {
     CellVolume,
     CellArea,
     TargetVolume,
+    InterfaceLabel,
     Extra(&'a str, &'a [Real]),
 }
 
@@ -172,6 +178,7 @@ impl Array<'_> {
             Array::CellVolume => "cell_volume",
             Array::CellArea => "cell_area",
             Array::TargetVolume => "target_volume",
+            Array::InterfaceLabel => "interface_label",
             Array::Extra(name, _) => name,
         }
     }
@@ -179,7 +186,7 @@ impl Array<'_> {
     /// VTK type name and size in bytes of one value.
     fn vtk_type(&self) -> (&'static str, usize) {
         match self {
-            Array::Connectivity | Array::Offsets | Array::CellId => ("Int64", 8),
+            Array::Connectivity | Array::Offsets | Array::CellId | Array::InterfaceLabel => ("Int64", 8),
             Array::Kind | Array::CellType | Array::FaceType => ("Int32", 4),
             _ => ("Float64", 8),
         }
@@ -256,6 +263,12 @@ impl Array<'_> {
             Array::CellVolume => per_cell_f64(buf, &|i, _| frame.volumes[i]),
             Array::CellArea => per_cell_f64(buf, &|i, _| frame.areas[i]),
             Array::TargetVolume => per_cell_f64(buf, &|_, c| c.target_volume()),
+            Array::InterfaceLabel => {
+                // Written only when every cell has labels (`arrays`).
+                for &l in cells.iter().flat_map(|c| c.interface_labels().unwrap_or_default()) {
+                    buf.extend_from_slice(&i64::from(l).to_le_bytes());
+                }
+            }
             Array::Extra(_, values) if values.len() == cells.len() => per_cell_f64(buf, &|i, _| values[i]),
             Array::Extra(_, values) => {
                 for v in values.iter() {
@@ -823,6 +836,17 @@ impl ArrayReader<'_> {
             }
             None => faces.target_volume.resize(faces.cell_id.len(), None),
         }
+        match field("interface_label") {
+            Some(node) => {
+                for (k, &v) in self.read_ints(node, 1, n_cells)?.iter().skip(skip).enumerate() {
+                    let l = u32::try_from(v).map_err(|_| {
+                        face_error(node, k, format!("invalid interface_label {v} (a cell id, 0 = the medium)"))
+                    })?;
+                    faces.interface_label.push(Some(l));
+                }
+            }
+            None => faces.interface_label.resize(faces.cell_id.len(), None),
+        }
         Ok(())
     }
 }
@@ -839,6 +863,8 @@ struct Faces {
     cell_type: Vec<u32>,
     face_type: Vec<FaceType>,
     target_volume: Vec<Option<Real>>,
+    /// Per face, the body on its other side (`interface_label`), where the file has it.
+    interface_label: Vec<Option<u32>>,
 }
 
 impl Faces {
@@ -913,6 +939,12 @@ impl Faces {
                 .map_err(|source| IoError::Tissue { path: path.to_path_buf(), source })?;
             if let Some(v) = self.target_volume[first] {
                 cell = cell.with_target_volume(v);
+            }
+            let labels: Option<Vec<u32>> = source.iter().map(|&p| self.interface_label[faces[p as usize]]).collect();
+            if let Some(labels) = labels {
+                cell = cell
+                    .with_interface_labels(labels)
+                    .map_err(|source| IoError::Tissue { path: path.to_path_buf(), source })?;
             }
             cells.push(cell);
         }

@@ -112,6 +112,8 @@ pub enum TissueError {
     FaceTypeCount { cell: CellId, face_types: usize, faces: usize },
     #[error("cell id {0} appears twice")]
     DuplicateCellId(CellId),
+    #[error("cell {cell}: {labels} interface labels given for {faces} faces")]
+    InterfaceLabelCount { cell: CellId, labels: usize, faces: usize },
 }
 
 /// One cell: its surface and what it is.
@@ -125,6 +127,10 @@ pub struct Cell {
     target_volume: Real,
     /// The cell this one was born from by division (lineage); `None` for founders.
     parent: Option<CellId>,
+    /// Per face, the id of the body on its other side as the input file said (0 = the medium), for
+    /// meshes whose faces carry both materials (multi-material meshes). `None` when the file said
+    /// nothing or the surface has moved or been remeshed since (see [`Cell::interface_labels`]).
+    interface_labels: Option<Vec<u32>>,
 }
 
 impl Cell {
@@ -133,7 +139,29 @@ impl Cell {
     pub fn new(id: CellId, kind: CellKind, cell_type: u32, mesh: CellMesh) -> Self {
         let face_types = vec![FaceType::default(); mesh.face_count()];
         let target_volume = mesh.signed_volume();
-        Self { id, kind, cell_type, mesh, face_types, target_volume, parent: None }
+        Self { id, kind, cell_type, mesh, face_types, target_volume, parent: None, interface_labels: None }
+    }
+
+    /// Records, per face, the id of the body on the face's other side (0 = the medium), as a
+    /// multi-material mesh labels its faces; errors if the count differs from the face count.
+    pub fn with_interface_labels(mut self, labels: Vec<u32>) -> Result<Self, TissueError> {
+        if labels.len() != self.mesh.face_count() {
+            return Err(TissueError::InterfaceLabelCount {
+                cell: self.id,
+                labels: labels.len(),
+                faces: self.mesh.face_count(),
+            });
+        }
+        self.interface_labels = Some(labels);
+        Ok(self)
+    }
+
+    /// Per face, the id of the body on its other side (0 = the medium) as the input file labelled it,
+    /// or `None`. The labels describe the surface as read: moving nodes ([`Cell::positions_mut`]) or
+    /// remeshing drops them, since contacts then change; re-orienting faces and scaling the whole
+    /// tissue (unit conversion) keep them.
+    pub fn interface_labels(&self) -> Option<&[u32]> {
+        self.interface_labels.as_deref()
     }
 
     /// Records the mother cell this one was born from by division.
@@ -190,6 +218,7 @@ impl Cell {
     }
     /// Mutable mesh positions; topology changes go through operations that keep face types in step.
     pub fn positions_mut(&mut self) -> &mut [crate::geometry::Vec3] {
+        self.interface_labels = None;
         self.mesh.positions_mut()
     }
     /// Scales coordinates component-wise (unit conversion), and the target volume with them.
@@ -210,6 +239,7 @@ impl Cell {
         momenta: Option<&mut Vec<crate::geometry::Vec3>>,
         settings: &super::remesh::RemeshSettings,
     ) -> Result<super::remesh::RemeshReport, super::remesh::RemeshError> {
+        self.interface_labels = None;
         super::remesh::remesh_cell(&mut self.mesh, momenta, Some(&mut self.face_types), settings)
             .map_err(|source| super::remesh::RemeshError::Cell { cell: self.id, source: Box::new(source) })
     }

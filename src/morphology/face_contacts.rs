@@ -139,3 +139,39 @@ impl BodyGrid {
 fn free_partition(faces: usize) -> FaceContacts {
     FaceContacts { partner: vec![FREE; faces], distance: vec![Real::INFINITY; faces] }
 }
+
+/// The contact partition read from the interface labels of a multi-material input
+/// ([`crate::mesh::Cell::interface_labels`]): face `f` of body `a` touches the body whose id its label
+/// names, exactly as the file says, without a distance rule. A label naming the medium (0), a body
+/// missing from the tissue, a body that does not participate or `a` itself leaves the face free.
+/// Contact faces get distance 0.
+///
+/// `None` unless every participating body carries labels (a partition half from labels and half from
+/// distances would mix two definitions).
+pub fn labelled_face_contacts(tissue: &Tissue, participates: &[bool]) -> Option<Vec<FaceContacts>> {
+    let cells = tissue.cells();
+    if !cells.iter().zip(participates).any(|(_, &p)| p)
+        || cells.iter().zip(participates).any(|(c, &p)| p && c.interface_labels().is_none())
+    {
+        return None;
+    }
+    let index_of: std::collections::HashMap<u32, u32> =
+        cells.iter().enumerate().filter(|&(i, _)| participates[i]).map(|(i, c)| (c.id().0, i as u32)).collect();
+    Some(
+        cells
+            .iter()
+            .enumerate()
+            .map(|(i, cell)| match cell.interface_labels() {
+                Some(labels) if participates[i] => {
+                    let partner: Vec<u32> = labels
+                        .iter()
+                        .map(|l| index_of.get(l).copied().filter(|&j| j as usize != i).unwrap_or(FREE))
+                        .collect();
+                    let distance = partner.iter().map(|&p| if p == FREE { Real::INFINITY } else { 0.0 }).collect();
+                    FaceContacts { partner, distance }
+                }
+                _ => free_partition(cell.mesh().face_count()),
+            })
+            .collect(),
+    )
+}

@@ -1,10 +1,10 @@
 //! Measuring a meshed tissue: per-cell metrics, contacts, contact angles, layers, nuclei, summary.
 
-use super::face_contacts::{FREE, FaceContacts, detect_face_contacts};
+use super::face_contacts::{FREE, FaceContacts, detect_face_contacts, labelled_face_contacts};
 use super::layers::count_layers;
 use super::nucleus::contains;
 use super::rim_angle::{RimEdge, contact_angle, rim_edges, rim_toward};
-use super::{CellMorphology, ContactMorphology, ExteriorRule, MorphologyError, MorphologySummary};
+use super::{CellMorphology, ContactMorphology, ContactRule, ExteriorRule, MorphologyError, MorphologySummary};
 use crate::geometry::{Real, Vec3};
 use crate::mesh::{CellKind, FaceType, Tissue, sphericity};
 use rayon::prelude::*;
@@ -33,11 +33,21 @@ pub struct MeasureSettings {
     /// Without an ECM body, a cell faces the exterior when its free area is at least this fraction of its
     /// area. Default [`DEFAULT_EXTERIOR_FREE_FRACTION`].
     pub exterior_free_fraction: Real,
+    /// When every cell carries interface labels (a multi-material input, see
+    /// [`crate::mesh::Cell::interface_labels`]), take the contacts from them instead of the distance
+    /// rule: exact contact areas and rims. Default true. The fit turns it off so that the observed
+    /// tissue is measured by the same rule as the simulated ones, which carry no labels.
+    pub interface_labels: bool,
 }
 
 impl Default for MeasureSettings {
     fn default() -> Self {
-        Self { contact_distance: None, include_static: false, exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION }
+        Self {
+            contact_distance: None,
+            include_static: false,
+            exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION,
+            interface_labels: true,
+        }
     }
 }
 
@@ -89,8 +99,10 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
     let clock = std::time::Instant::now();
     let cells = tissue.cells();
     let participates: Vec<bool> = cells.iter().map(|c| c.kind() != CellKind::Nucleus).collect();
-    let partitions = detect_face_contacts(tissue, &participates, delta);
-    tracing::debug!("morphology: face contacts in {:.3} s (δ = {delta:e} m)", clock.elapsed().as_secs_f64());
+    let labelled = if settings.interface_labels { labelled_face_contacts(tissue, &participates) } else { None };
+    let rule = if labelled.is_some() { ContactRule::InterfaceLabels } else { ContactRule::Distance };
+    let partitions = labelled.unwrap_or_else(|| detect_face_contacts(tissue, &participates, delta));
+    tracing::debug!("morphology: face contacts ({rule:?}) in {:.3} s (δ = {delta:e} m)", clock.elapsed().as_secs_f64());
     let measures: Vec<BodyMeasure> =
         cells.par_iter().zip(&partitions).map(|(cell, contacts)| measure_body(cell, contacts)).collect();
 
@@ -242,7 +254,12 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
             }
         })
         .collect();
-    let summary = MorphologySummary::from_rows(&rows, &contacts, Some(delta), settings.include_static, exterior_rule);
+    let mut summary =
+        MorphologySummary::from_rows(&rows, &contacts, Some(delta), settings.include_static, exterior_rule);
+    if rule == ContactRule::InterfaceLabels {
+        summary.contact_distance = None;
+        summary.contact_rule = rule;
+    }
     Ok(Morphology { cells: rows, contacts, summary })
 }
 

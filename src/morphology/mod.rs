@@ -9,7 +9,10 @@
 //!
 //! Contacts are geometric ([`face_contacts`]): a face touches another body when its centroid lies within
 //! the contact distance δ of that body's surface; the contact area of a pair is the mean of the two
-//! sides' touching areas. Units are SI throughout (m, m², m³). This module never depends on
+//! sides' touching areas. A tissue read from a multi-material mesh, whose faces name the body on
+//! their other side, is measured on those interface labels instead
+//! ([`face_contacts::labelled_face_contacts`]): exact areas and rims, no δ (`summary.contact_rule`).
+//! Units are SI throughout (m, m², m³). This module never depends on
 //! `mechanics`: it measures whatever surfaces it is given.
 //!
 //! Label volumes are measured directly by [`measure_labels()`] (voxel counts, voxel-face adjacency and a
@@ -46,7 +49,7 @@ pub use measure::{
 pub use measure_labels::{
     DEFAULT_NORMAL_SMOOTHING_VOXELS, DroppedLabel, LabelMeasureSettings, LabelMorphology, measure_labels,
 };
-pub use summary::{BodyCounts, ExteriorRule, MorphologySummary};
+pub use summary::{BodyCounts, ContactRule, ExteriorRule, MorphologySummary};
 
 use crate::geometry::Real;
 

@@ -28,6 +28,19 @@ pub enum ExteriorRule {
     FreeSurfaceFraction,
 }
 
+/// How the contacts were found (see [`super`]).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactRule {
+    /// A face touches a body when its centroid lies within the contact distance δ of its surface.
+    Distance,
+    /// The input's interface labels: each face names the body on its other side (multi-material
+    /// meshes), so contact areas and rims are the file's own, exact.
+    InterfaceLabels,
+    /// Voxel-face adjacency of a label volume.
+    VoxelFaces,
+}
+
 /// Tissue summary. The keys `cells`, `mean_sphericity`, `mean_contact_fraction`, `mean_coordination` and
 /// `layers` are the stable interface (DESIGN.md §2); the others may grow. Means and `statistics` cover
 /// the cells with `in_statistics` (epithelial; static too with `include_static`); ECM, lumen and nuclei
@@ -49,8 +62,10 @@ pub struct MorphologySummary {
     /// Mean far-field contact angle (degrees) over the same contacts, where it could be read (see
     /// [`super::far_field`]).
     pub mean_far_field_angle_deg: Option<Real>,
-    /// Contact distance δ used (m); `null` for a label volume (contacts are voxel-face adjacency).
+    /// Contact distance δ used (m); `null` when the contacts were not found by distance (`contact_rule`).
     pub contact_distance: Option<Real>,
+    /// How the contacts were found.
+    pub contact_rule: ContactRule,
     /// Mean deformation χ = 1 − IoU over the counted cells that were compared (see
     /// [`super::compare_shapes`]); `null` without a comparison.
     pub mean_chi: Option<Real>,
@@ -128,6 +143,7 @@ impl MorphologySummary {
             mean_contact_angle_deg: angles.mean,
             mean_far_field_angle_deg: far_field.mean,
             contact_distance,
+            contact_rule: if contact_distance.is_some() { ContactRule::Distance } else { ContactRule::VoxelFaces },
             mean_chi: statistics["chi"].mean,
             include_static,
             bodies,

@@ -5,7 +5,8 @@
 //!
 //! **Interfaces.** The contact partition ([`super::face_contacts`]) splits every cell's surface into
 //! interfaces: the faces in contact with cell j (interface i–j, seen from both cells) and the free
-//! faces (interface i–medium, label 0). Each interface's faces are fitted by one sphere (a surface of
+//! faces (interface i–medium, label 0); on a multi-material mesh, whose faces name the cells on both
+//! sides, the partition is read from those labels instead (exact, no δ). Each interface's faces are fitted by one sphere (a surface of
 //! constant tension between two constant pressures has constant mean curvature; a sphere is the simplest
 //! such surface and fits every Surface Evolver interface we have within a few % of its radius), or by a
 //! plane when the sphere is not determined (nearly flat patches). The faces within
@@ -48,7 +49,7 @@
 //! per metre (the command line prints per µm). Deterministic: every loop runs in a fixed order and the
 //! contact partition is thread-independent, so 1 and N threads give identical results.
 
-use super::face_contacts::{FREE, detect_face_contacts};
+use super::face_contacts::{FREE, detect_face_contacts, labelled_face_contacts};
 use super::far_field::fit_sphere;
 use super::measure::DEFAULT_CONTACT_DISTANCE_FACTOR;
 use crate::geometry::{Real, Vec3};
@@ -98,6 +99,9 @@ pub struct TensionSettings {
     /// the voxel size of a meshed segmentation. The fit margin, the vertex margin and the junction
     /// tolerances are multiples of max(this, mean edge length). `None`: the mean edge length.
     pub rounding_scale: Option<Real>,
+    /// Take the interfaces from the input's interface labels when every cell carries them (a
+    /// multi-material mesh, [`crate::mesh::Cell::interface_labels`]) instead of the contact distance.
+    pub interface_labels: bool,
 }
 
 impl Default for TensionSettings {
@@ -108,6 +112,7 @@ impl Default for TensionSettings {
             gauge: Gauge::MediumMean,
             gauge_value: 1.0,
             rounding_scale: None,
+            interface_labels: true,
         }
     }
 }
@@ -192,8 +197,11 @@ pub struct TensionMap {
     pub cells: Vec<CellPressure>,
     /// For each tissue cell and face, the index in `interfaces` of the face's interface.
     pub face_interface: Vec<Vec<usize>>,
-    /// Contact distance used (m).
+    /// Contact distance used (m): the contact rule's δ, or with interface labels only the scale of
+    /// the rim search.
     pub contact_distance: Real,
+    /// How the interfaces were found.
+    pub contact_rule: super::ContactRule,
     /// Junction samples used in the force balance.
     pub samples: usize,
     /// Samples left out (a partner pair that does not touch, or an interface without a fit, or
@@ -288,7 +296,10 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         Some(d) => return Err(TensionError::InvalidContactDistance { value: d }),
         None => DEFAULT_CONTACT_DISTANCE_FACTOR * h,
     };
-    let partitions = detect_face_contacts(tissue, &participates, delta);
+    let labelled = if settings.interface_labels { labelled_face_contacts(tissue, &participates) } else { None };
+    let contact_rule =
+        if labelled.is_some() { super::ContactRule::InterfaceLabels } else { super::ContactRule::Distance };
+    let partitions = labelled.unwrap_or_else(|| detect_face_contacts(tissue, &participates, delta));
     let ids: Vec<u32> = cells.iter().map(|c| c.id().0).collect();
     let mut warnings = Vec::new();
 
@@ -638,6 +649,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         cells: cells_out,
         face_interface,
         contact_distance: delta,
+        contact_rule,
         samples: used,
         samples_skipped: skipped,
         samples_near_vertices: vertex_skipped,

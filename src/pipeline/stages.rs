@@ -218,6 +218,7 @@ fn settings(measure: &MeasureSection) -> MeasureSettings {
         contact_distance: measure.contact_distance,
         include_static: measure.include_static,
         exterior_free_fraction: measure.exterior_free_fraction,
+        interface_labels: true,
     }
 }
 
