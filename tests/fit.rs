@@ -370,9 +370,26 @@ fn resumes_exactly(dir: &Path, out: &Path, full: &FitResult) {
 /// recovered is w/(2γ) in the Young–Dupré sense. The acceptance test of spring
 /// contacts is the aggregate (`aggregate_round_trip_recovers_spring_adhesion_over_tension_within_10_percent`),
 /// whose ~60 contacts determine it.
+///
+/// CI runs the weak adhesion 0.3 (reported NOT determined when measured); the strong one, 0.45
+/// (determined, +1.3 %), is [`study_spring_doublet_round_trip_at_strong_adhesion`], left out of CI
+/// for time (each case costs a 16,000-step truth and a fit, minutes on 2 cores).
 #[test]
 fn round_trip_of_a_spring_doublet_recovers_the_adhesion_or_reports_it_undetermined() {
-    for w_over_2g in [0.3, 0.45] {
+    spring_doublet_round_trip(&[0.3]);
+}
+
+/// The spring doublet round trip at w/(2γ) = 0.45, the figure of docs/src/validation/fitting.md (a
+/// study, skipped by CI: `cargo test --release --test fit -- --ignored --nocapture study_spring`).
+#[test]
+#[ignore = "study for the docs, minutes: run with --ignored study_spring (CI skips study_*)"]
+fn study_spring_doublet_round_trip_at_strong_adhesion() {
+    spring_doublet_round_trip(&[0.45]);
+}
+
+/// [`round_trip_of_a_spring_doublet_recovers_the_adhesion_or_reports_it_undetermined`] at each truth.
+fn spring_doublet_round_trip(truths: &[Real]) {
+    for &w_over_2g in truths {
         let (_, l_min) = initial_doublet();
         // w/(2γ) = ω·c²/(4γ).
         let c = spring_cutoff(l_min);
@@ -486,11 +503,12 @@ fn bad_configs_are_errors_naming_the_key() {
     }
 }
 
-/// The README's resolution figures: recovery error at 10 and 20 voxels per cell diameter, both
-/// contact models (run with `cargo test --release --test fit -- --ignored --nocapture`).
+/// The docs' resolution figures (docs/src/validation/fitting.md): recovery error at 10 and 20 voxels
+/// per cell diameter, both contact models. A study that prints, skipped by CI (minutes): run with
+/// `cargo test --release --test fit -- --ignored --nocapture study_resolution`.
 #[test]
-#[ignore]
-fn resolution_study_10_vs_20_voxels_per_diameter() {
+#[ignore = "study for the docs, minutes: run with --ignored study_resolution (CI skips study_*)"]
+fn study_resolution_10_vs_20_voxels_per_diameter() {
     let (_, l_min) = initial_doublet();
     let cases = [
         Case {
