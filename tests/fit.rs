@@ -376,7 +376,7 @@ fn resumes_exactly(dir: &Path, out: &Path, full: &FitResult) {
 /// for time (each case costs a 16,000-step truth and a fit, minutes on 2 cores).
 #[test]
 fn round_trip_of_a_spring_doublet_recovers_the_adhesion_or_reports_it_undetermined() {
-    spring_doublet_round_trip(&[0.3]);
+    spring_doublet_round_trip(0.3);
 }
 
 /// The spring doublet round trip at w/(2γ) = 0.45, the figure of docs/src/validation/fitting.md (a
@@ -384,48 +384,41 @@ fn round_trip_of_a_spring_doublet_recovers_the_adhesion_or_reports_it_undetermin
 #[test]
 #[ignore = "study for the docs, minutes: run with --ignored study_spring (CI skips study_*)"]
 fn study_spring_doublet_round_trip_at_strong_adhesion() {
-    spring_doublet_round_trip(&[0.45]);
+    spring_doublet_round_trip(0.45);
 }
 
-/// [`round_trip_of_a_spring_doublet_recovers_the_adhesion_or_reports_it_undetermined`] at each truth.
-fn spring_doublet_round_trip(truths: &[Real]) {
-    for &w_over_2g in truths {
-        let (_, l_min) = initial_doublet();
-        // w/(2γ) = ω·c²/(4γ).
-        let c = spring_cutoff(l_min);
-        let omega = w_over_2g * 4.0 * 1e-3 / (c * c);
-        let case = Case {
-            contact: ContactModel::Spring,
-            truth: (1e-3, 1e-3, omega),
-            parameters: SPRING,
-            ratio: "adhesion_energy_over_tension",
-        };
-        let dir = tempfile::tempdir().unwrap();
-        let (result, _) = round_trip(&case, dir.path());
-        let r = &result.ratios[case.ratio];
-        match r.determined {
-            Some(true) => {
-                check(&case, &result);
-                let [lo, hi] = r.range;
-                assert!(
-                    lo <= w_over_2g && w_over_2g <= hi,
-                    "determined range [{lo}, {hi}] misses the truth {w_over_2g}"
-                );
-            }
-            _ => {
-                let error = recovery_error(&case, &result);
-                eprintln!("w/(2γ) = {w_over_2g}: reported NOT determined ({:+.1} %)", 100.0 * error);
-                let [lo, hi] = r.range;
-                assert!(
-                    lo <= w_over_2g && w_over_2g <= hi,
-                    "acceptable range [{lo}, {hi}] misses the truth {w_over_2g}"
-                );
-                assert!(
-                    result.identifiability.iter().any(|line| line.contains("NOT determined")),
-                    "an undetermined ratio must be reported in plain words: {:?}",
-                    result.identifiability
-                );
-            }
+/// [`round_trip_of_a_spring_doublet_recovers_the_adhesion_or_reports_it_undetermined`] at the truth
+/// w/(2γ) = `w_over_2g`.
+fn spring_doublet_round_trip(w_over_2g: Real) {
+    let (_, l_min) = initial_doublet();
+    // w/(2γ) = ω·c²/(4γ).
+    let c = spring_cutoff(l_min);
+    let omega = w_over_2g * 4.0 * 1e-3 / (c * c);
+    let case = Case {
+        contact: ContactModel::Spring,
+        truth: (1e-3, 1e-3, omega),
+        parameters: SPRING,
+        ratio: "adhesion_energy_over_tension",
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (result, _) = round_trip(&case, dir.path());
+    let r = &result.ratios[case.ratio];
+    match r.determined {
+        Some(true) => {
+            check(&case, &result);
+            let [lo, hi] = r.range;
+            assert!(lo <= w_over_2g && w_over_2g <= hi, "determined range [{lo}, {hi}] misses the truth {w_over_2g}");
+        }
+        _ => {
+            let error = recovery_error(&case, &result);
+            eprintln!("w/(2γ) = {w_over_2g}: reported NOT determined ({:+.1} %)", 100.0 * error);
+            let [lo, hi] = r.range;
+            assert!(lo <= w_over_2g && w_over_2g <= hi, "acceptable range [{lo}, {hi}] misses the truth {w_over_2g}");
+            assert!(
+                result.identifiability.iter().any(|line| line.contains("NOT determined")),
+                "an undetermined ratio must be reported in plain words: {:?}",
+                result.identifiability
+            );
         }
     }
 }

@@ -131,6 +131,11 @@ fn multimaterial_contacts_come_from_the_interface_labels_and_survive_a_vtp_round
             assert!((area - shared).abs() < 1e-12, "contact area {area}, exact {shared}");
         }
         assert!((m.cells[0].free_area - 1.5).abs() < 1e-12, "free area of tetrahedron 1: {}", m.cells[0].free_area);
+        // A comparison (`measure --compare`) recomputes the summary: the rule stays the one used.
+        let mut compared = m.clone();
+        compared.set_overlap(&[]);
+        assert_eq!(compared.summary.contact_rule, ContactRule::InterfaceLabels);
+        assert_eq!(compared.summary.contact_distance, None);
     };
     check(&tissue);
     let by_distance =

@@ -236,7 +236,8 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
                 measure_tissue(tissue, &settings).with_context(|| format!("measuring {}", args.tissue.display()))?;
             if m.summary.contact_rule == ContactRule::InterfaceLabels && args.contact_distance.is_some() {
                 tracing::warn!(
-                    "{}: contacts were read from the file's interface labels, so --contact-distance only bounds                      the rim search; add --distance-contacts to find contacts by distance",
+                    "{}: contacts were read from the file's interface labels, so --contact-distance only bounds \
+                     the rim search; add --distance-contacts to find contacts by distance",
                     args.tissue.display()
                 );
             }

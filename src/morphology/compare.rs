@@ -66,6 +66,7 @@ impl Morphology {
         self.summary = MorphologySummary::from_rows(
             &self.cells,
             &self.contacts,
+            s.contact_rule,
             s.contact_distance,
             s.include_static,
             s.exterior_rule,

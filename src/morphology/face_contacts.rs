@@ -14,6 +14,7 @@
 //! rayon; every result depends only on the input (ties are broken by index, not by visiting order), so 1
 //! and N threads give identical partitions.
 
+use super::ContactRule;
 use crate::geometry::{Real, SpatialGrid, Vec3, closest_point_on_triangle};
 use crate::mesh::Tissue;
 use rayon::prelude::*;
@@ -140,6 +141,21 @@ fn free_partition(faces: usize) -> FaceContacts {
     FaceContacts { partner: vec![FREE; faces], distance: vec![Real::INFINITY; faces] }
 }
 
+/// The contact partition of every body and how it was found: from the interface labels when
+/// `use_labels` and every participating body carries them ([`labelled_face_contacts`]), otherwise by
+/// the contact distance `delta` ([`detect_face_contacts`]).
+pub fn contact_partition(
+    tissue: &Tissue,
+    participates: &[bool],
+    delta: Real,
+    use_labels: bool,
+) -> (Vec<FaceContacts>, ContactRule) {
+    match use_labels.then(|| labelled_face_contacts(tissue, participates)).flatten() {
+        Some(partition) => (partition, ContactRule::InterfaceLabels),
+        None => (detect_face_contacts(tissue, participates, delta), ContactRule::Distance),
+    }
+}
+
 /// The contact partition read from the interface labels of a multi-material input
 /// ([`crate::mesh::Cell::interface_labels`]): face `f` of body `a` touches the body whose id its label
 /// names, exactly as the file says, without a distance rule. A label naming the medium (0), a body
@@ -150,7 +166,7 @@ fn free_partition(faces: usize) -> FaceContacts {
 /// distances would mix two definitions).
 pub fn labelled_face_contacts(tissue: &Tissue, participates: &[bool]) -> Option<Vec<FaceContacts>> {
     let cells = tissue.cells();
-    if !cells.iter().zip(participates).any(|(_, &p)| p)
+    if !participates.iter().any(|&p| p)
         || cells.iter().zip(participates).any(|(c, &p)| p && c.interface_labels().is_none())
     {
         return None;

@@ -1,6 +1,6 @@
 //! Measuring a meshed tissue: per-cell metrics, contacts, contact angles, layers, nuclei, summary.
 
-use super::face_contacts::{FREE, FaceContacts, detect_face_contacts, labelled_face_contacts};
+use super::face_contacts::{FREE, FaceContacts, contact_partition};
 use super::layers::count_layers;
 use super::nucleus::contains;
 use super::rim_angle::{RimEdge, contact_angle, rim_edges, rim_toward};
@@ -99,9 +99,7 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
     let clock = std::time::Instant::now();
     let cells = tissue.cells();
     let participates: Vec<bool> = cells.iter().map(|c| c.kind() != CellKind::Nucleus).collect();
-    let labelled = if settings.interface_labels { labelled_face_contacts(tissue, &participates) } else { None };
-    let rule = if labelled.is_some() { ContactRule::InterfaceLabels } else { ContactRule::Distance };
-    let partitions = labelled.unwrap_or_else(|| detect_face_contacts(tissue, &participates, delta));
+    let (partitions, rule) = contact_partition(tissue, &participates, delta, settings.interface_labels);
     tracing::debug!("morphology: face contacts ({rule:?}) in {:.3} s (δ = {delta:e} m)", clock.elapsed().as_secs_f64());
     let measures: Vec<BodyMeasure> =
         cells.par_iter().zip(&partitions).map(|(cell, contacts)| measure_body(cell, contacts)).collect();
@@ -254,12 +252,9 @@ pub fn measure_tissue(tissue: &Tissue, settings: &MeasureSettings) -> Result<Mor
             }
         })
         .collect();
-    let mut summary =
-        MorphologySummary::from_rows(&rows, &contacts, Some(delta), settings.include_static, exterior_rule);
-    if rule == ContactRule::InterfaceLabels {
-        summary.contact_distance = None;
-        summary.contact_rule = rule;
-    }
+    let delta_used = (rule == ContactRule::Distance).then_some(delta);
+    let summary =
+        MorphologySummary::from_rows(&rows, &contacts, rule, delta_used, settings.include_static, exterior_rule);
     Ok(Morphology { cells: rows, contacts, summary })
 }
 

@@ -250,6 +250,7 @@ pub fn measure_labels(
     let summary = MorphologySummary::from_rows(
         &rows,
         &contacts,
+        super::ContactRule::VoxelFaces,
         None,
         settings.include_static,
         ExteriorRule::FreeSurfaceFraction,

@@ -89,6 +89,7 @@ impl MorphologySummary {
     pub fn from_rows(
         cells: &[CellMorphology],
         contacts: &[ContactMorphology],
+        contact_rule: ContactRule,
         contact_distance: Option<Real>,
         include_static: bool,
         exterior_rule: ExteriorRule,
@@ -143,7 +144,7 @@ impl MorphologySummary {
             mean_contact_angle_deg: angles.mean,
             mean_far_field_angle_deg: far_field.mean,
             contact_distance,
-            contact_rule: if contact_distance.is_some() { ContactRule::Distance } else { ContactRule::VoxelFaces },
+            contact_rule,
             mean_chi: statistics["chi"].mean,
             include_static,
             bodies,

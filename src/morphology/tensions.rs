@@ -6,10 +6,10 @@
 //! **Interfaces.** The contact partition ([`super::face_contacts`]) splits every cell's surface into
 //! interfaces: the faces in contact with cell j (interface i–j, seen from both cells) and the free
 //! faces (interface i–medium, label 0); on a multi-material mesh, whose faces name the cells on both
-//! sides, the partition is read from those labels instead (exact, no δ). Each interface's faces are fitted by one sphere (a surface of
-//! constant tension between two constant pressures has constant mean curvature; a sphere is the simplest
-//! such surface and fits every Surface Evolver interface we have within a few % of its radius), or by a
-//! plane when the sphere is not determined (nearly flat patches). The faces within
+//! sides, the partition is read from those labels instead (exact, no δ). Each interface's faces are
+//! fitted by one sphere (a surface of constant tension between two constant pressures has constant
+//! mean curvature; a sphere is the simplest such surface and fits every Surface Evolver interface we
+//! have within a few % of its radius), or by a plane when the sphere is not determined (nearly flat patches). The faces within
 //! [`FIT_MARGIN_EDGES`] mean edge lengths of the interface's junction lines are left out of the fit: a
 //! mesh rounds its junctions over one or two edges (remeshing, the contact gap, the voxels of a
 //! segmentation), and the first triangles' angle is biased by several degrees there.
@@ -49,7 +49,7 @@
 //! per metre (the command line prints per µm). Deterministic: every loop runs in a fixed order and the
 //! contact partition is thread-independent, so 1 and N threads give identical results.
 
-use super::face_contacts::{FREE, detect_face_contacts, labelled_face_contacts};
+use super::face_contacts::{FREE, contact_partition};
 use super::far_field::fit_sphere;
 use super::measure::DEFAULT_CONTACT_DISTANCE_FACTOR;
 use crate::geometry::{Real, Vec3};
@@ -296,10 +296,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         Some(d) => return Err(TensionError::InvalidContactDistance { value: d }),
         None => DEFAULT_CONTACT_DISTANCE_FACTOR * h,
     };
-    let labelled = if settings.interface_labels { labelled_face_contacts(tissue, &participates) } else { None };
-    let contact_rule =
-        if labelled.is_some() { super::ContactRule::InterfaceLabels } else { super::ContactRule::Distance };
-    let partitions = labelled.unwrap_or_else(|| detect_face_contacts(tissue, &participates, delta));
+    let (partitions, contact_rule) = contact_partition(tissue, &participates, delta, settings.interface_labels);
     let ids: Vec<u32> = cells.iter().map(|c| c.id().0).collect();
     let mut warnings = Vec::new();
 
