@@ -19,7 +19,7 @@ use std::time::Instant;
 use tissuefit::geometry::Real;
 use tissuefit::mechanics::{ContactQuadrature, Observer, Sample, Simulation, SimulationSummary};
 
-#[path = "../tests/support/young_dupre.rs"]
+#[path = "../tests/integration/support/young_dupre.rs"]
 mod young_dupre;
 use young_dupre::{Doublet, far_field_half_angles, params, start, young_dupre};
 

@@ -1,5 +1,5 @@
 //! Entry points of the fuzz targets (`fuzz/`, cargo-fuzz) and of their stable replay
-//! (`tests/fuzz_replay.rs`): one function per parser of user files, taking the raw bytes. Each
+//! (`tests/integration/fuzz_replay.rs`): one function per parser of user files, taking the raw bytes. Each
 //! returns `Ok` when the parser returned a result that holds its invariants or an error that names
 //! the file, and `Err` with what is wrong otherwise; a panic is a bug in the parser. Nothing is
 //! written to disk, so a fuzzer runs them at full speed.

@@ -51,7 +51,7 @@
 //! equilibrium of a neighbouring point) was measured on the coupled doublet: it ends at another shape
 //! than a cold start at the same parameters (with the Laplace start: sphericity −0.0003, but rim
 //! angle 71.2° vs 62.9°, 8 scales; before it: sphericity −0.0026, rim angle −5.6°) and saves no steps (the coupling residual hovers, so every pass runs its max_steps); see
-//! `tests/fit.rs`, `warm_start_reaches_other_metrics_than_a_cold_start_so_evaluations_start_cold`.
+//! `tests/integration/fit.rs`, `warm_start_reaches_other_metrics_than_a_cold_start_so_evaluations_start_cold`.
 
 use super::config::{ForwardConfig, ObjectiveConfig};
 use super::space::ParameterSpace;

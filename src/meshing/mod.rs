@@ -42,7 +42,7 @@
 //! (smaller volume), and the Gaussian blur moves the level inward where the surface is convex (by
 //! about σ²/R for mean curvature radius R). The samples lie on that level; the pivoted surface's
 //! flat triangles are chords of it, which loses about 3·r_c²/(4R²) of the volume (r_c the triangle
-//! circumradius): ≈ 1.5 % for a sphere with 400 nodes. Measured (tests/meshing.rs) at ~400 nodes:
+//! circumradius): ≈ 1.5 % for a sphere with 400 nodes. Measured (tests/integration/meshing.rs) at ~400 nodes:
 //! 97.8–98.1 % of the voxel-count volume for 8–17-voxel shapes, 98.4 % for a 40-voxel sphere
 //! (99.7 % with 1800 nodes), 98.2–98.5 % for real C. elegans cells. Concave creases narrower than
 //! the ball are bridged, not followed (random unions of 4–9-voxel balls: 95.8–97.9 %).

@@ -25,7 +25,7 @@
 //! from the staircase left in the normals and shrinks as σ grows (voxelised spheres of radius 8–25
 //! voxels, isotropic: +5.5 % at σ = 1 voxel, +2.1 % at 1.5, +1.1 % at 2, +0.5 % at 3; 1.6:1 anisotropic
 //! voxels: +0.6–0.9 % at 2), while σ must stay well below the cell's size and curvature radius; the
-//! default is σ = 2 × the largest voxel size (tests/morphology_labels.rs: within 2 % of 4πR²). Near
+//! default is σ = 2 × the largest voxel size (tests/integration/morphology_labels.rs: within 2 % of 4πR²). Near
 //! sharp edges (a cube's, a contact rim) the smoothed normal tilts over about σ, so faces there count a
 //! little less than their flat area.
 //!

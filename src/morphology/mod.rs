@@ -17,7 +17,7 @@
 //!
 //! Label volumes are measured directly by [`measure_labels()`] (voxel counts, voxel-face adjacency and a
 //! staircase-free area, see [the module](mod@measure_labels)), filling the same rows; the two routes
-//! agree on smooth shapes (tests/morphology_labels.rs). [`compare_shapes`] and [`compare_tissues`] give the
+//! agree on smooth shapes (tests/integration/morphology_labels.rs). [`compare_shapes`] and [`compare_tissues`] give the
 //! per-cell IoU and χ = 1 − IoU on a common voxel grid.
 //!
 //! Not here yet: a lumen that is not a body (the background cavity of a segmented organoid) needs a

@@ -1,4 +1,4 @@
-"""Writes the Python-made fixtures read by tests/label_readers.rs (python_written_stores_read_identically).
+"""Writes the Python-made fixtures read by tests/integration/label_readers.rs (python_written_stores_read_identically).
 
 Made once with zarr-python 3.1.6 / numcodecs 0.16.6 / numpy 2.4.6 (`pip install zarr`):
     python make.py   # in tests/data/python_zarr

@@ -10,7 +10,7 @@ use std::path::Path;
 /// file (`test` is the name of the calling test binary).
 pub fn check_generated_file(relative: &str, generated: &str, test: &str) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(relative);
-    let regenerate = format!("TISSUEFIT_BLESS=1 cargo test --release --test {test}");
+    let regenerate = format!("TISSUEFIT_BLESS=1 cargo test --release --test integration {test}::");
     if std::env::var_os("TISSUEFIT_BLESS").is_some_and(|v| v == "1") {
         let tmp = path.with_extension("md.tmp");
         std::fs::write(&tmp, generated).unwrap_or_else(|e| panic!("cannot write {}: {e}", tmp.display()));

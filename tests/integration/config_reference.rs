@@ -2,8 +2,7 @@
 //! `tissuefit config reference`, generated from the schemas: a key added, removed or re-documented in
 //! the code without regenerating it fails here. `TISSUEFIT_BLESS=1` regenerates it.
 
-#[path = "support/generated.rs"]
-mod generated;
+use crate::support::generated;
 
 #[test]
 fn the_committed_config_reference_is_the_generated_one() {

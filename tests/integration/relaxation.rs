@@ -6,8 +6,7 @@ use tissuefit::geometry::Real;
 use tissuefit::mechanics::{ContactModel, Observer, Parameters, Sample, Simulation, SimulationSummary};
 use tissuefit::mesh::Tissue;
 
-#[path = "support/round_trip.rs"]
-mod round_trip;
+use crate::support::round_trip;
 use round_trip::{AGGREGATE_GAMMA, initial_aggregate, round_trip_model};
 
 struct Quiet;

@@ -18,10 +18,8 @@ use tissuefit::mesh::FaceType;
 use tissuefit::mesh::Tissue;
 use tissuefit::meshing::{LabelMeshingOptions, mesh_labels};
 
-#[path = "support/round_trip.rs"]
-mod round_trip;
-#[path = "support/young_dupre.rs"]
-mod young_dupre;
+use crate::support::round_trip;
+use crate::support::young_dupre;
 use round_trip::{
     AGGREGATE_GAMMA, aggregate_fit_config, aggregate_model, initial_aggregate, observe_aggregate, round_trip_model,
 };
@@ -140,7 +138,7 @@ target_nodes = {TARGET_NODES}
 
 [forward]
 # The coupling model's residual hovers above the tolerance once the shape has settled (see
-# tests/contact_models.rs); the run length is the criterion.
+# tests/integration/contact_models.rs); the run length is the criterion.
 accept_residual = 1e9
 {match_mesh}
 
@@ -175,7 +173,7 @@ fn w_over_2g_truth(omega: Real, gamma: Real) -> Real {
 }
 
 /// Before a spring round trip fits anything, its truth must be physical: the relaxed doublet's
-/// far-field half-angles (sphere fits to the free caps, as `tests/spring_young_dupre.rs` reads them)
+/// far-field half-angles (sphere fits to the free caps, as `tests/integration/spring_young_dupre.rs` reads them)
 /// within 3° of Young–Dupré's for w/(2γ), the regime grid's bound. At c = l_min (c/R ≈ 0.25) this
 /// doublet ended +4.2…+6.0° off (w/(2γ) = 0.2 and 0.45; Young–Dupré is the zero-range limit of the
 /// well), hence c = l_min / 2.4.
@@ -380,7 +378,7 @@ fn round_trip_of_a_spring_doublet_recovers_the_adhesion_or_reports_it_undetermin
 }
 
 /// The spring doublet round trip at w/(2γ) = 0.45, the figure of docs/src/validation/fitting.md (a
-/// study, skipped by CI: `cargo test --release --test fit -- --ignored --nocapture study_spring`).
+/// study, skipped by CI: `cargo test --release --test integration -- --ignored --nocapture fit::study_spring`).
 #[test]
 #[ignore = "study for the docs, minutes: run with --ignored study_spring (CI skips study_*)"]
 fn study_spring_doublet_round_trip_at_strong_adhesion() {
@@ -498,7 +496,7 @@ fn bad_configs_are_errors_naming_the_key() {
 
 /// The docs' resolution figures (docs/src/validation/fitting.md): recovery error at 10 and 20 voxels
 /// per cell diameter, both contact models. A study that prints, skipped by CI (minutes): run with
-/// `cargo test --release --test fit -- --ignored --nocapture study_resolution`.
+/// `cargo test --release --test integration -- --ignored --nocapture fit::study_resolution`.
 #[test]
 #[ignore = "study for the docs, minutes: run with --ignored study_resolution (CI skips study_*)"]
 fn study_resolution_10_vs_20_voxels_per_diameter() {

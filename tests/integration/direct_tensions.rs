@@ -2,8 +2,7 @@
 //! analytic doublet, recovers the Surface Evolver truths (hetero4: six different interface tensions),
 //! same output on 1 and 2 threads, and clear errors on bad input.
 
-#[path = "support/analytic_doublet.rs"]
-mod analytic_doublet;
+use crate::support::analytic_doublet;
 
 use analytic_doublet::cap_cell;
 use std::path::{Path, PathBuf};

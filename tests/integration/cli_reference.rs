@@ -2,8 +2,7 @@
 //! the help of `tissuefit` and of every subcommand, as `--help` prints it. An option added, removed
 //! or re-documented without regenerating the file fails here. `TISSUEFIT_BLESS=1` regenerates it.
 
-#[path = "support/generated.rs"]
-mod generated;
+use crate::support::generated;
 
 use clap::CommandFactory;
 use std::fmt::Write;
@@ -15,10 +14,10 @@ use std::fmt::Write;
 fn cli_reference() -> String {
     let mut out = String::from(
         "# CLI reference\n\n\
-         Generated from the command-line definitions (clap) by `tests/cli_reference.rs`: the output of\n\
+         Generated from the command-line definitions (clap) by `tests/integration/cli_reference.rs`: the output of\n\
          `tissuefit --help` and of `tissuefit COMMAND --help` for every command. A test fails while this\n\
          file differs from the code; regenerate it with\n\
-         `TISSUEFIT_BLESS=1 cargo test --release --test cli_reference`. The guide explains the commands\n\
+         `TISSUEFIT_BLESS=1 cargo test --release --test integration cli_reference::`. The guide explains the commands\n\
          stage by stage; [Commands at a glance](commands.md) lists them on one page.\n\n\
          Exit codes of every command: 0 success; 1 completed but a check failed (an invalid cell, an\n\
          unconverged relaxation or fit, a missed `[demo]` truth, a failed sweep run); 2 error (unreadable\n\

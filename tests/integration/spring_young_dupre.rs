@@ -1,7 +1,7 @@
 //! Spring contacts against Young–Dupré (issue 20): a doublet of equal cells (tension γ on every face,
 //! spring adhesion w = ωc²/2 per contact) relaxed with full forces and remeshing, from touching spheres
 //! and from an over-adhered start, must end at the external half-angle of cos(θ/2) = 1 − w/(2γ),
-//! read in the far field (sphere fits to the free caps, `tests/support/young_dupre.rs`).
+//! read in the far field (sphere fits to the free caps, `tests/integration/support/young_dupre.rs`).
 //!
 //! With the face quadrature (`numerics.contact_quadrature = "faces"`) the contact line moves to
 //! Young–Dupré from both sides. The vertex quadrature (the default) misses it by 3–6° on these same
@@ -16,8 +16,7 @@
 use tissuefit::geometry::Real;
 use tissuefit::mechanics::{ContactQuadrature, Observer, Sample, Simulation};
 
-#[path = "support/young_dupre.rs"]
-mod young_dupre;
+use crate::support::young_dupre;
 use young_dupre::{Doublet, far_field_half_angles, params, start, young_dupre};
 
 struct Quiet;

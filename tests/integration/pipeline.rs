@@ -2,8 +2,7 @@
 //! thread-count reproducibility, resume after an interruption) and pipeline-file errors (exit 2,
 //! naming the file and the key).
 
-#[path = "support/run_dirs.rs"]
-mod run_dirs;
+use crate::support::run_dirs;
 
 use run_dirs::{data_hashes, normalised_hash, read_json, strip_wall_times};
 use std::collections::BTreeMap;

@@ -1,7 +1,6 @@
 //! Morphology metrics (DESIGN.md §4) on analytic shapes, constructed doublets and shells, and real data.
 
-#[path = "support/analytic_doublet.rs"]
-mod analytic_doublet;
+use crate::support::analytic_doublet;
 
 use analytic_doublet::cap_cell;
 use std::f64::consts::PI;

@@ -1,5 +1,5 @@
 //! An analytic doublet's cells: spherical caps closed by a flat disc, meshed ring by ring. Shared by
-//! `tests/morphology.rs` and `tests/direct_tensions.rs`.
+//! `tests/integration/morphology.rs` and `tests/integration/direct_tensions.rs`.
 
 use std::f64::consts::PI;
 use tissuefit::geometry::Vec3;

@@ -3,8 +3,7 @@
 //! time, see [`moments`]), each time started again with the same command, end with the outputs of an uninterrupted run byte for
 //! byte (wall-time fields aside; `simulated_here` counts what the last process simulated).
 
-#[path = "support/run_dirs.rs"]
-mod run_dirs;
+use crate::support::run_dirs;
 
 use run_dirs::{data_hashes, fractions, kill_at, read_json, strip_wall_times};
 use std::collections::BTreeMap;

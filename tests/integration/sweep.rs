@@ -282,7 +282,7 @@ fn a_sweep_over_a_mesh_input_runs_growth_and_measures_the_final_tissue() {
     let d = tmp.path();
     sphere_vtk(&d.join("sphere.vtk"));
     let growth = repo().join("pipelines/growth.toml");
-    // 300 steps of the growth benchmark: three divisions (tests/growth_cli.rs).
+    // 300 steps of the growth benchmark: three divisions (tests/integration/growth_cli.rs).
     let pipeline = format!(
         "[input]\nmesh = \"sphere.vtk\"\nlength_unit = \"m\"\n[simulate]\nmodel = \"{}\"\n\
          [simulate.model_overrides.simulation]\nduration = 3e-5\n",

@@ -194,7 +194,7 @@ fn cli_fails_with_exit_2_naming_why_when_no_cell_is_kept() {
 }
 
 #[test]
-#[ignore = "real data, ~1 s in release: cargo test --release --test mesh_labels -- --ignored"]
+#[ignore = "real data, ~1 s in release: cargo test --release --test integration mesh_labels:: -- --ignored"]
 fn real_ovule_crop_meshes_every_cell_that_is_not_debris() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real/plant-seg__sample_ovule_labels.tif");
     let volume = read_label_tiff(&path, &LabelReadOptions::default()).unwrap().volume;
@@ -318,7 +318,7 @@ fn penetration_depth(mesh: &tissuefit::mesh::CellMesh, p: &Vec3) -> f64 {
 }
 
 #[test]
-#[ignore = "real data, a few s in release: cargo test --release --test mesh_labels -- --ignored"]
+#[ignore = "real data, a few s in release: cargo test --release --test integration mesh_labels:: -- --ignored"]
 fn real_ovule_crop_adjacent_cells_do_not_interpenetrate_by_more_than_one_voxel() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real/plant-seg__sample_ovule_labels.tif");
     let volume = read_label_tiff(&path, &LabelReadOptions::default()).unwrap().volume;
@@ -480,7 +480,7 @@ fn cli_meshes_generated_cells_with_nuclei_and_refuses_nuclei_on_another_grid() {
 }
 
 #[test]
-#[ignore = "real data, ~10 s in release: cargo test --release --test mesh_labels -- --ignored"]
+#[ignore = "real data, ~10 s in release: cargo test --release --test integration mesh_labels:: -- --ignored"]
 fn real_c_elegans_4_cell_volume_meshes_completely_and_neighbours_do_not_interpenetrate_by_more_than_one_voxel() {
     let path =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real/DERIVED_cshaper_4cells_labels_from_mesh.tif");

@@ -40,7 +40,7 @@ fn ok(out: &Output) {
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
 }
 
-/// One 3 µm sphere (l_min 0.6 µm), the set-up of tests/growth_cli.rs: with pipelines/growth.toml
+/// One 3 µm sphere (l_min 0.6 µm), the set-up of tests/integration/growth_cli.rs: with pipelines/growth.toml
 /// it divides first at step ≈ 145 and again at ≈ 273 (coupling contacts, remeshing every step).
 fn sphere(dir: &Path) -> PathBuf {
     let path = dir.join("sphere.vtk");

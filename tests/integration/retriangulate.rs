@@ -160,7 +160,7 @@ fn mesh_refuses_unknown_inputs_and_nuclei_with_a_mesh() {
 }
 
 #[test]
-#[ignore = "real data, a few s in release: cargo test --release --test retriangulate -- --ignored"]
+#[ignore = "real data, a few s in release: cargo test --release --test integration retriangulate:: -- --ignored"]
 fn real_c_elegans_multimaterial_meshes_are_retriangulated_into_four_valid_cells() {
     let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
     // Coordinates in voxels of unknown size: read as µm (only the scale of the numbers changes).

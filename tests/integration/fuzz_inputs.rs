@@ -9,7 +9,7 @@
 //! the corpus, replayed first on every run.
 //!
 //! CI runs 128 cases per target; a longer fuzzing session is the same test with more cases:
-//! `TISSUEFIT_FUZZ_CASES=20000 cargo test --release --test fuzz_inputs`.
+//! `TISSUEFIT_FUZZ_CASES=20000 cargo test --release --test integration fuzz_inputs::`.
 
 use proptest::prelude::*;
 use std::path::Path;

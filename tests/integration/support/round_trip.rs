@@ -1,4 +1,4 @@
-//! The model and the aggregate of the fit round trips, shared by `tests/fit.rs` and
+//! The model and the aggregate of the fit round trips, shared by `tests/integration/fit.rs` and
 //! `examples/fit_aggregate.rs`.
 
 // Each includer uses its own part.

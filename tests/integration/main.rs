@@ -1,0 +1,48 @@
+//! The integration tests: one test binary (one link, and its tests share the test threads), one module per
+//! area. Run one area with `cargo test --release --test integration <module>::`, e.g. `fit::`.
+
+mod support;
+
+mod application1;
+mod application2;
+mod bad_input;
+mod checkpoint;
+mod cli;
+mod cli_reference;
+mod config_reference;
+mod contact_models;
+mod contacts;
+mod direct_tensions;
+mod division;
+mod evolver_clusters;
+mod fit;
+mod fit_safety;
+mod fuzz_inputs;
+mod fuzz_replay;
+mod generate_mesh;
+mod growth;
+mod growth_cli;
+mod imaging;
+mod io_formats;
+mod kill_resume;
+mod label_readers;
+mod mechanics_forces;
+mod mechanics_physics;
+mod mesh_bad_input;
+mod mesh_invariants;
+mod mesh_labels;
+mod meshing;
+mod morphology;
+mod morphology_labels;
+mod pipeline;
+mod polarity;
+mod real_data;
+mod relaxation;
+mod remesh_properties;
+mod render;
+mod resource_bounds;
+mod retriangulate;
+mod scenarios;
+mod simulate_defaults;
+mod spring_young_dupre;
+mod sweep;
