@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Prints the wall time of every integration test, longest first, with the totals per module: the
+# figures behind CI-time work (the whole CI must stay under 30 minutes on 2 cores). libtest's
+# per-test times (`--report-time`, JSON output) are unstable options; RUSTC_BOOTSTRAP=1 lets the
+# stable test binary accept them (a development tool only: nothing in the build depends on it).
+# Times are wall times with the tests sharing the machine's test threads, as in `cargo test`.
+# Usage: docs/scripts/test-times.sh [filter] [-- extra libtest arguments, e.g. --ignored]
+# About 18 minutes on 2 cores for the whole suite once it is built.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+binary=$(cargo test --release --locked --test integration --no-run --message-format json 2>/dev/null |
+    python3 -c 'import json,sys
+for line in sys.stdin:
+    m = json.loads(line)
+    if m.get("reason") == "compiler-artifact" and m["target"]["name"] == "integration" and m.get("executable"):
+        print(m["executable"])')
+out=$(mktemp)
+trap 'rm -f "$out"' EXIT
+RUSTC_BOOTSTRAP=1 "$binary" -Z unstable-options --format json --report-time "$@" >"$out" || true
+python3 - "$out" <<'PY'
+import collections, json, sys
+rows, suite = [], None
+for line in open(sys.argv[1]):
+    try:
+        d = json.loads(line)
+    except ValueError:
+        continue
+    if d.get("type") == "test" and "exec_time" in d:
+        rows.append((d["exec_time"], d["name"], d["event"]))
+    if d.get("type") == "suite" and "exec_time" in d:
+        suite = d
+rows.sort(reverse=True)
+for t, name, event in rows:
+    print(f"{t:8.1f} s  {event:6} {name}")
+per_module = collections.Counter()
+for t, name, _ in rows:
+    per_module[name.split("::")[0]] += t
+print("\nper module (sum of test wall times):")
+for module, t in per_module.most_common():
+    print(f"{t:8.1f} s  {module}")
+if suite:
+    print(f"\nsuite: {suite['exec_time']:.1f} s wall, {suite['passed']} passed, {suite['failed']} failed, "
+          f"{suite['ignored']} ignored")
+PY
