@@ -6,12 +6,9 @@
 //! meets: truncated and corrupted files, non-finite coordinates, open and inside-out cells, bad
 //! parameter values, missing files, an output folder that cannot be created, and a full disk.
 
+use crate::support::cli::tissuefit;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
-}
+use std::process::Command;
 
 fn demo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/cell_quartet.vtk")

@@ -3,6 +3,7 @@
 //! uninterrupted run (final tissue, stats.csv, events.csv, every frame, the .pvd index, and
 //! summary.json but for its wall times); a damaged checkpoint is refused with an error naming it.
 
+use crate::support::cli::tissuefit;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::OnceLock;
@@ -10,10 +11,6 @@ use std::time::{Duration, Instant};
 use tissuefit::io::write_simucell3d;
 use tissuefit::mesh::shapes::sphere_for_min_edge;
 use tissuefit::mesh::{Cell, CellId, CellKind, Tissue};
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
-}
 
 fn spawn(args: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_tissuefit"))

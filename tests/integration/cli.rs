@@ -1,12 +1,9 @@
 //! End-to-end tests of the `tissuefit` binary in a temporary directory.
 
+use crate::support::cli::tissuefit;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use tissuefit::mechanics::Parameters;
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
-}
 
 fn demo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/cell_quartet.vtk")

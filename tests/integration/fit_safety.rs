@@ -5,17 +5,9 @@
 //! Kept cheap: the demo doublet meshed at 60 nodes per cell, relaxations of one step (which never
 //! converge, so every evaluation is penalised), two evaluations.
 
+use crate::support::cli::{repo, tissuefit};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use tissuefit::inference::{FitConfig, FitOptions, InferenceError, run_fit};
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("runs the binary")
-}
 
 /// The fit part shared by the fit config and the pipeline (`prefix` "" or "fit."): the demo's
 /// truth as the model (with `numerics` TOML lines under `model_overrides.numerics`), γ_lateral

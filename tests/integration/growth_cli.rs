@@ -2,15 +2,11 @@
 //! changing number of cells, the `parent` column, `events.csv` and the topology counts; and
 //! `tissuefit bench growth` prints its JSON.
 
+use crate::support::cli::tissuefit;
 use std::path::Path;
-use std::process::{Command, Output};
 use tissuefit::io::{ReadOptions, read_tissue, write_simucell3d};
 use tissuefit::mesh::shapes::sphere_for_min_edge;
 use tissuefit::mesh::{Cell, CellId, CellKind, Tissue};
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
-}
 
 #[test]
 fn simulate_with_the_growth_config_records_divisions_and_lineage() {

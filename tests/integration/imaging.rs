@@ -1,6 +1,7 @@
 //! Label volumes: TIFF round trips (dtypes, compressions, BigTIFF), metadata, bad input, voxelisation
 //! accuracy and determinism, the real label files, and the `voxelize` / `generate labels` commands.
 
+use crate::support::cli::tissuefit;
 use ndarray::Array3;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -451,10 +452,6 @@ fn reads_the_derived_cshaper_labels_and_our_voxelisation_of_its_mesh_matches_the
         let iou = both as Real / either as Real;
         assert!(iou > 0.99, "label {}: IoU {iou}", info.label);
     }
-}
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
 }
 
 fn ok(out: &Output) -> String {

@@ -2,22 +2,18 @@
 //! and NumPy .npy, on fixtures written here by minimal writers (JSON + raw/gzip chunks, a .npy
 //! header + data), and the same labels through TIFF, Zarr and .npy giving the same `measure` output.
 
+use crate::support::cli::tissuefit;
 use flate2::Compression;
 use flate2::write::GzEncoder;
 use ndarray::Array3;
 use serde_json::{Value, json};
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use tissuefit::geometry::Vec3;
 use tissuefit::imaging::{
     LabelFormat, LabelPattern, LabelReadOptions, LabelSpec, LabelVolume, LabelWriteOptions, VoxelSizeSource,
     generate_labels, read_labels, write_label_tiff,
 };
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
-}
 
 /// A small label volume with three labels, background and a value above 255.
 fn sample() -> Array3<u32> {

@@ -1,11 +1,11 @@
 //! Measuring label volumes directly (voxels), its agreement with the mesh route on smooth synthetic
 //! shapes, and shape comparison (IoU, χ = 1 − IoU).
 
+use crate::support::cli::tissuefit;
 use ndarray::{Array3, s};
 use std::collections::BTreeSet;
 use std::f64::consts::PI;
 use std::path::Path;
-use std::process::Command;
 use tissuefit::geometry::Vec3;
 use tissuefit::imaging::{
     LabelPattern, LabelSpec, LabelVolume, LabelWriteOptions, generate_labels, label_overlap, voxelize, write_label_tiff,
@@ -345,10 +345,6 @@ fn compare_shapes_matches_cells_by_label() {
 
 // ---------------------------------------------------------------------------------------------
 // CLI
-
-fn tissuefit(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().unwrap()
-}
 
 fn column(path: &Path, name: &str) -> Vec<String> {
     let mut r = csv::Reader::from_path(path).unwrap();

@@ -1,6 +1,7 @@
 //! Ray-casting polarisation (paper mode 2): against an independent geometric ground truth on the
 //! SimuCell3D lumen test geometry, and inside simulations (start, interval, divisions).
 
+use crate::support::cli::tissuefit;
 use rayon::prelude::*;
 use std::path::Path;
 use tissuefit::geometry::{Real, Vec3, bounding_box, closest_point_on_triangle};
@@ -170,10 +171,6 @@ fn ray_casting_repolarises_after_a_division() {
     }
     assert_eq!(sim.polarizations(), 2, "no division, no interval: no polarisation");
     assert!(sim.tissue().cells().iter().all(|c| c.mesh().validate().is_ok()));
-}
-
-fn tissuefit(args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("the tissuefit binary runs")
 }
 
 fn demo() -> std::path::PathBuf {

@@ -1,12 +1,8 @@
 //! `tissuefit render`: a known tissue drawn to a PNG of the asked size, its pixels where the tissue
 //! is, the colourings and views distinct; bad input an error naming the problem (exit 2).
 
+use crate::support::cli::tissuefit;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("runs the binary")
-}
 
 fn quartet() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/demo/cell_quartet.vtk")

@@ -3,18 +3,10 @@
 //! `[input] generate = {...}` runs, reruns its mesh stage when the table changes, and rejects unknown
 //! keys with a suggestion.
 
+use crate::support::cli::{repo, tissuefit};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use tissuefit::mechanics::Parameters;
 use tissuefit::pipeline::{PipelineConfig, Sweep, is_pipeline_file};
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("runs the binary")
-}
 
 fn toml_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)

@@ -4,19 +4,12 @@
 //! recorded, not fatal. And the pipeline pieces sweeps need: a mesh input (`[input] mesh`) and a
 //! time run (growth and divisions) in the simulate stage, measured at its end.
 
+use crate::support::cli::{repo, tissuefit};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use tissuefit::io::{ReadOptions, read_tissue, write_simucell3d};
 use tissuefit::mesh::shapes::sphere_for_min_edge;
 use tissuefit::mesh::{Cell, CellId, CellKind, Tissue};
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn tissuefit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tissuefit")).args(args).output().expect("runs the binary")
-}
 
 fn text(o: &Output) -> (String, String) {
     (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())

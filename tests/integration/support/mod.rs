@@ -1,6 +1,7 @@
 //! Helpers shared by several test modules.
 
 pub mod analytic_doublet;
+pub mod cli;
 pub mod generated;
 pub mod round_trip;
 pub mod run_dirs;
