@@ -8,14 +8,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 use tissuefit::io::{LengthScale, ReadOptions, read_tissue};
-use tissuefit::mechanics::{Observer, Parameters, Sample, Simulation};
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
+use tissuefit::mechanics::{NoObserver, Parameters, Simulation};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -28,7 +21,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut params = Parameters::load(Path::new(&args[1]))?;
     params.simulation.max_steps = args[2].parse()?;
     let mut sim = Simulation::new(tissue, &params)?;
-    let summary = sim.run(&mut Quiet)?;
+    let summary = sim.run(&mut NoObserver)?;
     println!("steps {} residual {:.3e}", summary.steps, summary.residual);
     let scale = sim.force_scale();
     let group_size: HashMap<(u32, u32), usize> =

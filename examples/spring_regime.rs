@@ -17,18 +17,11 @@
 
 use std::time::Instant;
 use tissuefit::geometry::Real;
-use tissuefit::mechanics::{ContactQuadrature, Observer, Sample, Simulation, SimulationSummary};
+use tissuefit::mechanics::{ContactQuadrature, NoObserver, Simulation, SimulationSummary};
 
 #[path = "../tests/integration/support/young_dupre.rs"]
 mod young_dupre;
 use young_dupre::{Doublet, far_field_half_angles, params, start, young_dupre};
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
 
 fn parse() -> Result<Doublet, String> {
     let mut a = Doublet::default();
@@ -90,7 +83,7 @@ fn run(a: &Doublet) -> Result<(), String> {
     }
     let started = Instant::now();
     let mut sim = Simulation::new(tissue, &p).map_err(|e| e.to_string())?;
-    let summary: SimulationSummary = sim.run(&mut Quiet).map_err(|e| e.to_string())?;
+    let summary: SimulationSummary = sim.run(&mut NoObserver).map_err(|e| e.to_string())?;
     let wall = started.elapsed().as_secs_f64();
     let nodes = sim.tissue().cells()[0].mesh().node_count();
     let [ha, hb] = far_field_half_angles(sim.tissue(), 0.3 * r);

@@ -17,7 +17,7 @@ use super::Outcome;
 use crate::geometry::{Real, Vec3};
 use crate::io::{ReadOptions, read_tissue};
 use crate::mechanics::{
-    ContactModel, ContactWorkspace, CouplingWorkspace, Dynamics, Observer, Parameters, RelaxMethod, Sample, Simulation,
+    ContactModel, ContactWorkspace, CouplingWorkspace, Dynamics, NoObserver, Parameters, RelaxMethod, Simulation,
     TermSet, TissueForces, cell_parameters, integrate_step,
 };
 use crate::mesh::shapes::{cube_sphere, subdivided_cube};
@@ -123,13 +123,6 @@ fn forces_json(
     }))
 }
 
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
-
 fn relax_cube() -> anyhow::Result<serde_json::Value> {
     // l_min = 0.3 µm so that the cube's 0.8 µm edges lie within [l_min, 3·l_min] for remeshing.
     let mut params = Parameters::default();
@@ -161,7 +154,7 @@ fn relax_cube() -> anyhow::Result<serde_json::Value> {
         params.simulation.remesh_every_steps = remesh;
         let mut sim = Simulation::new(cube()?, &params)?;
         let t = Instant::now();
-        let s = sim.run(&mut Quiet)?;
+        let s = sim.run(&mut NoObserver)?;
         let wall = t.elapsed().as_secs_f64();
         let m = sim.tissue().cells()[0].mesh();
         first.get_or_insert((s.steps, wall, m.node_count(), s.force_evaluations));

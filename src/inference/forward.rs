@@ -57,7 +57,7 @@ use super::config::{ForwardConfig, ObjectiveConfig};
 use super::space::ParameterSpace;
 use crate::geometry::{Real, Vec3};
 use crate::imaging::{LabelVolume, label_overlap, voxelize};
-use crate::mechanics::{CellTypeParams, Observer, Parameters, Sample, Simulation, SimulationSummary};
+use crate::mechanics::{CellTypeParams, NoObserver, Observer, Parameters, Simulation, SimulationSummary};
 use crate::mesh::Tissue;
 use crate::meshing::{LabelMeshingOptions, mesh_labels};
 use crate::morphology::{MeasureSettings, measure_tissue};
@@ -258,13 +258,6 @@ fn no_moving_cell(tissue: &Tissue, meshing: Option<&LabelMeshingOptions>) -> Str
     }
 }
 
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
-
 /// Everything one evaluation needs; shared read-only by parallel evaluations.
 pub struct ForwardModel {
     pub observation: Observation,
@@ -361,7 +354,7 @@ impl ForwardModel {
         if let Err(e) = params.validate() {
             return (failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default()), None);
         }
-        let (tissue, summary) = match self.relax(&params, start, &mut Quiet) {
+        let (tissue, summary) = match self.relax(&params, start, &mut NoObserver) {
             Ok(r) => r,
             Err((reason, steps)) => return (failed(reason, steps, Real::NAN, Metrics::default()), None),
         };

@@ -75,6 +75,16 @@ pub trait Observer {
     }
 }
 
+/// An observer that keeps nothing: for relaxations whose caller reads only the final tissue and
+/// summary.
+pub struct NoObserver;
+
+impl Observer for NoObserver {
+    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
+}
+
 /// What an observer wants at a step boundary.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum CheckpointRequest {

@@ -156,15 +156,6 @@ fn a_host_membrane_does_not_adhere_to_its_nucleus() {
     assert_eq!(nucleus, 0.0);
 }
 
-/// Ignores every sample.
-struct Quiet;
-
-impl tissuefit::mechanics::Observer for Quiet {
-    fn sample(&mut self, _: &tissuefit::mechanics::Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
-
 /// The patch of pipelines/patch-nuclei.toml: 19 tall cells (7 free, 12 static), nuclei elongated 4×.
 fn patch() -> Tissue {
     let spec = TissueSpec {
@@ -206,7 +197,7 @@ fn patch_params(gamma_tilde: f64, omega_tilde: f64, gamma_n_tilde: f64, l_n: f64
 
 fn relax(tissue: Tissue, p: &Parameters) -> Tissue {
     let mut sim = Simulation::new(tissue, p).unwrap();
-    sim.run(&mut Quiet).unwrap();
+    sim.run(&mut tissuefit::mechanics::NoObserver).unwrap();
     sim.into_tissue()
 }
 

@@ -3,18 +3,11 @@
 
 use tissuefit::geometry::{Real, Vec3};
 use tissuefit::mechanics::{
-    ContactModel, Dynamics, Observer, Parameters, Polarity, RelaxMethod, Sample, Simulation, SimulationMode,
+    ContactModel, Dynamics, NoObserver, Parameters, Polarity, RelaxMethod, Simulation, SimulationMode,
     SimulationSummary,
 };
 use tissuefit::mesh::shapes::icosphere;
 use tissuefit::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
 
 /// Cells of radius `r` (subdivided icospheres) centred at `centres`, every face basal (free).
 fn cells(r: Real, subdivisions: u32, centres: &[Vec3]) -> Tissue {
@@ -64,7 +57,7 @@ fn coupling_params(gamma_a: Real, gamma_l: Real) -> Parameters {
 
 fn relax(tissue: Tissue, p: &Parameters) -> (Tissue, SimulationSummary) {
     let mut sim = Simulation::new(tissue, p).unwrap();
-    let summary = sim.run(&mut Quiet).unwrap();
+    let summary = sim.run(&mut NoObserver).unwrap();
     (sim.into_tissue(), summary)
 }
 
@@ -216,7 +209,7 @@ fn spring_doublets_adhere_with_a_flat_disc_that_grows_with_adhesion() {
         let tissue = cells(r, 3, &[Vec3::new(-r, 0.0, 0.0), Vec3::new(r, 0.0, 0.0)]);
         let p = spring_params(omega);
         let mut sim = Simulation::new(tissue, &p).unwrap();
-        let s = sim.run(&mut Quiet).unwrap();
+        let s = sim.run(&mut NoObserver).unwrap();
         let t = sim.tissue();
         for cell in t.cells() {
             cell.mesh().validate().unwrap();
@@ -300,7 +293,7 @@ fn a_nucleus_stays_inside_its_compressed_cell() {
     let nucleus = Cell::new(CellId(2), CellKind::Nucleus, 1, icosphere(1.5e-6, 3, Vec3::new(1.2e-6, 0.0, 0.0)));
     let vn0 = nucleus.mesh().signed_volume();
     let mut sim = Simulation::new(Tissue::from_cells(vec![cell, nucleus]).unwrap(), &p).unwrap();
-    let s = sim.run(&mut Quiet).unwrap();
+    let s = sim.run(&mut NoObserver).unwrap();
     let t = sim.tissue();
     let [cell, nucleus] = [&t.cells()[0], &t.cells()[1]];
     let (vc, vn) = (cell.mesh().signed_volume(), nucleus.mesh().signed_volume());
@@ -327,7 +320,7 @@ fn a_growing_cell_stays_inside_the_ecm_shell() {
     let cell = Cell::new(CellId(1), CellKind::Epithelial, 0, cell).with_target_volume(8.0 * v);
     let ecm = Cell::new(CellId(2), CellKind::Ecm, 1, icosphere(4e-6, 4, Vec3::new(3e-7, 0.0, 0.0)));
     let mut sim = Simulation::new(Tissue::from_cells(vec![cell, ecm]).unwrap(), &p).unwrap();
-    let s = sim.run(&mut Quiet).unwrap();
+    let s = sim.run(&mut NoObserver).unwrap();
     let t = sim.tissue();
     let [cell, ecm] = [&t.cells()[0], &t.cells()[1]];
     let (vc, ve) = (cell.mesh().signed_volume(), ecm.mesh().signed_volume());

@@ -10,16 +10,9 @@
 use std::path::{Path, PathBuf};
 use tissuefit::geometry::{Real, Vec3};
 use tissuefit::io::{LengthScale, ReadOptions, read_tissue};
-use tissuefit::mechanics::{Observer, Parameters, Sample, Simulation};
+use tissuefit::mechanics::{NoObserver, Parameters, Simulation};
 use tissuefit::mesh::Tissue;
 use tissuefit::morphology::{MeasureSettings, Morphology, measure_tissue};
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/evolver/fixtures").join(name)
@@ -56,7 +49,7 @@ fn relax_with(name: &str, steps: u64, change: impl FnOnce(&mut Parameters)) -> (
     let evolver = measure(&tissue);
     let params = validation_params(name, steps, change);
     let mut sim = Simulation::new(tissue, &params).unwrap();
-    let summary = sim.run(&mut Quiet).unwrap();
+    let summary = sim.run(&mut NoObserver).unwrap();
     (evolver, measure(sim.tissue()), summary.residual)
 }
 
@@ -199,7 +192,7 @@ fn every_shared_evolver_vertex_of_the_twelve_cell_ball_is_one_tied_group() {
     }
     let params = validation_params("ball12", 0, |_| {});
     let mut sim = Simulation::new(tissue.clone(), &params).unwrap();
-    sim.run(&mut Quiet).unwrap();
+    sim.run(&mut NoObserver).unwrap();
     let mut group_of = std::collections::HashMap::new();
     for (g, group) in sim.coupled_groups().enumerate() {
         for &m in group {

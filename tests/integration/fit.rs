@@ -13,7 +13,7 @@ use tissuefit::imaging::{
     LabelPattern, LabelSpec, LabelWriteOptions, VoxelGrid, generate_labels, voxelize, write_label_tiff,
 };
 use tissuefit::inference::{FitConfig, FitOptions, FitResult, read_trace, run_fit};
-use tissuefit::mechanics::{ContactModel, ContactQuadrature, Observer, Parameters, Sample, Simulation};
+use tissuefit::mechanics::{ContactModel, ContactQuadrature, NoObserver, Parameters, Simulation};
 use tissuefit::mesh::FaceType;
 use tissuefit::mesh::Tissue;
 use tissuefit::meshing::{LabelMeshingOptions, mesh_labels};
@@ -24,13 +24,6 @@ use round_trip::{
     AGGREGATE_GAMMA, aggregate_fit_config, aggregate_model, initial_aggregate, observe_aggregate, round_trip_model,
 };
 use young_dupre::{far_field_half_angles, young_dupre};
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
 
 /// Cell radius of the generated doublet (m) and the nodes per cell of its meshes.
 const VOXEL: Real = 0.4e-6;
@@ -94,7 +87,7 @@ fn observed_labels_after(
     let mut truth = truth.clone();
     truth.simulation.max_steps = steps;
     let mut sim = Simulation::new(initial.clone(), &truth).unwrap();
-    let summary = sim.run(&mut Quiet).unwrap();
+    let summary = sim.run(&mut NoObserver).unwrap();
     eprintln!("truth relaxation: {summary:?}");
     let tissue = sim.into_tissue();
     let mean_volume = tissue.cells().iter().map(|c| c.mesh().signed_volume()).sum::<Real>() / tissue.len() as Real;

@@ -234,20 +234,14 @@ fn coordinates_agree_with_vtkio_where_vtkio_can_read() {
 #[test]
 #[ignore = "needs ../shared/data/real"]
 fn real_simucell3d_tissues_relax_with_default_parameters() {
-    use tissuefit::mechanics::{Observer, Parameters, Sample, Simulation};
-    struct Quiet;
-    impl Observer for Quiet {
-        fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-            Ok(())
-        }
-    }
+    use tissuefit::mechanics::{NoObserver, Parameters, Simulation};
     for name in ["simucell3d__cell_doublet.vtk", "simucell3d__cell_triplet.vtk"] {
         let t = read_tissue(&real(name), &ReadOptions::default()).unwrap().tissue;
         let mut p = Parameters::default();
         p.simulation.max_steps = 400;
         p.simulation.sample_every_steps = u64::MAX;
         let mut sim = Simulation::new(t, &p).unwrap();
-        let s = sim.run(&mut Quiet).unwrap();
+        let s = sim.run(&mut NoObserver).unwrap();
         assert!(s.residual.is_finite() && s.energy.total().is_finite(), "{name}: {s:?}");
         for c in sim.tissue().cells() {
             assert_eq!(c.mesh().validate(), Ok(()), "{name} cell {} after relaxation", c.id());
@@ -264,14 +258,8 @@ fn real_simucell3d_tissues_relax_with_default_parameters() {
 fn real_simucell3d_tissues_relax_with_each_contact_model() {
     // FIRE with remeshing every 20 steps, for a bounded number of steps: no NaN, valid meshes, and
     // no node deeper than the cutoff inside another cell.
-    use tissuefit::mechanics::{CellTypeParams, ContactModel, Observer, Parameters, Polarity, Sample, Simulation};
+    use tissuefit::mechanics::{CellTypeParams, ContactModel, NoObserver, Parameters, Polarity, Simulation};
     use tissuefit::mesh::CellKind;
-    struct Quiet;
-    impl Observer for Quiet {
-        fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-            Ok(())
-        }
-    }
     for model in [ContactModel::Spring, ContactModel::Coupling] {
         for (name, steps) in [
             ("simucell3d__cell_doublet.vtk", 400),
@@ -300,7 +288,7 @@ fn real_simucell3d_tissues_relax_with_each_contact_model() {
             let cutoff = p.numerics.contact_cutoff;
             let clock = std::time::Instant::now();
             let mut sim = Simulation::new(t, &p).unwrap();
-            let s = sim.run(&mut Quiet).unwrap_or_else(|e| panic!("{name}, {model:?}: {e}"));
+            let s = sim.run(&mut NoObserver).unwrap_or_else(|e| panic!("{name}, {model:?}: {e}"));
             assert!(s.residual.is_finite() && s.energy.total().is_finite(), "{name}, {model:?}: {s:?}");
             let mut deepest = f64::INFINITY;
             for (i, c) in sim.tissue().cells().iter().enumerate() {

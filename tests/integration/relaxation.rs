@@ -3,18 +3,11 @@
 //! adhesive spring aggregate generated from polyhedra.
 
 use tissuefit::geometry::Real;
-use tissuefit::mechanics::{ContactModel, Observer, Parameters, Sample, Simulation, SimulationSummary};
+use tissuefit::mechanics::{ContactModel, NoObserver, Parameters, Simulation, SimulationSummary};
 use tissuefit::mesh::Tissue;
 
 use crate::support::round_trip;
 use round_trip::{AGGREGATE_GAMMA, initial_aggregate, round_trip_model};
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
 
 /// Spring contacts with w/(2γ) = ωc²/(4γ) = 0.1 (c = l_min), remeshing every 50 steps.
 fn model(l_min: Real, steps: u64) -> Parameters {
@@ -24,7 +17,7 @@ fn model(l_min: Real, steps: u64) -> Parameters {
 
 fn relax(tissue: &Tissue, params: &Parameters) -> (Tissue, SimulationSummary) {
     let mut sim = Simulation::new(tissue.clone(), params).unwrap();
-    let summary = sim.run(&mut Quiet).unwrap();
+    let summary = sim.run(&mut NoObserver).unwrap();
     (sim.into_tissue(), summary)
 }
 
@@ -88,7 +81,7 @@ fn normal_relaxation_stops_the_remeshing_churn_of_adhesive_contacts() {
     let mut p = model(l_min, 200);
     p.simulation.normal_relaxation = true;
     let mut sim = Simulation::new(initial.clone(), &p).unwrap();
-    sim.run(&mut Quiet).unwrap();
+    sim.run(&mut NoObserver).unwrap();
     for (cell, work) in sim.tissue().cells().iter().zip(&sim.forces().cells) {
         // The mesh's own area-weighted node normals (not the projection's arithmetic).
         let (_, normals) = cell.mesh().mean_curvature_and_normals();
@@ -108,7 +101,7 @@ fn normal_relaxation_keeps_one_force_per_coupled_pair() {
         round_trip_model(ContactModel::Coupling, l_min, AGGREGATE_GAMMA, 0.5 * AGGREGATE_GAMMA, 0.0, 1.5e-8, 300);
     p.simulation.normal_relaxation = true;
     let mut sim = Simulation::new(initial, &p).unwrap();
-    sim.run(&mut Quiet).unwrap();
+    sim.run(&mut NoObserver).unwrap();
     let pairs = sim.coupled_pairs();
     assert!(!pairs.is_empty(), "the aggregate's cells must be coupled for this test to mean anything");
     let force = |(c, n): (u32, u32)| sim.forces().cells[c as usize].forces[n as usize];

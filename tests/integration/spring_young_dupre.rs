@@ -14,23 +14,16 @@
 //! a cell's volume is the issue's.
 
 use tissuefit::geometry::Real;
-use tissuefit::mechanics::{ContactQuadrature, Observer, Sample, Simulation};
+use tissuefit::mechanics::{ContactQuadrature, NoObserver, Simulation};
 
 use crate::support::young_dupre;
 use young_dupre::{Doublet, far_field_half_angles, params, start, young_dupre};
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
 
 /// Relaxes `a` and checks the far-field half-angle of both cells and the overlap.
 fn check(a: Doublet) {
     let p = params(&a);
     let mut sim = Simulation::new(start(&a), &p).unwrap();
-    let summary = sim.run(&mut Quiet).unwrap();
+    let summary = sim.run(&mut NoObserver).unwrap();
     let [ha, hb] = far_field_half_angles(sim.tissue(), 0.3 * a.radius);
     let yd = young_dupre(a.ratio);
     let what = format!(

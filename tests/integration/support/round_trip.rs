@@ -10,7 +10,7 @@ use tissuefit::imaging::{
     LabelPattern, LabelSpec, LabelWriteOptions, VoxelGrid, generate_labels, voxelize_with_stats, write_label_tiff,
 };
 use tissuefit::mechanics::{
-    ContactModel, Dynamics, Observer, Parameters, Polarity, RelaxMethod, Sample, Simulation, SimulationMode,
+    ContactModel, Dynamics, NoObserver, Parameters, Polarity, RelaxMethod, Simulation, SimulationMode,
     SimulationSummary,
 };
 use tissuefit::mesh::{FaceType, Tissue};
@@ -29,13 +29,6 @@ pub const AGGREGATE_SETTLE_STEPS: u64 = 1000;
 /// shape), the last [`AGGREGATE_SETTLE_STEPS`] on a fixed mesh; coupling contacts settle within 600.
 pub const AGGREGATE_SPRING_STEPS: u64 = 1500;
 pub const AGGREGATE_COUPLING_STEPS: u64 = 600;
-
-struct Quiet;
-impl Observer for Quiet {
-    fn sample(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-}
 
 /// No bending, no area elasticity, no pressure cap, no growth (so the equilibrium shape is set by
 /// tensions, adhesion and K alone), polarity from contacts, FIRE for `max_steps`. Spring contacts get
@@ -133,7 +126,7 @@ pub fn observe_aggregate(dir: &Path, truth: &Parameters, initial: &Tissue, vpd: 
     truth.simulation.max_steps = AGGREGATE_TRUTH_STEPS;
     truth.simulation.settle_steps = AGGREGATE_SETTLE_STEPS;
     let mut sim = Simulation::new(initial.clone(), &truth).expect("truth simulation");
-    let summary = sim.run(&mut Quiet).expect("truth relaxation");
+    let summary = sim.run(&mut NoObserver).expect("truth relaxation");
     let tissue = sim.into_tissue();
     let mean_volume = tissue.cells().iter().map(|c| c.mesh().signed_volume()).sum::<Real>() / tissue.len() as Real;
     let diameter = 2.0 * (3.0 * mean_volume / (4.0 * std::f64::consts::PI)).cbrt();
