@@ -273,6 +273,7 @@ fn contact_step_times(
             "integration": parts[4],
             "node_coupling": parts[5],
             "coupled_pairs": coupled_pairs,
+            "candidate_rebuilds": contacts.candidate_rebuilds,
             "contact_stage": parts[1] + parts[2] + parts[3] + parts[5],
         }),
         pairs,

@@ -6,8 +6,9 @@ use tissuefit::mechanics::{
     ContactModel, ContactQuadrature, ContactWorkspace, Dynamics, Observer, Parameters, Polarity, RelaxMethod, Sample,
     Simulation, SimulationMode, TermSet, TissueForces, cell_parameters,
 };
+use tissuefit::mesh::remesh::flip_edge;
 use tissuefit::mesh::shapes::icosphere;
-use tissuefit::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
+use tissuefit::mesh::{Cell, CellId, CellKind, FaceType, NodeId, Tissue};
 use tissuefit::meshing::{TissueKind, TissueSpec, generate_tissue};
 
 /// Deterministic pseudo-random numbers in [-1, 1].
@@ -391,4 +392,78 @@ fn overdamped_aggregate_at_unit_adhesion_never_gains_energy() {
         assert!(w[1] <= w[0] + 1e-12 * w[0].abs(), "energy rose at step {k}: {} -> {}", w[0], w[1]);
     }
     assert!(e.0.last().unwrap() < &e.0[0]);
+}
+
+/// The narrow phase keeps each node's candidate faces across evaluations (Verlet lists with a skin)
+/// and rebuilds them only when a node may have moved into a new face's range, or the triangles
+/// changed. Reusing them must select exactly the pairs a fresh search selects: along a sequence of
+/// small and large random moves and one re-triangulated cell, a workspace kept across evaluations
+/// gives the same forces, bit for bit, and the same pairs as a new workspace at every evaluation,
+/// for both quadratures, while it rebuilt its lists only at some evaluations.
+#[test]
+fn reused_candidate_lists_select_the_same_contacts_as_a_fresh_search() {
+    for quadrature in [ContactQuadrature::Vertices, ContactQuadrature::Faces] {
+        let mut p = unit_adhesion_params();
+        p.numerics.contact_quadrature = quadrature;
+        let mut t = coarse_spheroid();
+        let cp = cell_parameters(&t, &p).unwrap();
+        let c = p.numerics.contact_cutoff;
+        let mut kept = ContactWorkspace::default();
+        kept.set_quadrature(quadrature);
+        let mut rng = Lcg(7);
+        let steps = 40;
+        let mut total_pairs = 0;
+        for step in 0..steps {
+            // Mostly moves far below the skin (c/4 for the vertex quadrature), every 10th step a
+            // move of half the cutoff, which must trigger a rebuild.
+            let amplitude = if step % 10 == 9 { 0.5 * c } else { 0.004 * c };
+            for cell in t.cells_mut() {
+                for x in cell.positions_mut() {
+                    *x += amplitude * Vec3::new(rng.next(), rng.next(), rng.next());
+                }
+            }
+            if step == 25 {
+                // New triangles, same nodes: flip an edge of the first cell.
+                let cell = &t.cells()[0];
+                let (mut mesh, mut types) = (cell.mesh().clone(), cell.face_types().to_vec());
+                let before = mesh.topology_generation();
+                let flipped = mesh.triangles().to_vec().iter().any(|tri| {
+                    (0..3).any(|k| {
+                        let (a, b) = (NodeId(tri[k]), NodeId(tri[(k + 1) % 3]));
+                        flip_edge(&mut mesh, a, b, Some(&mut types)).is_ok()
+                    })
+                });
+                assert!(flipped && mesh.topology_generation() != before);
+                let new = Cell::new(cell.id(), cell.kind(), cell.cell_type(), mesh).with_face_types(types).unwrap();
+                t.replace(0, new).unwrap();
+            }
+            let mut f_kept = TissueForces::default();
+            f_kept.compute(&t, &cp, TermSet::ALL);
+            let mut f_fresh = TissueForces::default();
+            f_fresh.compute(&t, &cp, TermSet::ALL);
+            let e_kept = kept.add_contacts(&t, &cp, c, &mut f_kept.cells);
+            let mut fresh = ContactWorkspace::default();
+            fresh.set_quadrature(quadrature);
+            let e_fresh = fresh.add_contacts(&t, &cp, c, &mut f_fresh.cells);
+            assert_eq!(kept.pair_count, fresh.pair_count, "{quadrature:?}, step {step}");
+            assert_eq!(e_kept.to_bits(), e_fresh.to_bits(), "{quadrature:?}, step {step}: {e_kept} vs {e_fresh}");
+            for (a, b) in f_kept.cells.iter().zip(&f_fresh.cells) {
+                assert!(
+                    a.forces.iter().zip(&b.forces).all(|(x, y)| x.map(f64::to_bits) == y.map(f64::to_bits)),
+                    "{quadrature:?}, step {step}: forces differ"
+                );
+            }
+            total_pairs += kept.pair_count;
+        }
+        assert!(total_pairs > 100 * steps, "{quadrature:?}: the aggregate must be in contact ({total_pairs} pairs)");
+        // The first evaluation and the new triangles rebuild; with the vertex quadrature also the
+        // four large moves (its skin is c/2, the face quadrature's includes the longest edge and
+        // can hold them); most small moves must not.
+        let least = if quadrature == ContactQuadrature::Vertices { 6 } else { 2 };
+        assert!(
+            (least..steps / 2).contains(&kept.candidate_rebuilds),
+            "{quadrature:?}: {} rebuilds in {steps} evaluations",
+            kept.candidate_rebuilds
+        );
+    }
 }

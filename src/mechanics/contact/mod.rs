@@ -53,6 +53,13 @@
 //! depth, which [`combine_wells`] assumes (a deeper well would be clipped there, and a node of ω = 0
 //! would adhere through one pair but not through two).
 //!
+//! **Search.** Each node's candidate faces (those of other cells whose bounding box, padded by the
+//! search radius and a skin, holds the node) are found through a spatial grid and kept across
+//! evaluations until some node may have moved by half the skin or some cell's triangles changed
+//! (Verlet lists, [`CandidateLists`]). Every evaluation tests the candidates exactly as an
+//! exhaustive search would, so keeping them changes no result, only the cost: near equilibrium the
+//! grid is rebuilt a few times per thousand steps instead of at every step.
+//!
 //! **Determinism.** Pairs are found in parallel per cell (read-only), then forces are applied in a
 //! fixed order (cell, node), so results do not depend on the thread count.
 
@@ -211,10 +218,14 @@ fn combine_face_wells(terms: &[face_quadrature::FaceTerm], depth: Real) -> (Real
 #[derive(Default)]
 pub struct ContactWorkspace {
     grid: Option<SpatialGrid>,
+    /// Every face's bounding box padded by the search radius, cell after cell.
     boxes: Vec<(Vec3, Vec3)>,
-    /// `boxes`, with the faces that cannot be in contact emptied.
-    registered: Vec<(Vec3, Vec3)>,
+    /// Where each cell's faces start in `boxes` (global face index = offset + local index).
     face_offsets: Vec<u32>,
+    /// Candidate faces of every node, kept across evaluations.
+    candidates: CandidateLists,
+    /// How many times the candidate lists were rebuilt since this workspace was created.
+    pub candidate_rebuilds: usize,
     topology: Vec<CellTopology>,
     pairs: Vec<Vec<Pair>>,
     /// Number of node–surface pairs in the last evaluation.
@@ -241,6 +252,205 @@ pub struct ContactTimings {
     pub narrow: std::time::Duration,
     /// Applying the pair forces in a fixed order.
     pub apply: std::time::Duration,
+}
+
+/// The candidate lists' skin, as a fraction of the search radius: lists are built for the search
+/// radius times (1 + `SKIN`) and reused until some node has moved by half the skin.
+const SKIN: Real = 0.5;
+
+/// Appends the bounding box of every face of `mesh`, padded by `pad`, to `out`.
+fn padded_face_boxes(mesh: &crate::mesh::CellMesh, pad: Real, out: &mut Vec<(Vec3, Vec3)>) {
+    let p = mesh.positions();
+    out.extend(mesh.triangles().iter().map(|t| {
+        let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+        (a.inf(&b).inf(&c).add_scalar(-pad), a.sup(&b).sup(&c).add_scalar(pad))
+    }));
+}
+
+/// Each cell's box: the union of its faces' boxes (`offsets` as in `ContactWorkspace::face_offsets`).
+fn cell_boxes(boxes: &[(Vec3, Vec3)], offsets: &[u32]) -> Vec<(Vec3, Vec3)> {
+    offsets
+        .windows(2)
+        .map(|w| {
+            boxes[w[0] as usize..w[1] as usize]
+                .iter()
+                .fold((Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY)), |(lo, hi), (a, b)| {
+                    (lo.inf(a), hi.sup(b))
+                })
+        })
+        .collect()
+}
+
+fn boxes_overlap(a: &(Vec3, Vec3), b: &(Vec3, Vec3)) -> bool {
+    (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
+}
+
+/// Candidate faces of one cell's nodes (CSR): node n's are `faces[offsets[n]..offsets[n + 1]]`,
+/// global face indices, ascending.
+#[derive(Clone, Debug, Default)]
+struct NodeCandidates {
+    offsets: Vec<u32>,
+    faces: Vec<u32>,
+}
+
+impl NodeCandidates {
+    fn of(&self, node: usize) -> &[u32] {
+        &self.faces[self.offsets[node] as usize..self.offsets[node + 1] as usize]
+    }
+}
+
+/// Verlet lists of the narrow phase. For every node p of every cell, the faces g of the other cells
+/// whose bounding box padded by `radius` contained p when the lists were built. While every node has
+/// moved by at most δ since then, a face whose box padded by the current search radius s contains
+/// the node now is in its list if s + 2δ ≤ `radius` (the face's box has moved by at most δ, the node
+/// by at most δ). The narrow phase then tests its candidates exactly as it would test an exhaustive
+/// grid query, in the same (ascending) order, so it selects the same closest faces, bit for bit,
+/// without rebuilding the grid or scanning a grid cube's faces at every evaluation. Any change of
+/// triangles (remeshing, division, a new tissue) rebuilds the lists.
+#[derive(Clone, Debug, Default)]
+struct CandidateLists {
+    /// Radius the lists were built for (m); 0 before the first build.
+    radius: Real,
+    /// Per cell: topology generation, and node positions when the lists were built.
+    generations: Vec<u64>,
+    reference: Vec<Vec<Vec3>>,
+    cells: Vec<NodeCandidates>,
+    /// Scratch of the rebuild (kept to avoid reallocating): face boxes padded by the radius, their
+    /// offsets per cell, and the boxes registered in the grid.
+    boxes: Vec<(Vec3, Vec3)>,
+    face_offsets: Vec<u32>,
+    registered: Vec<(Vec3, Vec3)>,
+}
+
+impl CandidateLists {
+    fn is_empty(&self) -> bool {
+        self.cells.iter().all(|c| c.faces.is_empty())
+    }
+
+    /// Whether the lists hold every face that a search radius `search` can select for `cells`.
+    fn valid_for(&self, cells: &[crate::mesh::Cell], search: Real) -> bool {
+        if self.radius <= 0.0
+            || self.generations.len() != cells.len()
+            || cells.iter().zip(&self.generations).any(|(c, &g)| c.mesh().topology_generation() != g)
+        {
+            return false;
+        }
+        let moved = cells
+            .par_iter()
+            .zip(self.reference.par_iter())
+            .map(|(cell, reference)| {
+                let p = cell.mesh().positions();
+                if p.len() != reference.len() {
+                    return Real::INFINITY;
+                }
+                p.iter().zip(reference).fold(0.0 as Real, |m, (x, y)| {
+                    let d = (x - y).norm_squared();
+                    // A NaN position invalidates the lists.
+                    if d.is_nan() { Real::INFINITY } else { m.max(d) }
+                })
+            })
+            .reduce(|| 0.0, Real::max)
+            .sqrt();
+        // The relative margin absorbs rounding of the padded boxes.
+        search + 2.0 * moved <= self.radius * (1.0 - 1e-9)
+    }
+
+    /// Builds the lists for `radius` from the current positions, through one grid of every face's
+    /// box padded by `radius`.
+    fn rebuild(&mut self, cells: &[crate::mesh::Cell], radius: Real, grid: &mut Option<SpatialGrid>) {
+        let n = cells.len();
+        self.radius = radius;
+        self.generations = cells.iter().map(|c| c.mesh().topology_generation()).collect();
+        self.reference.resize_with(n, Vec::new);
+        for (r, cell) in self.reference.iter_mut().zip(cells) {
+            r.clear();
+            r.extend_from_slice(cell.mesh().positions());
+        }
+        self.cells.resize_with(n, NodeCandidates::default);
+        for c in &mut self.cells {
+            c.offsets.clear();
+            c.faces.clear();
+        }
+        let (boxes, face_offsets, registered) = (&mut self.boxes, &mut self.face_offsets, &mut self.registered);
+        boxes.clear();
+        face_offsets.clear();
+        face_offsets.push(0);
+        for cell in cells {
+            padded_face_boxes(cell.mesh(), radius, boxes);
+            face_offsets.push(boxes.len() as u32);
+        }
+        let largest = boxes.iter().fold(0.0 as Real, |m, (lo, hi)| m.max((hi - lo).max()));
+        if !(largest.is_finite() && largest > 0.0) {
+            // Non-finite coordinates: no candidates, and a rebuild at the next evaluation.
+            self.radius = 0.0;
+            return;
+        }
+        // Cell-level prefilter: each cell's box, and for each cell the other cells whose boxes
+        // overlap it. A node has candidates only if it lies in one of those boxes.
+        let cell_boxes = cell_boxes(boxes, face_offsets);
+        let neighbours: Vec<Vec<usize>> = (0..n)
+            .map(|a| (0..n).filter(|&b| b != a && boxes_overlap(&cell_boxes[a], &cell_boxes[b])).collect())
+            .collect();
+        if neighbours.iter().all(Vec::is_empty) {
+            return;
+        }
+        // Only faces inside another cell's box can be near its nodes; the others stay out of the
+        // grid (an inverted box is skipped by it).
+        registered.clear();
+        registered.extend_from_slice(boxes);
+        for (a, near) in neighbours.iter().enumerate() {
+            let range = face_offsets[a] as usize..face_offsets[a + 1] as usize;
+            for bx in &mut registered[range] {
+                if !near.iter().any(|&b| boxes_overlap(bx, &cell_boxes[b])) {
+                    *bx = (Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY));
+                }
+            }
+        }
+        // Grid cell = a quantile of the padded face extents: small enough that a lookup returns
+        // few faces, large enough that most faces span at most 2×2×2 cells (bigger ones span more).
+        let mut extents: Vec<Real> = boxes.iter().map(|(lo, hi)| (hi - lo).max()).filter(|e| e.is_finite()).collect();
+        let q = ((extents.len() as Real * CELL_QUANTILE) as usize).min(extents.len().saturating_sub(1));
+        let cell_size =
+            if extents.is_empty() { largest } else { *extents.select_nth_unstable_by(q, Real::total_cmp).1 };
+        let grid = grid.get_or_insert_with(|| SpatialGrid::new(cell_size));
+        if grid.cell_size() != cell_size {
+            grid.set_cell_size(cell_size);
+        }
+        grid.rebuild(registered);
+        let grid = &*grid;
+        let oversized = !grid.oversized_items().is_empty();
+        let (boxes, face_offsets, neighbours, cell_boxes) = (&*boxes, &*face_offsets, &neighbours, &cell_boxes);
+        self.cells.par_iter_mut().enumerate().for_each(|(a, list)| {
+            let positions = cells[a].mesh().positions();
+            list.offsets.push(0);
+            if neighbours[a].is_empty() {
+                list.offsets.resize(positions.len() + 1, 0);
+                return;
+            }
+            let own = face_offsets[a]..face_offsets[a + 1];
+            let inside = |p: &Vec3, b: &(Vec3, Vec3)| (0..3).all(|k| b.0[k] <= p[k] && p[k] <= b.1[k]);
+            let mut found: Vec<u32> = Vec::new();
+            for p in positions {
+                if neighbours[a].iter().any(|&b| inside(p, &cell_boxes[b])) {
+                    found.clear();
+                    if oversized {
+                        grid.for_each_at(p, |item| found.push(item));
+                        found.sort_unstable();
+                        found.dedup();
+                    } else {
+                        // Already sorted and unique within a grid cell.
+                        found.extend_from_slice(grid.items_at(p));
+                    }
+                    for &g in &found {
+                        if !own.contains(&g) && inside(p, &boxes[g as usize]) {
+                            list.faces.push(g);
+                        }
+                    }
+                }
+                list.offsets.push(list.faces.len() as u32);
+            }
+        });
+    }
 }
 
 /// Quantile of the padded face extents used as the grid cell size (measured on embryo_1: 0.75 gives
@@ -424,37 +634,15 @@ impl ContactWorkspace {
         } else {
             cutoff
         };
-        // Broad phase: every face's box padded by the search radius, in one grid.
+        // Every face's box padded by the search radius, and each cell's box (their union).
         self.face_offsets.clear();
         self.face_offsets.push(0);
         self.boxes.clear();
-        let mut largest: Real = 0.0;
         for cell in cells {
-            let p = cell.mesh().positions();
-            for t in cell.mesh().triangles() {
-                let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
-                let lo = a.inf(&b).inf(&c).add_scalar(-search);
-                let hi = a.sup(&b).sup(&c).add_scalar(search);
-                largest = largest.max((hi - lo).max());
-                self.boxes.push((lo, hi));
-            }
+            padded_face_boxes(cell.mesh(), search, &mut self.boxes);
             self.face_offsets.push(self.boxes.len() as u32);
         }
-        if !(largest.is_finite() && largest > 0.0) {
-            return 0.0;
-        }
-        // Cell-level prefilter: each cell's padded box, and for each cell the other cells whose
-        // boxes overlap it. A node is queried only if it lies in one of those boxes.
-        let cell_boxes: Vec<(Vec3, Vec3)> = (0..n)
-            .map(|c| {
-                let faces = &self.boxes[self.face_offsets[c] as usize..self.face_offsets[c + 1] as usize];
-                faces
-                    .iter()
-                    .fold((Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY)), |(lo, hi), (a, b)| {
-                        (lo.inf(a), hi.sup(b))
-                    })
-            })
-            .collect();
+        let cell_boxes = cell_boxes(&self.boxes, &self.face_offsets);
         // The host cell of each nucleus: the first cell of another kind containing its centroid.
         let host: Vec<Option<usize>> = cells
             .par_iter()
@@ -469,46 +657,22 @@ impl ContactWorkspace {
                 })
             })
             .collect();
-        let overlaps = |a: &(Vec3, Vec3), b: &(Vec3, Vec3)| (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k]);
-        let neighbours: Vec<Vec<usize>> =
-            (0..n).map(|a| (0..n).filter(|&b| b != a && overlaps(&cell_boxes[a], &cell_boxes[b])).collect()).collect();
-        if neighbours.iter().all(Vec::is_empty) {
+        // Candidate faces of every node, reused while no node has moved far enough to matter.
+        if !self.candidates.valid_for(cells, search) {
+            self.candidates.rebuild(cells, search * (1.0 + SKIN), &mut self.grid);
+            self.candidate_rebuilds += 1;
+        }
+        if self.candidates.is_empty() {
             for f in forces.iter_mut() {
                 f.energy.contact = 0.0;
             }
             return 0.0;
         }
-        // Only faces inside another cell's box can be within the cutoff of its nodes; the others
-        // stay out of the grid (an inverted box is skipped by it).
-        self.registered.clear();
-        self.registered.extend_from_slice(&self.boxes);
-        for (a, near) in neighbours.iter().enumerate() {
-            let range = self.face_offsets[a] as usize..self.face_offsets[a + 1] as usize;
-            for bx in &mut self.registered[range] {
-                if !near.iter().any(|&b| overlaps(bx, &cell_boxes[b])) {
-                    *bx = (Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY));
-                }
-            }
-        }
-        // Grid cell = a quantile of the padded face extents: small enough that a lookup returns
-        // few faces, large enough that most faces span at most 2×2×2 cells (bigger ones span more).
-        let mut extents: Vec<Real> =
-            self.boxes.iter().map(|(lo, hi)| (hi - lo).max()).filter(|e| e.is_finite()).collect();
-        let q = ((extents.len() as Real * CELL_QUANTILE) as usize).min(extents.len().saturating_sub(1));
-        let cell_size =
-            if extents.is_empty() { largest } else { *extents.select_nth_unstable_by(q, Real::total_cmp).1 };
-        let grid = self.grid.get_or_insert_with(|| SpatialGrid::new(cell_size));
-        if grid.cell_size() != cell_size {
-            grid.set_cell_size(cell_size);
-        }
-        grid.rebuild(&self.registered);
         self.timings.broad = started.elapsed();
         let started = std::time::Instant::now();
 
         // Narrow phase, per cell in parallel: for each node, the closest face of every other cell
-        // whose padded faces cover it.
-        let grid = &*grid;
-        let oversized = !grid.oversized_items().is_empty();
+        // whose padded faces cover it (among its candidates, a superset: see [`CandidateLists`]).
         let face_offsets = &self.face_offsets;
         let topology = &self.topology;
         let forces_ro: &[CellForces] = forces;
@@ -518,36 +682,26 @@ impl ContactWorkspace {
             .map(|p| FaceType::ALL.iter().map(|&t| p.faces.get(t).adhesion).sum::<Real>() / 3.0)
             .collect();
         let nucleus_adhesion = &nucleus_adhesion;
-        let (neighbours, cell_boxes, boxes, host) = (&neighbours, &cell_boxes, &self.boxes, &host);
+        let (boxes, host) = (&self.boxes, &host);
+        let lists = &self.candidates.cells;
         let coupling = self.model == ContactModel::Coupling;
         let prune_margin = PRUNE_MARGIN * cutoff;
         self.pairs.par_iter_mut().enumerate().for_each(|(a, pairs)| {
             pairs.clear();
             let cell_a = &cells[a];
             let mesh_a = cell_a.mesh();
-            let mut candidates: Vec<u32> = Vec::new();
-            if neighbours[a].is_empty() {
+            let list = &lists[a];
+            if list.faces.is_empty() {
                 return;
             }
             let inside = |p: &Vec3, b: &(Vec3, Vec3)| (0..3).all(|k| b.0[k] <= p[k] && p[k] <= b.1[k]);
             for (node, p) in mesh_a.positions().iter().enumerate() {
-                if !neighbours[a].iter().any(|&b| inside(p, &cell_boxes[b])) {
+                let candidates = list.of(node);
+                if candidates.is_empty() {
                     continue;
                 }
                 let first_pair = pairs.len();
                 let mut node_terms: Option<(Real, Real, Real)> = None;
-                candidates.clear();
-                if oversized {
-                    grid.for_each_at(p, |item| candidates.push(item));
-                    candidates.sort_unstable();
-                    candidates.dedup();
-                } else {
-                    // Already sorted and unique within a grid cell.
-                    candidates.extend_from_slice(grid.items_at(p));
-                }
-                if candidates.is_empty() {
-                    continue;
-                }
                 let mut k = 0;
                 while k < candidates.len() {
                     let b = face_offsets.partition_point(|&o| o <= candidates[k]) - 1;
@@ -555,9 +709,6 @@ impl ContactWorkspace {
                     let group_start = k;
                     while k < candidates.len() && candidates[k] < end {
                         k += 1;
-                    }
-                    if b == a {
-                        continue;
                     }
                     let mesh_b = cells[b].mesh();
                     let pb = mesh_b.positions();
