@@ -315,10 +315,8 @@ struct CandidateLists {
     generations: Vec<u64>,
     reference: Vec<Vec<Vec3>>,
     cells: Vec<NodeCandidates>,
-    /// Scratch of the rebuild (kept to avoid reallocating): face boxes padded by the radius, their
-    /// offsets per cell, and the boxes registered in the grid.
-    boxes: Vec<(Vec3, Vec3)>,
-    face_offsets: Vec<u32>,
+    /// Scratch of the rebuild (kept to avoid reallocating): every face's box padded by the radius,
+    /// with the faces that cannot be near another cell emptied; the grid holds these.
     registered: Vec<(Vec3, Vec3)>,
 }
 
@@ -355,11 +353,20 @@ impl CandidateLists {
         search + 2.0 * moved <= self.radius * (1.0 - 1e-9)
     }
 
-    /// Builds the lists for `radius` from the current positions, through one grid of every face's
-    /// box padded by `radius`.
-    fn rebuild(&mut self, cells: &[crate::mesh::Cell], radius: Real, grid: &mut Option<SpatialGrid>) {
+    /// Builds the lists from the current positions for the search radius `search` plus the skin,
+    /// through one grid of every face's box padded by that radius. `boxes` and `face_offsets` are
+    /// the faces' boxes padded by `search` and where each cell's start (as in [`ContactWorkspace`]).
+    fn rebuild(
+        &mut self,
+        cells: &[crate::mesh::Cell],
+        boxes: &[(Vec3, Vec3)],
+        face_offsets: &[u32],
+        search: Real,
+        grid: &mut Option<SpatialGrid>,
+    ) {
         let n = cells.len();
-        self.radius = radius;
+        let skin = SKIN * search;
+        self.radius = search + skin;
         self.generations = cells.iter().map(|c| c.mesh().topology_generation()).collect();
         self.reference.resize_with(n, Vec::new);
         for (r, cell) in self.reference.iter_mut().zip(cells) {
@@ -371,15 +378,10 @@ impl CandidateLists {
             c.offsets.clear();
             c.faces.clear();
         }
-        let (boxes, face_offsets, registered) = (&mut self.boxes, &mut self.face_offsets, &mut self.registered);
-        boxes.clear();
-        face_offsets.clear();
-        face_offsets.push(0);
-        for cell in cells {
-            padded_face_boxes(cell.mesh(), radius, boxes);
-            face_offsets.push(boxes.len() as u32);
-        }
-        let largest = boxes.iter().fold(0.0 as Real, |m, (lo, hi)| m.max((hi - lo).max()));
+        let registered = &mut self.registered;
+        registered.clear();
+        registered.extend(boxes.iter().map(|(lo, hi)| (lo.add_scalar(-skin), hi.add_scalar(skin))));
+        let largest = registered.iter().fold(0.0 as Real, |m, (lo, hi)| m.max((hi - lo).max()));
         if !(largest.is_finite() && largest > 0.0) {
             // Non-finite coordinates: no candidates, and a rebuild at the next evaluation.
             self.radius = 0.0;
@@ -387,7 +389,7 @@ impl CandidateLists {
         }
         // Cell-level prefilter: each cell's box, and for each cell the other cells whose boxes
         // overlap it. A node has candidates only if it lies in one of those boxes.
-        let cell_boxes = cell_boxes(boxes, face_offsets);
+        let cell_boxes = cell_boxes(registered, face_offsets);
         let neighbours: Vec<Vec<usize>> = (0..n)
             .map(|a| (0..n).filter(|&b| b != a && boxes_overlap(&cell_boxes[a], &cell_boxes[b])).collect())
             .collect();
@@ -395,9 +397,7 @@ impl CandidateLists {
             return;
         }
         // Only faces inside another cell's box can be near its nodes; the others stay out of the
-        // grid (an inverted box is skipped by it).
-        registered.clear();
-        registered.extend_from_slice(boxes);
+        // grid (an inverted box is skipped by it, and never tested below).
         for (a, near) in neighbours.iter().enumerate() {
             let range = face_offsets[a] as usize..face_offsets[a + 1] as usize;
             for bx in &mut registered[range] {
@@ -408,7 +408,8 @@ impl CandidateLists {
         }
         // Grid cell = a quantile of the padded face extents: small enough that a lookup returns
         // few faces, large enough that most faces span at most 2×2×2 cells (bigger ones span more).
-        let mut extents: Vec<Real> = boxes.iter().map(|(lo, hi)| (hi - lo).max()).filter(|e| e.is_finite()).collect();
+        let mut extents: Vec<Real> =
+            registered.iter().map(|(lo, hi)| (hi - lo).max()).filter(|e| e.is_finite()).collect();
         let q = ((extents.len() as Real * CELL_QUANTILE) as usize).min(extents.len().saturating_sub(1));
         let cell_size =
             if extents.is_empty() { largest } else { *extents.select_nth_unstable_by(q, Real::total_cmp).1 };
@@ -419,7 +420,7 @@ impl CandidateLists {
         grid.rebuild(registered);
         let grid = &*grid;
         let oversized = !grid.oversized_items().is_empty();
-        let (boxes, face_offsets, neighbours, cell_boxes) = (&*boxes, &*face_offsets, &neighbours, &cell_boxes);
+        let (boxes, neighbours, cell_boxes) = (&*registered, &neighbours, &cell_boxes);
         self.cells.par_iter_mut().enumerate().for_each(|(a, list)| {
             let positions = cells[a].mesh().positions();
             list.offsets.push(0);
@@ -634,7 +635,7 @@ impl ContactWorkspace {
         } else {
             cutoff
         };
-        // Every face's box padded by the search radius, and each cell's box (their union).
+        // Every face's box padded by the search radius.
         self.face_offsets.clear();
         self.face_offsets.push(0);
         self.boxes.clear();
@@ -642,8 +643,10 @@ impl ContactWorkspace {
             padded_face_boxes(cell.mesh(), search, &mut self.boxes);
             self.face_offsets.push(self.boxes.len() as u32);
         }
-        let cell_boxes = cell_boxes(&self.boxes, &self.face_offsets);
-        // The host cell of each nucleus: the first cell of another kind containing its centroid.
+        // The host cell of each nucleus: the first cell of another kind containing its centroid
+        // (the cells' boxes only where there are nuclei).
+        let nuclei = cells.iter().any(|c| c.kind() == CellKind::Nucleus);
+        let cell_boxes = if nuclei { cell_boxes(&self.boxes, &self.face_offsets) } else { Vec::new() };
         let host: Vec<Option<usize>> = cells
             .par_iter()
             .map(|cell| {
@@ -659,7 +662,7 @@ impl ContactWorkspace {
             .collect();
         // Candidate faces of every node, reused while no node has moved far enough to matter.
         if !self.candidates.valid_for(cells, search) {
-            self.candidates.rebuild(cells, search * (1.0 + SKIN), &mut self.grid);
+            self.candidates.rebuild(cells, &self.boxes, &self.face_offsets, search, &mut self.grid);
             self.candidate_rebuilds += 1;
         }
         if self.candidates.is_empty() {
