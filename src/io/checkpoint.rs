@@ -28,8 +28,9 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 /// Version of the payload's structure; bumped on every change to it or to what it means (3:
 /// [`RunSettings`] added, and the relaxation's lowest-residual state; 4: the mesh-derived numerics of
 /// a simulate run, and coupling ties are groups: parameters written without
-/// `numerics.coupling_junctions` would resume with other physics).
-pub const CHECKPOINT_VERSION: u32 = 4;
+/// `numerics.coupling_junctions` would resume with other physics; 5:
+/// `simulation.remesh_below_edge_fraction` and the count of out-of-turn remeshing passes).
+pub const CHECKPOINT_VERSION: u32 = 5;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;
 

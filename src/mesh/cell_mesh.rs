@@ -3,7 +3,7 @@
 use super::MeshError;
 use super::ids::{FaceId, NodeId};
 use super::triangulate::triangulate_polygon;
-use crate::geometry::Vec3;
+use crate::geometry::{Real, Vec3};
 
 /// A cell surface: node positions (metres) and triangles as `u32` node indices.
 ///
@@ -116,6 +116,19 @@ impl CellMesh {
     #[inline]
     pub fn corners(&self, f: FaceId) -> [Vec3; 3] {
         self.triangles[f.index()].map(|i| self.positions[i as usize])
+    }
+
+    /// Length of the shortest edge (m); infinity for a mesh without faces. Reads every triangle's
+    /// three edges (each interior edge twice) without building the adjacency: cheap enough to call
+    /// every step.
+    pub fn shortest_edge(&self) -> Real {
+        let x = &self.positions;
+        let mut shortest = Real::INFINITY;
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| x[i as usize]);
+            shortest = shortest.min((a - b).norm_squared()).min((b - c).norm_squared()).min((c - a).norm_squared());
+        }
+        shortest.sqrt()
     }
 
     /// Reverses the winding of one face.

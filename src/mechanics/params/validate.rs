@@ -114,6 +114,13 @@ impl Parameters {
         if sim.sample_every_steps == 0 {
             report.errors.push("simulation.sample_every_steps = 0: must be at least 1".to_owned());
         }
+        if !(sim.remesh_below_edge_fraction.is_finite() && (0.0..1.0).contains(&sim.remesh_below_edge_fraction)) {
+            report.errors.push(format!(
+                "simulation.remesh_below_edge_fraction = {}: must be a number in [0, 1) (a fraction of \
+                 numerics.min_edge_length; 0: never; default 0.25)",
+                sim.remesh_below_edge_fraction
+            ));
+        }
         if !(sim.checkpoint_every_seconds.is_finite() && sim.checkpoint_every_seconds >= 0.0) {
             report.errors.push(format!(
                 "simulation.checkpoint_every_seconds = {}: must be a finite number ≥ 0 (0: not by time)",

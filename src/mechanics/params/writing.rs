@@ -300,6 +300,13 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
                shorter than l_min, flip poor triangles); 0 = never.",
     },
     FieldDoc {
+        path: "simulation.remesh_below_edge_fraction",
+        unit: "",
+        text: "On a fixed mesh (remesh_every_steps = 0), edges of moving cells shorter than this fraction of l_min are \
+               still collapsed at the step they appear (only those edges, no splits or flips): an edge that nodes drifting \
+               along the surface shrink to ~1 nm otherwise stalls FIRE and folds the surface; 0 = never.",
+    },
+    FieldDoc {
         path: "simulation.settle_steps",
         unit: "",
         text: "Equilibrium mode: no remeshing pass at step max_steps − settle_steps or later, so at least the last \
