@@ -25,7 +25,8 @@ use std::time::Instant;
 pub struct MeasureArgs {
     /// Tissue file (.vtk or .vtp), or a label volume (0 = background) measured directly on its voxels
     /// (cell ids = labels): a TIFF stack (.tif/.tiff), an OME-Zarr label or image group (a .zarr
-    /// folder) or a NumPy .npy array, recognised by content.
+    /// folder), an HDF5 dataset (.h5, e.g. PlantSeg's; FILE.h5/DATASET names one) or a NumPy .npy
+    /// array, recognised by content.
     pub tissue: PathBuf,
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]

@@ -23,8 +23,8 @@ use std::time::Instant;
 #[derive(clap::Args, Debug)]
 pub struct TensionsArgs {
     /// Tissue file (.vtk or .vtp, per-cell or multi-material), or a label volume (0 = background: a
-    /// TIFF stack, an OME-Zarr .zarr folder or a NumPy .npy), meshed first as `tissuefit mesh` does
-    /// (cell ids = labels).
+    /// TIFF stack, an OME-Zarr .zarr folder, an HDF5 .h5 dataset or a NumPy .npy), meshed first as
+    /// `tissuefit mesh` does (cell ids = labels).
     pub tissue: PathBuf,
     /// Output directory (created if missing): interfaces.csv, cells.csv, summary.json, tensions.vtp.
     #[arg(long, value_name = "DIR")]

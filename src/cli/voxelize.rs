@@ -18,7 +18,7 @@ pub struct VoxelizeArgs {
     /// Output label TIFF.
     #[arg(long)]
     pub out: PathBuf,
-    /// Use the grid (shape, voxel size, origin) of this label volume (TIFF, OME-Zarr or .npy), e.g.
+    /// Use the grid (shape, voxel size, origin) of this label volume (TIFF, OME-Zarr, HDF5 or .npy), e.g.
     /// the segmentation the tissue was meshed from, so the two overlay voxel for voxel.
     #[arg(long, value_name = "LABELS", conflicts_with = "shape")]
     pub like: Option<PathBuf>,

@@ -60,6 +60,9 @@ pub enum ImagingError {
     /// A NumPy `.npy` file that cannot be read as a 3-D label array.
     #[error("{path}: not a readable NumPy .npy label array: {message}")]
     Npy { path: PathBuf, message: String },
+    /// An HDF5 file (or a dataset in it) that cannot be read as a 3-D label array.
+    #[error("{path}: not a readable HDF5 label dataset: {message}")]
+    Hdf5 { path: PathBuf, message: String },
     #[error("cannot write {path}: {message}")]
     Write { path: PathBuf, message: String },
     #[error("invalid voxel grid: {0}")]

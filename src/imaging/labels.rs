@@ -1,12 +1,14 @@
 //! The one entry point for reading a label volume, whatever its format: [`read_labels`] looks at the
-//! content (TIFF magic bytes, the `\x93NUMPY` magic, a folder or a Zarr metadata file) and hands the
-//! path to the reader of that format; the extension is only a fallback for a file whose content says
-//! nothing (a truncated or empty file), so that its error comes from the reader it was meant for.
+//! content (TIFF magic bytes, the `\x93NUMPY` magic, the HDF5 signature, a folder or a Zarr metadata
+//! file; `FILE.h5/DATASET` for a dataset inside an HDF5 file) and hands the path to the reader of
+//! that format; the extension is only a fallback for a file whose content says nothing (a truncated
+//! or empty file), so that its error comes from the reader it was meant for.
 //! A new format is one reader file in this module plus one arm here.
 //!
 //! Every reader reports where the voxel size came from ([`VoxelSizeSource`]): the caller's override
-//! ([`LabelReadOptions::voxel_size`]), the file's metadata (TIFF ImageJ/OME, OME-Zarr multiscales),
-//! or — with a warning — [`LabelReadOptions::fallback_voxel_size`] (a `.npy` never has one).
+//! ([`LabelReadOptions::voxel_size`]), the file's metadata (TIFF ImageJ/OME, OME-Zarr multiscales,
+//! HDF5 `element_size_um`), or — with a warning — [`LabelReadOptions::fallback_voxel_size`] (a
+//! `.npy` never has one).
 
 use super::metadata::VoxelSizeSource;
 use super::{ImagingError, LabelRead, LabelReadOptions};
@@ -16,7 +18,8 @@ use std::path::Path;
 
 /// The formats [`read_labels`] reads, as named in errors.
 pub const SUPPORTED_FORMATS: &str = "TIFF stacks (.tif/.tiff), OME-Zarr label or image groups (a .zarr folder, \
-                                     NGFF 0.4 on Zarr v2 or 0.5 on Zarr v3) and NumPy arrays (.npy)";
+                                     NGFF 0.4 on Zarr v2 or 0.5 on Zarr v3), HDF5 datasets (.h5/.hdf5, as PlantSeg \
+                                     writes them; FILE.h5/DATASET names one) and NumPy arrays (.npy)";
 
 /// A label volume format.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
@@ -28,6 +31,8 @@ pub enum LabelFormat {
     OmeZarr,
     /// NumPy `.npy` array (`npy_read.rs`).
     Npy,
+    /// HDF5 dataset (`h5_read.rs`).
+    Hdf5,
 }
 
 impl std::fmt::Display for LabelFormat {
@@ -36,6 +41,7 @@ impl std::fmt::Display for LabelFormat {
             LabelFormat::Tiff => "TIFF",
             LabelFormat::OmeZarr => "OME-Zarr",
             LabelFormat::Npy => "NumPy .npy",
+            LabelFormat::Hdf5 => "HDF5",
         })
     }
 }
@@ -44,7 +50,8 @@ impl std::fmt::Display for LabelFormat {
 pub(crate) const ZARR_METADATA_FILES: [&str; 4] = ["zarr.json", ".zattrs", ".zgroup", ".zarray"];
 
 /// The format of `path` from its content: a folder (or a Zarr metadata file) is OME-Zarr, a file
-/// starting with a TIFF or NumPy magic number is that. `None` when the content says nothing (a
+/// starting with a TIFF, NumPy or HDF5 magic number is that, and a path inside an HDF5 file
+/// (`FILE.h5/DATASET`) is HDF5. `None` when the content says nothing (a
 /// missing, unreadable, empty or foreign file).
 pub fn detect_label_format(path: &Path) -> Option<LabelFormat> {
     if path.is_dir() {
@@ -54,7 +61,10 @@ pub fn detect_label_format(path: &Path) -> Option<LabelFormat> {
     if ZARR_METADATA_FILES.contains(&name) {
         return Some(LabelFormat::OmeZarr);
     }
-    let mut magic = [0u8; 6];
+    if !path.exists() && super::h5_read::split_hdf5_path(path).is_some() {
+        return Some(LabelFormat::Hdf5);
+    }
+    let mut magic = [0u8; 8];
     let mut file = std::fs::File::open(path).ok()?;
     let mut filled = 0;
     while filled < magic.len() {
@@ -67,19 +77,23 @@ pub fn detect_label_format(path: &Path) -> Option<LabelFormat> {
     if magic.len() >= 4 && matches!(&magic[..4], b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+") {
         return Some(LabelFormat::Tiff);
     }
-    if magic == b"\x93NUMPY" {
+    if magic.len() >= 6 && &magic[..6] == b"\x93NUMPY" {
         return Some(LabelFormat::Npy);
+    }
+    if magic == super::h5_read::HDF5_MAGIC {
+        return Some(LabelFormat::Hdf5);
     }
     None
 }
 
-/// The format the extension of `path` promises (.tif/.tiff, .zarr, .npy), if any.
+/// The format the extension of `path` promises (.tif/.tiff, .zarr, .npy, .h5/.hdf5/.hdf), if any.
 pub fn label_format_from_extension(path: &Path) -> Option<LabelFormat> {
     let ext = path.extension().and_then(|e| e.to_str())?.to_ascii_lowercase();
     match ext.as_str() {
         "tif" | "tiff" => Some(LabelFormat::Tiff),
         "zarr" => Some(LabelFormat::OmeZarr),
         "npy" => Some(LabelFormat::Npy),
+        "h5" | "hdf5" | "hdf" => Some(LabelFormat::Hdf5),
         _ => None,
     }
 }
@@ -116,6 +130,7 @@ pub fn read_labels(path: &Path, options: &LabelReadOptions) -> Result<LabelRead,
         LabelFormat::Tiff => super::tiff_read::read_label_tiff(path, options),
         LabelFormat::OmeZarr => super::zarr_read::read_label_zarr(path, options),
         LabelFormat::Npy => super::npy_read::read_label_npy(path, options),
+        LabelFormat::Hdf5 => super::h5_read::read_label_h5(path, options),
     }
 }
 
@@ -144,14 +159,13 @@ pub(crate) fn resolve_voxel_size(
         }
     }
     if !missing.is_empty() {
-        let msg = format!(
+        // Reported by the callers (every one prints the read's warnings), not here a second time.
+        warnings.push(format!(
             "{}: no voxel size along {} {why}; assuming {} µm (give the voxel size explicitly)",
             path.display(),
             missing.join(", "),
             options.fallback_voxel_size * 1e6
-        );
-        tracing::warn!("{msg}");
-        warnings.push(msg);
+        ));
     }
     (size, source)
 }

@@ -18,6 +18,8 @@ pub enum VoxelSizeSource {
     /// OME-Zarr (NGFF) `multiscales`: the chosen level's `coordinateTransformations` scale and the
     /// axes' units.
     OmeZarr,
+    /// HDF5: the dataset's `element_size_um` attribute (z, y, x in µm; PlantSeg, ilastik).
+    Hdf5ElementSize,
     /// Given by the caller.
     Caller,
     /// Not in the file and not given: the fallback size was assumed.

@@ -53,7 +53,7 @@ pub struct ObservedConfig {
     /// A tissue mesh file (.vtk or .vtp, lengths in `length_unit`).
     #[serde(default)]
     pub tissue: Option<PathBuf>,
-    /// A label volume (TIFF stack, OME-Zarr .zarr folder or NumPy .npy), meshed first with
+    /// A label volume (TIFF stack, OME-Zarr .zarr folder, HDF5 .h5 dataset or NumPy .npy), meshed first with
     /// `[observed.meshing]`.
     #[serde(default)]
     pub labels: Option<PathBuf>,

@@ -48,7 +48,8 @@ pub struct PipelineConfig {
 #[serde(deny_unknown_fields)]
 pub struct InputSection {
     /// Label volume (0 = background), meshed by the mesh stage: a TIFF stack, an OME-Zarr label or
-    /// image group (a .zarr folder) or a NumPy .npy array. Relative to the pipeline file.
+    /// image group (a .zarr folder), an HDF5 dataset (`cells.h5`, or `cells.h5/segmentation` to name
+    /// one) or a NumPy .npy array. Relative to the pipeline file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub labels: Option<PathBuf>,
     /// A tissue mesh (.vtp or .vtk) instead of labels: the mesh stage checks it and copies it into
@@ -265,8 +266,9 @@ impl PipelineConfig {
             files.push(("fit.model", p.as_path()));
         }
         for (key, file) in files {
-            // An OME-Zarr label input is a folder.
-            let exists = file.is_file() || (key == "input.labels" && file.is_dir());
+            // An OME-Zarr label input is a folder; an HDF5 one may name a dataset (FILE.h5/DATASET).
+            let exists = file.is_file()
+                || (key == "input.labels" && (file.is_dir() || crate::imaging::split_hdf5_path(file).is_some()));
             if !exists {
                 return Err(PipelineError::Config(format!("{origin}: {key}: {} does not exist", file.display())));
             }

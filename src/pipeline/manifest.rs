@@ -141,9 +141,20 @@ impl Manifest {
 }
 
 /// blake3 of a file's bytes, hex. A folder (an OME-Zarr store) is hashed as every file under it:
-/// each one's relative name and bytes, in name order.
+/// each one's relative name and bytes, in name order; a dataset in an HDF5 file (`FILE.h5/DATASET`)
+/// as the dataset's path and the file's bytes.
 pub fn hash_file(path: &Path) -> Result<String, PipelineError> {
     let mut hasher = blake3::Hasher::new();
+    let inner = if path.exists() { None } else { crate::imaging::split_hdf5_path(path) };
+    if let Some((file, dataset)) = inner {
+        hasher.update(&(dataset.len() as u64).to_le_bytes());
+        hasher.update(dataset.as_bytes());
+        let mut f = std::fs::File::open(&file)
+            .map_err(|e| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") })?;
+        std::io::copy(&mut f, &mut hasher)
+            .map_err(|e| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") })?;
+        return Ok(hasher.finalize().to_hex().to_string());
+    }
     if path.is_dir() {
         for name in list_files(path)? {
             let file = path.join(&name);
