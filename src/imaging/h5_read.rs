@@ -58,15 +58,6 @@ pub fn split_hdf5_path(path: &Path) -> Option<(PathBuf, String)> {
     None
 }
 
-/// The file to hash, check or report for a label path: the HDF5 file of `FILE.h5/dataset`, else
-/// `path` itself.
-pub fn label_container(path: &Path) -> PathBuf {
-    if path.exists() {
-        return path.to_path_buf();
-    }
-    split_hdf5_path(path).map_or_else(|| path.to_path_buf(), |(file, _)| file)
-}
-
 /// Reads an integer label dataset of an HDF5 file; see the module documentation.
 pub fn read_label_h5(path: &Path, options: &LabelReadOptions) -> Result<LabelRead, ImagingError> {
     let (file_path, inner) = match split_hdf5_path(path) {

@@ -31,7 +31,7 @@ mod zarr_read;
 
 pub use error::ImagingError;
 pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels, generate_nuclei};
-pub use h5_read::{label_container, read_label_h5, split_hdf5_path};
+pub use h5_read::{read_label_h5, split_hdf5_path};
 pub use labels::{
     LabelFormat, SUPPORTED_FORMATS, detect_label_format, is_label_volume, label_format_from_extension, read_labels,
 };

@@ -1108,18 +1108,16 @@ impl<'p> Simulation<'p> {
             // (settle_steps = 0 keeps the remeshing at the last step when it falls due.)
             let settling = s.settle_steps > 0 && self.step.saturating_add(s.settle_steps) >= s.max_steps;
             let scheduled = s.remesh_every_steps > 0 && !settling && self.step.is_multiple_of(s.remesh_every_steps);
-            if scheduled && self.remesh()? {
-                // New nodes: the minimiser starts afresh on the new layout, and the convergence
-                // history restarts (energies of different meshes are not comparable step to step).
+            let remeshed = if scheduled { self.remesh()? } else { self.collapse_out_of_turn()? };
+            if remeshed {
+                // New nodes: the minimiser starts afresh on the new layout (carrying FIRE's Δt, α
+                // and velocities through out-of-turn passes was tried on a 64-cell spheroid: twice
+                // as many edges collapsed, the residual after 3,000 steps no lower), and the
+                // convergence history restarts (energies of different meshes are not comparable).
                 mover.relayout(self);
                 previous = None;
                 // The kept best state is of another mesh; only states since the last remeshing
                 // compete (a residual right after remeshing is not comparable either way).
-                best = None;
-            } else if let Some(cells) = self.collapsing_cells()
-                && self.remesh_out_of_turn(cells, &mut mover)?
-            {
-                previous = None;
                 best = None;
             }
             residual = self.residual();
@@ -1288,6 +1286,19 @@ impl<'p> Simulation<'p> {
     /// Returns whether any mesh changed; then forces are re-evaluated.
     fn remesh(&mut self) -> Result<bool, SimulationError> {
         let changed = self.remesh_cells(None)?;
+        self.evaluate_remeshed(changed)
+    }
+
+    /// Collapses the short edges of [`Self::collapsing_cells`] now and re-evaluates the forces.
+    /// Returns whether any mesh changed.
+    fn collapse_out_of_turn(&mut self) -> Result<bool, SimulationError> {
+        let Some(cells) = self.collapsing_cells() else { return Ok(false) };
+        let changed = self.remesh_collapsing_meshes(cells)?;
+        self.evaluate_remeshed(changed)
+    }
+
+    /// After a remeshing that `changed` a mesh: the new state is the last good one, forces evaluated.
+    fn evaluate_remeshed(&mut self, changed: bool) -> Result<bool, SimulationError> {
         if changed {
             self.save_good();
             self.evaluate()?;
@@ -1313,22 +1324,7 @@ impl<'p> Simulation<'p> {
         collapsing.contains(&true).then_some(collapsing)
     }
 
-    /// Collapses the short edges of `cells` (from [`Self::collapsing_cells`]) now and re-evaluates
-    /// the forces; FIRE starts afresh on the new layout, as after a scheduled pass. (Carrying FIRE's
-    /// Δt, α and velocities through such passes was tried on a 64-cell spheroid, with full passes
-    /// below 0.25·l_min: it moved the nodes faster, twice as many edges collapsed, and the residual
-    /// after 3,000 steps was no lower.) Returns whether any mesh changed.
-    fn remesh_out_of_turn(&mut self, cells: Vec<bool>, mover: &mut Mover) -> Result<bool, SimulationError> {
-        let changed = self.remesh_collapsing_meshes(cells)?;
-        if changed {
-            self.save_good();
-            self.evaluate()?;
-            mover.relayout(self);
-        }
-        Ok(changed)
-    }
-
-    /// The remeshing of [`Self::remesh_out_of_turn`] without the evaluation. A cell whose short
+    /// The collapses of [`Self::collapse_out_of_turn`] without the evaluation. A cell whose short
     /// edge survives its pass (every operation that would remove it refused) is left alone for
     /// [`NEED_BACKOFF`] checks instead of being remeshed again at every step.
     fn remesh_collapsing_meshes(&mut self, mut cells: Vec<bool>) -> Result<bool, SimulationError> {
