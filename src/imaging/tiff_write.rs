@@ -109,12 +109,21 @@ pub fn write_label_tiff(
     };
     let result = write_atomically(path, |w| {
         let encode = |e: tiff::TiffError| std::io::Error::other(e);
+        let contiguous = matches!(compression, Compression::Uncompressed);
         if options.bigtiff {
             let mut enc = TiffEncoder::new_big(w).map_err(encode)?.with_compression(compression);
-            write_pages(&mut enc, volume, dtype, &page).map_err(encode)
+            if contiguous {
+                write_pages_contiguously(&mut enc, volume, dtype, &page).map_err(encode)
+            } else {
+                write_pages(&mut enc, volume, dtype, &page).map_err(encode)
+            }
         } else {
             let mut enc = TiffEncoder::new(w).map_err(encode)?.with_compression(compression);
-            write_pages(&mut enc, volume, dtype, &page).map_err(encode)
+            if contiguous {
+                write_pages_contiguously(&mut enc, volume, dtype, &page).map_err(encode)
+            } else {
+                write_pages(&mut enc, volume, dtype, &page).map_err(encode)
+            }
         }
     });
     match result {
@@ -160,6 +169,53 @@ fn write_pages<W: Write + Seek, K: TiffKind>(
                 image.write_data(&data)?;
             }
         }
+    }
+    Ok(())
+}
+
+/// Uncompressed pages as ImageJ writes them: every page's data back to back (written before the
+/// first directory), then one directory per page pointing into that block. tifffile (napari) reads
+/// an ImageJ file whose first page's data could hold every page before the second directory as one
+/// contiguous block; with the tiff crate's data-then-directory order per page a small uint8 stack
+/// met that test and was read from the bytes of the directories.
+fn write_pages_contiguously<W: Write + Seek, K: TiffKind>(
+    enc: &mut TiffEncoder<W, K>,
+    volume: &LabelVolume,
+    dtype: LabelDtype,
+    page: &Page,
+) -> tiff::TiffResult<()> {
+    let bytes_per_voxel: u64 = match dtype {
+        LabelDtype::U8 => 1,
+        LabelDtype::U16 => 2,
+        LabelDtype::U32 => 4,
+    };
+    let page_bytes = K::convert_offset(u64::from(page.width) * u64::from(page.height) * bytes_per_voxel)?;
+    let mut offsets = Vec::new();
+    let nz = volume.labels().len_of(Axis(0));
+    for z in 0..nz {
+        let mut dir = enc.image_directory()?;
+        if z == 0 {
+            for slice in volume.labels().axis_iter(Axis(0)) {
+                let offset = match dtype {
+                    LabelDtype::U8 => dir.write_data(&slice.iter().map(|&l| l as u8).collect::<Vec<u8>>()[..])?,
+                    LabelDtype::U16 => dir.write_data(&slice.iter().map(|&l| l as u16).collect::<Vec<u16>>()[..])?,
+                    LabelDtype::U32 => dir.write_data(&slice.iter().copied().collect::<Vec<u32>>()[..])?,
+                };
+                offsets.push(K::convert_offset(offset)?);
+            }
+        }
+        dir.write_tag(Tag::ImageWidth, page.width)?;
+        dir.write_tag(Tag::ImageLength, page.height)?;
+        dir.write_tag(Tag::BitsPerSample, (bytes_per_voxel * 8) as u16)?;
+        dir.write_tag(Tag::Compression, 1u16)?;
+        dir.write_tag(Tag::PhotometricInterpretation, 1u16)?;
+        dir.write_tag(Tag::SamplesPerPixel, 1u16)?;
+        dir.write_tag(Tag::RowsPerStrip, page.height)?;
+        dir.write_tag(Tag::SampleFormat, 1u16)?;
+        dir.write_tag(Tag::StripOffsets, K::convert_slice(&offsets[z..=z]))?;
+        dir.write_tag(Tag::StripByteCounts, K::convert_slice(std::slice::from_ref(&page_bytes)))?;
+        tags(&mut dir, page, z == 0)?;
+        dir.finish()?;
     }
     Ok(())
 }
