@@ -95,21 +95,22 @@ pub fn read_label_h5(path: &Path, options: &LabelReadOptions) -> Result<LabelRea
         described(format!("data type {dtype}; labels must be 8, 16, 32 or 64-bit integers (a probability map?)"))
     })?;
     let voxels = nz.checked_mul(ny).and_then(|n| n.checked_mul(nx));
-    // Read as 64-bit values, then kept as u32.
+    // Up to 32 bits: read as 32-bit values (unsigned ones are the labels as they are; signed ones
+    // are checked into a second u32 array); 64-bit: read as 64-bit values, then kept as u32.
+    let read_bytes: u64 = if bits <= 32 { 8 } else { 12 };
     check_voxel_memory(
         voxels,
-        12u64.saturating_add(options.work_bytes_per_voxel),
+        read_bytes.saturating_add(options.work_bytes_per_voxel),
         &format!("{}: a dataset of {nz} × {ny} × {nx} voxels", path.display()),
         "crop or bin the volume",
     )?;
     let (nz, ny, nx) = (nz as usize, ny as usize, nx as usize);
     let index = |flat: usize| [flat / (ny * nx), (flat / nx) % ny, flat % nx];
-    let data: Vec<u32> = if signed {
-        let values = guarded(|| dataset.read_i64()).map_err(|e| described(format!("reading the data: {e}")))?;
+    let reading = |e: String| described(format!("reading the data: {e}"));
+    let signed_labels = |values: &mut dyn Iterator<Item = i64>| -> Result<Vec<u32>, ImagingError> {
         values
-            .iter()
             .enumerate()
-            .map(|(flat, &v)| match u32::try_from(v) {
+            .map(|(flat, v)| match u32::try_from(v) {
                 Ok(v) => Ok(v),
                 Err(_) if v < 0 => {
                     Err(ImagingError::NegativeLabel { path: path.to_path_buf(), index: index(flat), value: v })
@@ -118,20 +119,32 @@ pub fn read_label_h5(path: &Path, options: &LabelReadOptions) -> Result<LabelRea
                     Err(ImagingError::LabelTooLarge { path: path.to_path_buf(), index: index(flat), value: v as u64 })
                 }
             })
-            .collect::<Result<_, _>>()?
-    } else {
-        let values = guarded(|| dataset.read_u64()).map_err(|e| described(format!("reading the data: {e}")))?;
-        values
-            .iter()
-            .enumerate()
-            .map(|(flat, &v)| {
-                u32::try_from(v).map_err(|_| ImagingError::LabelTooLarge {
-                    path: path.to_path_buf(),
-                    index: index(flat),
-                    value: v,
+            .collect()
+    };
+    let data: Vec<u32> = match (signed, bits <= 32) {
+        (false, true) => guarded(|| dataset.read_u32()).map_err(reading)?,
+        (true, true) => {
+            let values = guarded(|| dataset.read_i32()).map_err(reading)?;
+            signed_labels(&mut values.iter().map(|&v| i64::from(v)))?
+        }
+        (true, false) => {
+            let values = guarded(|| dataset.read_i64()).map_err(reading)?;
+            signed_labels(&mut values.iter().copied())?
+        }
+        (false, false) => {
+            let values = guarded(|| dataset.read_u64()).map_err(reading)?;
+            values
+                .iter()
+                .enumerate()
+                .map(|(flat, &v)| {
+                    u32::try_from(v).map_err(|_| ImagingError::LabelTooLarge {
+                        path: path.to_path_buf(),
+                        index: index(flat),
+                        value: v,
+                    })
                 })
-            })
-            .collect::<Result<_, _>>()?
+                .collect::<Result<_, _>>()?
+        }
     };
     if data.len() != nz * ny * nx {
         return Err(described(format!("{} values read for shape {shape:?}", data.len())));

@@ -45,6 +45,13 @@ pub enum OutputError {
         "{option} {path}: is {kind}, not a regular file; tissuefit never replaces it. Give the path of a regular file"
     )]
     NotRegular { option: String, path: PathBuf, kind: &'static str },
+    #[error(
+        "{option} {path}: the folder {folder} does not exist; create it first (mkdir -p {folder}) or give a path \
+         in an existing folder"
+    )]
+    NoFolder { option: String, path: PathBuf, folder: PathBuf },
+    #[error("{option} {path}: {folder} is not a folder; give a path in an existing folder")]
+    ParentNotAFolder { option: String, path: PathBuf, folder: PathBuf },
     #[error("{option} {path}: {format} files are written with the extension {expected}; use such a file name")]
     Extension { option: String, path: PathBuf, format: &'static str, expected: String },
 }
@@ -210,6 +217,22 @@ impl OutputPolicy {
             return Err(directory_error(option, path, &format!("out.{}", extensions[0])));
         }
         check_target(option, path)?;
+        // Checked here, not when writing: a command that meshes or relaxes for minutes must not fail
+        // only when it saves.
+        if let Some(folder) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            let error = |folder: &Path| (option.to_string(), path.to_path_buf(), folder.to_path_buf());
+            match kind_of(folder) {
+                Kind::Directory => {}
+                Kind::Absent => {
+                    let (option, path, folder) = error(folder);
+                    return Err(OutputError::NoFolder { option, path, folder });
+                }
+                Kind::Regular | Kind::Other(_) => {
+                    let (option, path, folder) = error(folder);
+                    return Err(OutputError::ParentNotAFolder { option, path, folder });
+                }
+            }
+        }
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         if !ext.as_deref().is_some_and(|e| extensions.contains(&e)) {
             let expected = extensions.iter().map(|e| format!(".{e}")).collect::<Vec<_>>().join(" or ");
@@ -393,6 +416,11 @@ mod tests {
         policy.file("--out", &dir.path().join("t.vtp"), Format::Tissue).unwrap();
         let e = policy.file("--report", &dir.path().join("sub/../t.vtp"), Format::Tissue).unwrap_err().to_string();
         assert!(e.contains("also the output --out"), "{e}");
+        // A missing folder is refused before any work, and a file where the folder should be.
+        let e = policy.file("--out", &dir.path().join("no/such/t.vtp"), Format::Tissue).unwrap_err().to_string();
+        assert!(e.contains("--out") && e.contains("does not exist") && e.contains("mkdir -p"), "{e}");
+        let e = policy.file("--out", &input.join("t.vtp"), Format::Tissue).unwrap_err().to_string();
+        assert!(e.contains("is not a folder"), "{e}");
         // Upper-case extensions are fine.
         policy.file("--nuclei", &dir.path().join("N.TIFF"), Format::Tiff).unwrap();
         #[cfg(unix)]

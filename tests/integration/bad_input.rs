@@ -166,7 +166,21 @@ const CASES: &[Case] = &[
                 d.join("no/such/dir/out.vtp").to_str().unwrap().into(),
             ]
         },
-        says: &["out.vtp"],
+        says: &["out.vtp", "does not exist", "mkdir -p"],
+    },
+    Case {
+        // Refused before the meshing, not when saving its result.
+        name: "mesh into a folder that does not exist",
+        setup: |d| {
+            let labels = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/doublet.tif");
+            vec![
+                "mesh".into(),
+                labels.to_str().unwrap().into(),
+                "--out".into(),
+                d.join("missing/t.vtp").to_str().unwrap().into(),
+            ]
+        },
+        says: &["--out", "missing", "does not exist"],
     },
     Case {
         name: "inspect a folder",
@@ -273,8 +287,8 @@ fn a_full_disk_is_a_clear_error_and_leaves_nothing_that_looks_complete() {
 }
 
 /// Every subcommand that reads a file, given a missing file and then a file of garbage with the
-/// right extension: exit 2, a message naming the file, and nothing written where its outputs go (the
-/// output folder is not even made).
+/// right extension: exit 2, a message naming the file, and nothing written where its outputs go (an
+/// output folder is not even made; the folder of an output file, which must exist, stays empty).
 #[test]
 fn every_subcommand_refuses_a_missing_or_garbage_input_naming_it_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
@@ -317,6 +331,10 @@ fn every_subcommand_refuses_a_missing_or_garbage_input_naming_it_and_writes_noth
                 std::fs::write(&file, garbage).unwrap();
             }
             let out = case.join("out");
+            let file_output = line.iter().any(|a| a.starts_with("OUT/"));
+            if file_output {
+                std::fs::create_dir(&out).unwrap();
+            }
             let args: Vec<String> = line
                 .iter()
                 .map(|a| {
@@ -332,7 +350,7 @@ fn every_subcommand_refuses_a_missing_or_garbage_input_naming_it_and_writes_noth
             if o.status.code() != Some(2) || !err.contains(&name) {
                 failures.push(format!("{} ({kind}): exit {:?}, stderr: {err}", line[0], o.status.code()));
             }
-            if out.exists() {
+            if out.exists() && (!file_output || !files(&out).is_empty()) {
                 failures.push(format!("{} ({kind}): wrote {:?}", line[0], files(&out)));
             }
         }
