@@ -74,7 +74,9 @@ pub struct SimulationSettings {
     /// the end. Default 0.
     pub settle_steps: u64,
     /// Equilibrium mode: move nodes along their normals only (each nodal force projected onto the
-    /// node's normal). Tangential forces only slide nodes within the surface; with adhesive spring
+    /// node's normal; when integrating, each node's momentum too, or momenta gathered along earlier
+    /// normals would move nodes tangentially where the projected forces do no work and the energy could
+    /// rise: a 64-cell spheroid folded). Tangential forces only slide nodes within the surface; with adhesive spring
     /// contacts they never stop: the contact energy weights each node by its area, so nodes stream
     /// out of a contact along it, remeshing refills it, and the relaxation churns (a 20-cell
     /// aggregate: 2,600 splits and as many collapses in 16,000 steps, the contact fraction still

@@ -34,8 +34,8 @@ use super::growth::{division_seed, draw_division_volume, draw_division_volumes, 
 use super::motion::integrate_step;
 use super::polarity::{RayCastSettings, polarize_by_ray_casting, polarize_from_contacts};
 use super::{
-    CellForces, CellTypeParams, ContactModel, ContactWorkspace, CouplingWorkspace, DivisionPlaneRule, EnergyTerms,
-    Parameters, Polarity, RelaxMethod, SimulationMode,
+    CellForces, CellTypeParams, ContactModel, ContactWorkspace, CouplingWorkspace, DivisionPlaneRule, Dynamics,
+    EnergyTerms, Parameters, Polarity, RelaxMethod, SimulationMode,
 };
 use crate::geometry::{Real, Vec3};
 use crate::mesh::remesh::{RemeshError, RemeshReport, RemeshSettings};
@@ -840,19 +840,21 @@ impl<'p> Simulation<'p> {
     fn project_forces_to_normals(&mut self) {
         let cells = self.tissue.cells();
         self.forces.cells.par_iter_mut().zip(cells.par_iter()).for_each(|(work, cell)| {
-            let mut normals = vec![Vec3::zeros(); work.forces.len()];
-            for (t, a) in cell.mesh().triangles().iter().zip(&work.geometry.area_vectors) {
-                for &n in t {
-                    normals[n as usize] += a;
-                }
-            }
-            for (f, n) in work.forces.iter_mut().zip(&normals) {
-                let norm2 = n.norm_squared();
-                if norm2 > 0.0 {
-                    *f = n * (f.dot(n) / norm2);
-                }
-            }
+            project_to_normals(cell, &work.geometry.area_vectors, &mut work.forces);
         });
+    }
+
+    /// Projects every node's momentum onto its normal (normal relaxation, dynamic model). Forces
+    /// alone are not enough: a momentum gathered along earlier normals keeps a tangential part as
+    /// the normals turn, and that part moves nodes where the projected forces do no work, so the
+    /// potential energy can rise with nothing to pay for it (a 64-cell spheroid grew spikes and
+    /// folded within 150–230 steps at a time step 5× below the stability limit).
+    fn project_momenta_to_normals(&mut self) {
+        let cells = self.tissue.cells();
+        self.momenta
+            .par_iter_mut()
+            .zip(cells.par_iter().zip(self.forces.cells.par_iter()))
+            .for_each(|(momenta, (cell, work))| project_to_normals(cell, &work.geometry.area_vectors, momenta));
     }
 
     /// The first force term that is non-finite for cell `c`.
@@ -1257,6 +1259,9 @@ impl<'p> Simulation<'p> {
     /// Integrates positions (and momenta) over one step with the current forces, grows the target
     /// volumes when `grow`, and advances the clock; forces are not re-evaluated.
     fn move_nodes(&mut self, grow: bool) {
+        if self.normal_only && self.params.numerics.dynamics == Dynamics::Dynamic {
+            self.project_momenta_to_normals();
+        }
         // Tied pairs share one momentum (forces are already averaged).
         self.coupling.average_momenta(&self.tissue, &mut self.momenta);
         integrate_step(
@@ -1714,6 +1719,23 @@ impl Mover {
             Mover::Integrate => sim.advance(false)?,
         }
         Ok(Moved::Yes)
+    }
+}
+
+/// Replaces each node's vector by its component along the node's normal (the sum of its
+/// triangles' area vectors `area_vectors`, as [`CellGeometry`](super::CellGeometry) keeps them).
+fn project_to_normals(cell: &Cell, area_vectors: &[Vec3], values: &mut [Vec3]) {
+    let mut normals = vec![Vec3::zeros(); values.len()];
+    for (t, a) in cell.mesh().triangles().iter().zip(area_vectors) {
+        for &n in t {
+            normals[n as usize] += a;
+        }
+    }
+    for (v, n) in values.iter_mut().zip(&normals) {
+        let norm2 = n.norm_squared();
+        if norm2 > 0.0 {
+            *v = n * (v.dot(n) / norm2);
+        }
     }
 }
 

@@ -316,7 +316,8 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
     FieldDoc {
         path: "simulation.normal_relaxation",
         unit: "",
-        text: "Equilibrium mode: move nodes along their normals only (forces projected onto the node normals). Adhesive \
+        text: "Equilibrium mode: move nodes along their normals only (forces, and momenta when integrating, projected onto \
+               the node normals). Adhesive \
                spring contacts otherwise stream nodes out of every contact and the relaxation churns without settling.",
     },
     FieldDoc {
