@@ -55,12 +55,14 @@ pub struct SimulationSettings {
     /// edges < l_min, flip poor triangles); 0 = never. Default 0.
     pub remesh_every_steps: u64,
     /// On a fixed mesh (`remesh_every_steps = 0`), edges of moving cells shorter than this
-    /// fraction of l_min are still collapsed, at the step they appear (only those edges: no splits,
-    /// no flips, so the mesh loses those few nodes and nothing else); 0 = never. Default 0.02.
+    /// fraction of l_min are still collapsed, and slivers (triangles of quality below 0.02) have an
+    /// edge flipped, at the step they appear (only those: no splits, no other flips, so the mesh
+    /// changes by those few nodes and edges); 0 = neither. Default 0.02. A sliver's normal swings
+    /// with nanometre moves and its nodes' bending and contact forces with it, so FIRE stalls.
     /// Without it, nodes that drift along the surface can shrink an edge to ~1 nm: the two nodes
     /// then carry the largest forces of the tissue, flipping sign from step to step, FIRE stalls
     /// and the surface folds (a 64-cell spheroid at l_min = 1.4 µm: an edge of 1 nm at step ~1,100,
-    /// "volume turned non-positive" at 1,174; with 0.02, 509 such collapses in 3,000 steps and no
+    /// "volume turned non-positive" at 1,174; with 0.02, 363 collapses and 551 sliver flips in 3,000 steps and no
     /// fold). With scheduled remeshing the passes collapse every edge below l_min and this check is
     /// off: between passes it fired in healthy runs (meshes with tiny junction edges, as Surface
     /// Evolver's) and moved their results.

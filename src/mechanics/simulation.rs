@@ -1324,7 +1324,7 @@ impl<'p> Simulation<'p> {
             .tissue
             .cells()
             .par_iter()
-            .map(|c| !c.kind().is_immobile() && c.mesh().shortest_edge() < threshold)
+            .map(|c| !c.kind().is_immobile() && needs_repair(c.mesh().positions(), c.mesh().triangles(), threshold))
             .collect();
         collapsing.contains(&true).then_some(collapsing)
     }
@@ -1377,7 +1377,7 @@ impl<'p> Simulation<'p> {
             Some(_) => RemeshSettings {
                 l_min: self.params.simulation.remesh_below_edge_fraction * numerics.min_edge_length,
                 l_max: Real::MAX,
-                min_quality: 0.0,
+                min_quality: SLIVER_QUALITY,
                 ..RemeshSettings::new(numerics.min_edge_length)
             },
         };
@@ -1720,6 +1720,26 @@ impl Mover {
         }
         Ok(Moved::Yes)
     }
+}
+
+/// Triangles below this quality (12√3·A/P², 1 for an equilateral triangle) are slivers that the
+/// out-of-turn repair flips away: near-degenerate faces whose normal swings with tiny moves.
+const SLIVER_QUALITY: Real = 0.02;
+
+/// Whether a mesh has an edge shorter than `threshold` or a sliver (see [`SLIVER_QUALITY`]).
+fn needs_repair(x: &[Vec3], triangles: &[[u32; 3]], threshold: Real) -> bool {
+    let t2 = threshold * threshold;
+    triangles.iter().any(|t| {
+        let [a, b, c] = t.map(|i| x[i as usize]);
+        let (ab, bc, ca) = (b - a, c - b, a - c);
+        let (l0, l1, l2) = (ab.norm_squared(), bc.norm_squared(), ca.norm_squared());
+        if l0 < t2 || l1 < t2 || l2 < t2 {
+            return true;
+        }
+        let perimeter = l0.sqrt() + l1.sqrt() + l2.sqrt();
+        // 12√3·A/P² with A = |ab × ca|/2.
+        6.0 * 3f64.sqrt() * ab.cross(&ca).norm() < SLIVER_QUALITY * perimeter * perimeter
+    })
 }
 
 /// Replaces each node's vector by its component along the node's normal (the sum of its

@@ -303,8 +303,9 @@ pub(super) static FIELD_DOCS: &[FieldDoc] = &[
         path: "simulation.remesh_below_edge_fraction",
         unit: "",
         text: "On a fixed mesh (remesh_every_steps = 0), edges of moving cells shorter than this fraction of l_min are \
-               still collapsed at the step they appear (only those edges, no splits or flips): an edge that nodes drifting \
-               along the surface shrink to ~1 nm otherwise stalls FIRE and folds the surface; 0 = never.",
+               still collapsed at the step they appear, and slivers (triangle quality below 0.02) get an edge flipped (no \
+               splits, no other flips): an edge that nodes drifting along the surface shrink to ~1 nm otherwise stalls \
+               FIRE and folds the surface, and a sliver's swinging normal stalls FIRE; 0 = neither.",
     },
     FieldDoc {
         path: "simulation.settle_steps",
