@@ -156,6 +156,32 @@ fn um(metres: Real) -> String {
     format!("{} µm", fmt_real_short(metres * 1e6))
 }
 
+/// What a derived spring cutoff does to the adhesion energy w = ωc²/2 (it grows with c²): the
+/// largest w/(2γ) = ωc²/(4γ) over the moving cell types' adhesive face types at `cutoff` and at the
+/// default cutoff, as a clause for the note; empty without adhesion.
+fn adhesion_at_cutoff(cell_types: &[CellTypeParams], cutoff: Real, default: Real) -> String {
+    let ratio = |c: Real, f: &FaceParams| f.adhesion * c * c / (4.0 * f.surface_tension);
+    let strongest = cell_types
+        .iter()
+        .filter(|t| !t.kind.is_immobile())
+        .flat_map(|t| t.faces.iter().map(move |(face, f)| (t, face, f)))
+        .filter(|(_, _, f)| f.adhesion > 0.0 && f.surface_tension > 0.0)
+        .max_by(|a, b| ratio(cutoff, a.2).total_cmp(&ratio(cutoff, b.2)));
+    match strongest {
+        Some((t, face, f)) => format!(
+            "; the spring adhesion energy ωc²/2 grows with c²: w/(2γ) = ωc²/(4γ) = {} on {}'s {} faces (ω = {:e} \
+             Pa/m), {} at the default cutoff {}; set adhesion for the w you mean (ω = 4γ·(w/2γ)/c²)",
+            fmt_real_short(ratio(cutoff, f)),
+            t.name,
+            face.name(),
+            f.adhesion,
+            fmt_real_short(ratio(default, f)),
+            um(default)
+        ),
+        None => String::new(),
+    }
+}
+
 impl Parameters {
     /// Fills the mesh-dependent numerics the config leaves unset (`explicit`) from the input mesh's
     /// `scale`, and collects warnings where the set ones contradict it (see the module doc). Call
@@ -209,12 +235,15 @@ impl Parameters {
             }
         } else {
             n.contact_cutoff = n.min_edge_length;
-            let from = if explicit.min_edge_length {
+            let mut from = if explicit.min_edge_length {
                 "equal to numerics.min_edge_length (the config's), as Table 2 ties them".to_string()
             } else {
                 "equal to the derived numerics.min_edge_length, as Table 2 and the fit's forward.match_mesh_length tie them"
                     .to_string()
             };
+            if n.contact_model == ContactModel::Spring {
+                from.push_str(&adhesion_at_cutoff(&self.cell_types, n.contact_cutoff, defaults.contact_cutoff));
+            }
             derived.push(DerivedValue {
                 key: "numerics.contact_cutoff".to_string(),
                 value: n.contact_cutoff,
