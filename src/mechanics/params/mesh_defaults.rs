@@ -166,11 +166,12 @@ fn adhesion_at_cutoff(cell_types: &[CellTypeParams], cutoff: Real, default: Real
         .filter(|t| !t.kind.is_immobile())
         .flat_map(|t| t.faces.iter().map(move |(face, f)| (t, face, f)))
         .filter(|(_, _, f)| f.adhesion > 0.0 && f.surface_tension > 0.0)
-        .max_by(|a, b| ratio(cutoff, a.2).total_cmp(&ratio(cutoff, b.2)));
+        // The first of the strongest (min_by keeps the first of equals).
+        .min_by(|a, b| ratio(cutoff, b.2).total_cmp(&ratio(cutoff, a.2)));
     match strongest {
         Some((t, face, f)) => format!(
             "; the spring adhesion energy ωc²/2 grows with c²: w/(2γ) = ωc²/(4γ) = {} on {}'s {} faces (ω = {:e} \
-             Pa/m), {} at the default cutoff {}; set adhesion for the w you mean (ω = 4γ·(w/2γ)/c²)",
+             Pa/m), {} at the default cutoff {} (adhesion ω = 4γ·(w/2γ)/c² gives the w you mean)",
             fmt_real_short(ratio(cutoff, f)),
             t.name,
             face.name(),

@@ -374,7 +374,10 @@ fn the_mesh_dependent_numerics_a_model_and_its_overrides_set_are_told_apart_from
     // The derived spring cutoff says what it does to the adhesion energy: w/(2γ) = ωc²/(4γ) with
     // Table 2's ω = 1e9 Pa/m and γ = 1 mN/m is 0.25 at c = 1 µm, 0.01 at 0.2 µm.
     let note = &fit.lines()[1];
-    assert!(note.contains("w/(2γ) = ωc²/(4γ) = 0.250 on") && note.contains("0.010 at the default cutoff 0.200 µm"), "{note}");
+    assert!(
+        note.contains("w/(2γ) = ωc²/(4γ) = 0.250 on") && note.contains("0.010 at the default cutoff 0.200 µm"),
+        "{note}"
+    );
     // Everything set: nothing changes, whatever the mesh.
     let mut params = Parameters::default();
     let before = params.clone();
