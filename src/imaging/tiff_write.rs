@@ -112,18 +112,10 @@ pub fn write_label_tiff(
         let contiguous = matches!(compression, Compression::Uncompressed);
         if options.bigtiff {
             let mut enc = TiffEncoder::new_big(w).map_err(encode)?.with_compression(compression);
-            if contiguous {
-                write_pages_contiguously(&mut enc, volume, dtype, &page).map_err(encode)
-            } else {
-                write_pages(&mut enc, volume, dtype, &page).map_err(encode)
-            }
+            write_volume(&mut enc, volume, dtype, &page, contiguous).map_err(encode)
         } else {
             let mut enc = TiffEncoder::new(w).map_err(encode)?.with_compression(compression);
-            if contiguous {
-                write_pages_contiguously(&mut enc, volume, dtype, &page).map_err(encode)
-            } else {
-                write_pages(&mut enc, volume, dtype, &page).map_err(encode)
-            }
+            write_volume(&mut enc, volume, dtype, &page, contiguous).map_err(encode)
         }
     });
     match result {
@@ -139,6 +131,17 @@ struct Page {
     description: String,
     x_resolution: Rational,
     y_resolution: Rational,
+}
+
+/// Uncompressed pages contiguously ([`write_pages_contiguously`]), compressed ones page by page.
+fn write_volume<W: Write + Seek, K: TiffKind>(
+    enc: &mut TiffEncoder<W, K>,
+    volume: &LabelVolume,
+    dtype: LabelDtype,
+    page: &Page,
+    contiguous: bool,
+) -> tiff::TiffResult<()> {
+    if contiguous { write_pages_contiguously(enc, volume, dtype, page) } else { write_pages(enc, volume, dtype, page) }
 }
 
 fn write_pages<W: Write + Seek, K: TiffKind>(

@@ -220,17 +220,14 @@ impl OutputPolicy {
         // Checked here, not when writing: a command that meshes or relaxes for minutes must not fail
         // only when it saves.
         if let Some(folder) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            let error = |folder: &Path| (option.to_string(), path.to_path_buf(), folder.to_path_buf());
-            match kind_of(folder) {
-                Kind::Directory => {}
-                Kind::Absent => {
-                    let (option, path, folder) = error(folder);
-                    return Err(OutputError::NoFolder { option, path, folder });
-                }
-                Kind::Regular | Kind::Other(_) => {
-                    let (option, path, folder) = error(folder);
-                    return Err(OutputError::ParentNotAFolder { option, path, folder });
-                }
+            let kind = kind_of(folder);
+            if kind != Kind::Directory {
+                let (option, path, folder) = (option.to_string(), path.to_path_buf(), folder.to_path_buf());
+                return Err(if kind == Kind::Absent {
+                    OutputError::NoFolder { option, path, folder }
+                } else {
+                    OutputError::ParentNotAFolder { option, path, folder }
+                });
             }
         }
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);

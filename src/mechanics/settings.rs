@@ -62,8 +62,8 @@ pub struct SimulationSettings {
     /// Without it, nodes that drift along the surface can shrink an edge to ~1 nm: the two nodes
     /// then carry the largest forces of the tissue, flipping sign from step to step, FIRE stalls
     /// and the surface folds (a 64-cell spheroid at l_min = 1.4 µm: an edge of 1 nm at step ~1,100,
-    /// "volume turned non-positive" at 1,174; with 0.02, 363 collapses and 551 sliver flips in 3,000 steps and no
-    /// fold). With scheduled remeshing the passes collapse every edge below l_min and this check is
+    /// "volume turned non-positive" at 1,174; with 0.02, 363 collapses and 551 sliver flips in
+    /// 3,000 steps and no fold). With scheduled remeshing the passes collapse every edge below l_min and this check is
     /// off: between passes it fired in healthy runs (meshes with tiny junction edges, as Surface
     /// Evolver's) and moved their results.
     pub remesh_below_edge_fraction: Real,
@@ -78,8 +78,8 @@ pub struct SimulationSettings {
     /// Equilibrium mode: move nodes along their normals only (each nodal force projected onto the
     /// node's normal; when integrating, each node's momentum too, or momenta gathered along earlier
     /// normals would move nodes tangentially where the projected forces do no work and the energy could
-    /// rise: a 64-cell spheroid folded). Tangential forces only slide nodes within the surface; with adhesive spring
-    /// contacts they never stop: the contact energy weights each node by its area, so nodes stream
+    /// rise: a 64-cell spheroid folded). Tangential forces only slide nodes within the surface;
+    /// with adhesive spring contacts they never stop: the contact energy weights each node by its area, so nodes stream
     /// out of a contact along it, remeshing refills it, and the relaxation churns (a 20-cell
     /// aggregate: 2,600 splits and as many collapses in 16,000 steps, the contact fraction still
     /// creeping). Moved along normals, the same aggregate needed 52 splits and 59 collapses and its shape settled

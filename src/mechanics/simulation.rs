@@ -38,7 +38,7 @@ use super::{
     EnergyTerms, Parameters, Polarity, RelaxMethod, SimulationMode,
 };
 use crate::geometry::{Real, Vec3};
-use crate::mesh::remesh::{RemeshError, RemeshReport, RemeshSettings};
+use crate::mesh::remesh::{RemeshError, RemeshReport, RemeshSettings, triangle_quality};
 use crate::mesh::{Cell, CellId, Daughter, DivisionError, DivisionPlane, FaceType, MeshDefect, Tissue, divide_mesh};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -805,7 +805,7 @@ impl<'p> Simulation<'p> {
         self.force_evaluations += 1;
         self.node_evaluations += self.tissue.node_count() as u64;
         if self.normal_only {
-            self.project_forces_to_normals();
+            self.project_to_normals();
             if self.params.numerics.contact_model == ContactModel::Coupling {
                 // Tied nodes share one force again: the mean of the two projections.
                 self.coupling.average_forces(&self.tissue, &mut self.forces.cells);
@@ -837,24 +837,24 @@ impl<'p> Simulation<'p> {
     /// area vectors; see `SimulationSettings::normal_relaxation`). A descent along these forces
     /// still lowers the energy (dE = −|F_n|²·dt), and its fixed points are the shapes on which no
     /// node is pushed off the surface.
-    fn project_forces_to_normals(&mut self) {
-        let cells = self.tissue.cells();
-        self.forces.cells.par_iter_mut().zip(cells.par_iter()).for_each(|(work, cell)| {
-            project_to_normals(cell, &work.geometry.area_vectors, &mut work.forces);
-        });
-    }
-
-    /// Projects every node's momentum onto its normal (normal relaxation, dynamic model). Forces
-    /// alone are not enough: a momentum gathered along earlier normals keeps a tangential part as
-    /// the normals turn, and that part moves nodes where the projected forces do no work, so the
+    /// Projects every node's force onto its normal and, integrating the dynamic model, its momentum
+    /// too (the momentum is used at these positions by the next [`Self::move_nodes`]). Forces alone
+    /// are not enough: a momentum gathered along earlier normals keeps a tangential part as the
+    /// normals turn, and that part moves nodes where the projected forces do no work, so the
     /// potential energy can rise with nothing to pay for it (a 64-cell spheroid grew spikes and
     /// folded within 150–230 steps at a time step 5× below the stability limit).
-    fn project_momenta_to_normals(&mut self) {
+    fn project_to_normals(&mut self) {
         let cells = self.tissue.cells();
-        self.momenta
-            .par_iter_mut()
-            .zip(cells.par_iter().zip(self.forces.cells.par_iter()))
-            .for_each(|(momenta, (cell, work))| project_to_normals(cell, &work.geometry.area_vectors, momenta));
+        let dynamic = self.params.numerics.dynamics == Dynamics::Dynamic;
+        self.forces.cells.par_iter_mut().zip(cells.par_iter()).zip(self.momenta.par_iter_mut()).for_each(
+            |((work, cell), momenta)| {
+                let normals = node_normals(cell, &work.geometry.area_vectors);
+                project_onto(&normals, &mut work.forces);
+                if dynamic {
+                    project_onto(&normals, momenta);
+                }
+            },
+        );
     }
 
     /// The first force term that is non-finite for cell `c`.
@@ -1110,7 +1110,7 @@ impl<'p> Simulation<'p> {
             // (settle_steps = 0 keeps the remeshing at the last step when it falls due.)
             let settling = s.settle_steps > 0 && self.step.saturating_add(s.settle_steps) >= s.max_steps;
             let scheduled = s.remesh_every_steps > 0 && !settling && self.step.is_multiple_of(s.remesh_every_steps);
-            let remeshed = if scheduled { self.remesh()? } else { self.collapse_out_of_turn()? };
+            let remeshed = if scheduled { self.remesh()? } else { self.repair_out_of_turn()? };
             if remeshed {
                 // New nodes: the minimiser starts afresh on the new layout (carrying FIRE's Δt, α
                 // and velocities through out-of-turn passes was tried on a 64-cell spheroid: twice
@@ -1243,8 +1243,8 @@ impl<'p> Simulation<'p> {
         let every = self.params.simulation.remesh_every_steps;
         if every > 0 && self.step.is_multiple_of(every) {
             self.remesh_cells(None)?;
-        } else if let Some(cells) = self.collapsing_cells() {
-            self.remesh_collapsing_meshes(cells)?;
+        } else if let Some(cells) = self.cells_needing_repair() {
+            self.repair_meshes(cells)?;
         }
         self.evaluate()
     }
@@ -1259,9 +1259,6 @@ impl<'p> Simulation<'p> {
     /// Integrates positions (and momenta) over one step with the current forces, grows the target
     /// volumes when `grow`, and advances the clock; forces are not re-evaluated.
     fn move_nodes(&mut self, grow: bool) {
-        if self.normal_only && self.params.numerics.dynamics == Dynamics::Dynamic {
-            self.project_momenta_to_normals();
-        }
         // Tied pairs share one momentum (forces are already averaged).
         self.coupling.average_momenta(&self.tissue, &mut self.momenta);
         integrate_step(
@@ -1294,11 +1291,11 @@ impl<'p> Simulation<'p> {
         self.evaluate_remeshed(changed)
     }
 
-    /// Collapses the short edges of [`Self::collapsing_cells`] now and re-evaluates the forces.
-    /// Returns whether any mesh changed.
-    fn collapse_out_of_turn(&mut self) -> Result<bool, SimulationError> {
-        let Some(cells) = self.collapsing_cells() else { return Ok(false) };
-        let changed = self.remesh_collapsing_meshes(cells)?;
+    /// Repairs [`Self::cells_needing_repair`] now (short edges collapsed, slivers flipped) and
+    /// re-evaluates the forces. Returns whether any mesh changed.
+    fn repair_out_of_turn(&mut self) -> Result<bool, SimulationError> {
+        let Some(cells) = self.cells_needing_repair() else { return Ok(false) };
+        let changed = self.repair_meshes(cells)?;
         self.evaluate_remeshed(changed)
     }
 
@@ -1311,28 +1308,28 @@ impl<'p> Simulation<'p> {
         Ok(changed)
     }
 
-    /// The moving cells whose shortest edge is below `simulation.remesh_below_edge_fraction`·l_min
+    /// The moving cells with an edge below `simulation.remesh_below_edge_fraction`·l_min or a sliver
     /// (None: none, the check is off, or scheduled passes remesh the cells: see the setting).
-    fn collapsing_cells(&self) -> Option<Vec<bool>> {
+    fn cells_needing_repair(&self) -> Option<Vec<bool>> {
         let settings = &self.params.simulation;
         let fraction = settings.remesh_below_edge_fraction;
         if fraction <= 0.0 || settings.remesh_every_steps > 0 {
             return None;
         }
         let threshold = fraction * self.params.numerics.min_edge_length;
-        let collapsing: Vec<bool> = self
+        let due: Vec<bool> = self
             .tissue
             .cells()
             .par_iter()
             .map(|c| !c.kind().is_immobile() && needs_repair(c.mesh().positions(), c.mesh().triangles(), threshold))
             .collect();
-        collapsing.contains(&true).then_some(collapsing)
+        due.contains(&true).then_some(due)
     }
 
-    /// The collapses of [`Self::collapse_out_of_turn`] without the evaluation. A cell whose short
-    /// edge survives its pass (every operation that would remove it refused) is left alone for
+    /// The repairs of [`Self::repair_out_of_turn`] without the evaluation. A cell whose short edge or
+    /// sliver survives its pass (every operation that would remove it refused) is left alone for
     /// [`NEED_BACKOFF`] checks instead of being remeshed again at every step.
-    fn remesh_collapsing_meshes(&mut self, mut cells: Vec<bool>) -> Result<bool, SimulationError> {
+    fn repair_meshes(&mut self, mut cells: Vec<bool>) -> Result<bool, SimulationError> {
         for (c, due) in cells.iter_mut().enumerate() {
             if *due && self.remesh_idle[c] > 0 {
                 self.remesh_idle[c] -= 1;
@@ -1346,15 +1343,15 @@ impl<'p> Simulation<'p> {
             let ids: Vec<String> =
                 (0..cells.len()).filter(|&c| cells[c]).map(|c| self.tissue.cells()[c].id().to_string()).collect();
             tracing::debug!(
-                "step {}: collapsing edges of cell(s) {} out of turn (below remesh_below_edge_fraction·l_min)",
+                "step {}: repairing cell(s) {} out of turn (edges below remesh_below_edge_fraction·l_min, slivers)",
                 self.step,
                 ids.join(", ")
             );
         }
         self.topology.need_passes += 1;
         let changed = self.remesh_cells(Some(&cells))?;
-        if let Some(still) = self.collapsing_cells() {
-            for (c, _) in cells.iter().zip(&still).enumerate().filter(|(_, (due, short))| **due && **short) {
+        if let Some(still) = self.cells_needing_repair() {
+            for (c, _) in cells.iter().zip(&still).enumerate().filter(|(_, (due, still))| **due && **still) {
                 self.remesh_idle[c] = NEED_BACKOFF;
             }
         }
@@ -1365,15 +1362,16 @@ impl<'p> Simulation<'p> {
     /// does not depend on the thread count). Refused operations are skipped and counted; a pass that
     /// would break a surface is discarded and counted. Returns whether any mesh changed.
     /// `only`: the cells to remesh (their back-off ignored), collapsing only the edges below
-    /// `simulation.remesh_below_edge_fraction`·l_min; None: every moving cell, a full pass.
+    /// `simulation.remesh_below_edge_fraction`·l_min and flipping only slivers; None: every moving
+    /// cell, a full pass.
     fn remesh_cells(&mut self, only: Option<&[bool]>) -> Result<bool, SimulationError> {
         let numerics = &self.params.numerics;
         let settings = match only {
             None => {
                 RemeshSettings { l_max: numerics.max_edge_length(), ..RemeshSettings::new(numerics.min_edge_length) }
             }
-            // Out of turn: only the collapsing edges go (no splits, no flips), so that a mesh the
-            // run keeps fixed changes by those few nodes and no more.
+            // Out of turn: only the short edges go and only slivers flip (no splits), so that a mesh
+            // the run keeps fixed changes by those few nodes and edges and no more.
             Some(_) => RemeshSettings {
                 l_min: self.params.simulation.remesh_below_edge_fraction * numerics.min_edge_length,
                 l_max: Real::MAX,
@@ -1731,27 +1729,26 @@ fn needs_repair(x: &[Vec3], triangles: &[[u32; 3]], threshold: Real) -> bool {
     let t2 = threshold * threshold;
     triangles.iter().any(|t| {
         let [a, b, c] = t.map(|i| x[i as usize]);
-        let (ab, bc, ca) = (b - a, c - b, a - c);
-        let (l0, l1, l2) = (ab.norm_squared(), bc.norm_squared(), ca.norm_squared());
-        if l0 < t2 || l1 < t2 || l2 < t2 {
-            return true;
-        }
-        let perimeter = l0.sqrt() + l1.sqrt() + l2.sqrt();
-        // 12√3·A/P² with A = |ab × ca|/2.
-        6.0 * 3f64.sqrt() * ab.cross(&ca).norm() < SLIVER_QUALITY * perimeter * perimeter
+        [(a, b), (b, c), (c, a)].iter().any(|(p, q)| (p - q).norm_squared() < t2)
+            || triangle_quality(&a, &b, &c) < SLIVER_QUALITY
     })
 }
 
-/// Replaces each node's vector by its component along the node's normal (the sum of its
-/// triangles' area vectors `area_vectors`, as [`CellGeometry`](super::CellGeometry) keeps them).
-fn project_to_normals(cell: &Cell, area_vectors: &[Vec3], values: &mut [Vec3]) {
-    let mut normals = vec![Vec3::zeros(); values.len()];
+/// Each node's normal (not normalised): the sum of its triangles' area vectors `area_vectors`, as
+/// [`CellGeometry`](super::CellGeometry) keeps them.
+fn node_normals(cell: &Cell, area_vectors: &[Vec3]) -> Vec<Vec3> {
+    let mut normals = vec![Vec3::zeros(); cell.mesh().node_count()];
     for (t, a) in cell.mesh().triangles().iter().zip(area_vectors) {
         for &n in t {
             normals[n as usize] += a;
         }
     }
-    for (v, n) in values.iter_mut().zip(&normals) {
+    normals
+}
+
+/// Replaces each node's vector by its component along the node's normal.
+fn project_onto(normals: &[Vec3], values: &mut [Vec3]) {
+    for (v, n) in values.iter_mut().zip(normals) {
         let norm2 = n.norm_squared();
         if norm2 > 0.0 {
             *v = n * (v.dot(n) / norm2);
