@@ -12,7 +12,8 @@
 //! flat contact starts 15° beyond Young–Dupré's half-angle), `--normal` (simulation.normal_relaxation),
 //! `--steps N` (8000), `--settle N` (0: simulation.settle_steps), `--xi X` (repulsion, Pa/m; 1e12),
 //! `--method fire|integrate` (fire), `--remesh N` (50), `--quadrature vertices|faces`
-//! (numerics.contact_quadrature, vertices). One line per run, `key=value` separated by
+//! (numerics.contact_quadrature, vertices), `--unit-masses` (FIRE without the contact masses,
+//! `Simulation::set_fire_contact_masses(false)`). One line per run, `key=value` separated by
 //! spaces, so that a shell loop over a grid makes a table (see docs: the Young–Dupré regime note).
 
 use std::time::Instant;
@@ -29,8 +30,12 @@ fn parse() -> Result<Doublet, String> {
     let mut i = 0;
     while i < args.len() {
         let flag = args[i].as_str();
-        if flag == "--normal" {
-            a.normal = true;
+        if flag == "--normal" || flag == "--unit-masses" {
+            if flag == "--normal" {
+                a.normal = true;
+            } else {
+                a.unit_masses = true;
+            }
             i += 1;
             continue;
         }
@@ -83,6 +88,7 @@ fn run(a: &Doublet) -> Result<(), String> {
     }
     let started = Instant::now();
     let mut sim = Simulation::new(tissue, &p).map_err(|e| e.to_string())?;
+    sim.set_fire_contact_masses(!a.unit_masses);
     let summary: SimulationSummary = sim.run(&mut NoObserver).map_err(|e| e.to_string())?;
     let wall = started.elapsed().as_secs_f64();
     let nodes = sim.tissue().cells()[0].mesh().node_count();

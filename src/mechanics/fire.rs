@@ -32,13 +32,20 @@
 //!   nothing about overshooting: such a step is neither a restart nor a downhill step. This is what
 //!   the paper's initial delay achieves for the first step.
 //!
+//! - **Per-node masses (preconditioning).** [`Fire::step_with_masses`] gives node i a symmetric
+//!   positive-definite 3×3 mass M_i: the kick uses M⁻¹F, the power stays F·v (the true rate of
+//!   work), and |v|, |F| in the mixing become the norms √(v·Mv) and √(F·M⁻¹F). This is FIRE with unit
+//!   masses in the coordinates y = M^{1/2}x, so the equilibria (F = 0) and the descent test are
+//!   unchanged; a stiff direction made heavy no longer limits Δt for every node. Velocities are kept
+//!   in x, so masses may change between steps.
+//!
 //! # Determinism
 //! Every reduction (P, |v|², |F|², the largest displacement) is summed sequentially within fixed
 //! chunks of 1024 nodes, and the chunk results are combined sequentially in chunk order. Chunks
 //! run in parallel (rayon) for large problems, but their boundaries do not depend on the thread
 //! count, so 1 and N threads give bitwise-identical trajectories. A step allocates nothing.
 
-use crate::geometry::{Real, Vec3};
+use crate::geometry::{Mat3, Real, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -165,7 +172,7 @@ pub struct Fire {
     partials: Vec<[Real; 3]>,
 }
 
-/// Coefficients of the velocity update of one step: v ← velocity·v + force·F, then the node moves
+/// Coefficients of the velocity update of one step: v ← velocity·v + force·M⁻¹F, then the node moves
 /// by dt·v − back·v_old.
 struct Kick {
     velocity: Real,
@@ -207,7 +214,23 @@ impl Fire {
     /// # Panics
     /// If the three slices do not all have the length given to [`Fire::new`].
     pub fn step(&mut self, positions: &mut [Vec3], forces: &[Vec3], mobile: &[bool]) -> FireStep {
+        self.step_with_masses(positions, forces, mobile, None)
+    }
+
+    /// [`Fire::step`] with a mass per node (`None`: unit masses): see "Per-node masses" in the
+    /// module doc. `masses`, when given, has one entry per node.
+    ///
+    /// # Panics
+    /// If the slices do not all have the length given to [`Fire::new`].
+    pub fn step_with_masses(
+        &mut self,
+        positions: &mut [Vec3],
+        forces: &[Vec3],
+        mobile: &[bool],
+        masses: Option<&[NodeMass]>,
+    ) -> FireStep {
         let nodes = self.velocities.len();
+        assert!(masses.is_none_or(|m| m.len() == nodes), "FIRE step: masses for {nodes} nodes expected");
         assert!(
             positions.len() == nodes && forces.len() == nodes && mobile.len() == nodes,
             "FIRE step: {} positions, {} forces, {} mobile flags for {nodes} nodes",
@@ -224,16 +247,18 @@ impl Fire {
                 .zip(self.velocities.par_chunks(CHUNK))
                 .zip(forces.par_chunks(CHUNK))
                 .zip(mobile.par_chunks(CHUNK))
-                .for_each(|(((partial, v), f), m)| *partial = power_chunk(v, f, m));
+                .enumerate()
+                .for_each(|(c, (((partial, v), f), m))| *partial = power_chunk(v, f, m, chunk_of(masses, c)));
         } else {
-            for (((partial, v), f), m) in self
+            for (c, (((partial, v), f), m)) in self
                 .partials
                 .iter_mut()
                 .zip(self.velocities.chunks(CHUNK))
                 .zip(forces.chunks(CHUNK))
                 .zip(mobile.chunks(CHUNK))
+                .enumerate()
             {
-                *partial = power_chunk(v, f, m);
+                *partial = power_chunk(v, f, m, chunk_of(masses, c));
             }
         }
         let [power, vv, ff] =
@@ -289,17 +314,21 @@ impl Fire {
                 .zip(self.displacements.par_chunks_mut(CHUNK))
                 .zip(forces.par_chunks(CHUNK))
                 .zip(mobile.par_chunks(CHUNK))
-                .for_each(|((((partial, v), d), f), m)| partial[0] = kick_chunk(&kick, v, d, f, m));
+                .enumerate()
+                .for_each(|(c, ((((partial, v), d), f), m))| {
+                    partial[0] = kick_chunk(&kick, v, d, f, m, chunk_of(masses, c))
+                });
         } else {
-            for ((((partial, v), d), f), m) in self
+            for (c, ((((partial, v), d), f), m)) in self
                 .partials
                 .iter_mut()
                 .zip(self.velocities.chunks_mut(CHUNK))
                 .zip(self.displacements.chunks_mut(CHUNK))
                 .zip(forces.chunks(CHUNK))
                 .zip(mobile.chunks(CHUNK))
+                .enumerate()
             {
-                partial[0] = kick_chunk(&kick, v, d, f, m);
+                partial[0] = kick_chunk(&kick, v, d, f, m, chunk_of(masses, c));
             }
         }
 
@@ -400,14 +429,64 @@ impl Fire {
     }
 }
 
-/// [F·v, |v|², |F|²] over the mobile nodes of one chunk, summed in node order.
-fn power_chunk(velocities: &[Vec3], forces: &[Vec3], mobile: &[bool]) -> [Real; 3] {
+/// The mass of one node for [`Fire::step_with_masses`]: a symmetric positive-definite M and its
+/// inverse.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeMass {
+    pub mass: Mat3,
+    pub inverse: Mat3,
+}
+
+impl NodeMass {
+    /// Unit mass.
+    pub const UNIT: NodeMass = NodeMass {
+        mass: Mat3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+        inverse: Mat3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+    };
+
+    /// M = I + Σ_k μ_k·n_k n_kᵀ for unit directions n_k and extra masses μ_k ≥ 0 (heavier along each
+    /// n_k only); `None` when M cannot be inverted (never for finite inputs).
+    pub fn along(extra: &[(Vec3, Real)]) -> Option<NodeMass> {
+        let mut mass = Mat3::identity();
+        for (n, mu) in extra {
+            mass += *mu * n * n.transpose();
+        }
+        let inverse = match extra {
+            // Sherman–Morrison: (I + μnnᵀ)⁻¹ = I − μ/(1 + μ)·nnᵀ for a unit n.
+            [(n, mu)] => Mat3::identity() - (*mu / (1.0 + *mu)) * n * n.transpose(),
+            _ => mass.try_inverse()?,
+        };
+        Some(NodeMass { mass, inverse })
+    }
+
+    /// A scalar mass m·I.
+    pub fn scalar(m: Real) -> NodeMass {
+        NodeMass { mass: m * Mat3::identity(), inverse: Mat3::identity() / m }
+    }
+}
+
+/// Chunk `c` of the masses, if any.
+fn chunk_of(masses: Option<&[NodeMass]>, c: usize) -> Option<&[NodeMass]> {
+    masses.map(|m| &m[c * CHUNK..((c + 1) * CHUNK).min(m.len())])
+}
+
+/// [F·v, |v|², |F|²] over the mobile nodes of one chunk, summed in node order; with masses the
+/// norms are v·Mv and F·M⁻¹F.
+fn power_chunk(velocities: &[Vec3], forces: &[Vec3], mobile: &[bool], masses: Option<&[NodeMass]>) -> [Real; 3] {
     let mut sums = [0.0; 3];
-    for ((v, f), &m) in velocities.iter().zip(forces).zip(mobile) {
+    for (i, ((v, f), &m)) in velocities.iter().zip(forces).zip(mobile).enumerate() {
         if m {
             sums[0] += f.dot(v);
-            sums[1] += v.norm_squared();
-            sums[2] += f.norm_squared();
+            match masses {
+                None => {
+                    sums[1] += v.norm_squared();
+                    sums[2] += f.norm_squared();
+                }
+                Some(masses) => {
+                    sums[1] += v.dot(&(masses[i].mass * v));
+                    sums[2] += f.dot(&(masses[i].inverse * f));
+                }
+            }
         }
     }
     sums
@@ -421,15 +500,20 @@ fn kick_chunk(
     displacements: &mut [Vec3],
     forces: &[Vec3],
     mobile: &[bool],
+    masses: Option<&[NodeMass]>,
 ) -> Real {
     let mut largest: Real = 0.0;
-    for (((v, d), f), &m) in velocities.iter_mut().zip(displacements).zip(forces).zip(mobile) {
+    for (i, (((v, d), f), &m)) in velocities.iter_mut().zip(displacements).zip(forces).zip(mobile).enumerate() {
         if !m {
             *v = Vec3::zeros();
             continue;
         }
         let old = *v;
-        *v = kick.velocity * old + kick.force * f;
+        let accel = match masses {
+            None => *f,
+            Some(masses) => masses[i].inverse * f,
+        };
+        *v = kick.velocity * old + kick.force * accel;
         let displacement = match kick.back {
             Some(back) => {
                 *d = kick.dt * *v - back * old;
@@ -550,6 +634,114 @@ mod tests {
             // |x − x*| ≤ |F|/λ_min = tolerance / 1.
             assert!((x - m).norm() < 2.0 * tolerance, "{x} vs {m}");
         }
+    }
+
+    /// Stiff along one direction per node (a contact's normal), soft across it: U = ½ Σ_i
+    /// [λ_i((x_i − x*_i)·n_i)² + |x_i − x*_i|² − ((x_i − x*_i)·n_i)²] with λ_i up to `stiff`.
+    struct Needles {
+        directions: Vec<Vec3>,
+        stiffness: Vec<Real>,
+        minimum: Vec<Vec3>,
+    }
+
+    impl Needles {
+        fn new(nodes: usize, stiff: Real) -> Self {
+            let directions = (0..nodes)
+                .map(|i| {
+                    let a = 0.7 * i as Real;
+                    Vec3::new(a.cos(), a.sin(), 0.3 * (1.1 * a).sin()).normalize()
+                })
+                .collect();
+            let stiffness = (0..nodes).map(|i| if i % 3 == 0 { 1.0 } else { stiff / (1 + i % 2) as Real }).collect();
+            let minimum = (0..nodes).map(|i| Vec3::new(i as Real, 0.5, (0.2 * i as Real).cos())).collect();
+            Self { directions, stiffness, minimum }
+        }
+
+        fn forces(&self, x: &[Vec3], f: &mut [Vec3]) {
+            for (i, (f, x)) in f.iter_mut().zip(x).enumerate() {
+                let (n, u) = (self.directions[i], x - self.minimum[i]);
+                *f = -(u + (self.stiffness[i] - 1.0) * u.dot(&n) * n);
+            }
+        }
+
+        fn masses(&self) -> Vec<NodeMass> {
+            self.directions
+                .iter()
+                .zip(&self.stiffness)
+                .map(|(n, k)| NodeMass::along(&[(*n, k - 1.0)]).expect("invertible"))
+                .collect()
+        }
+    }
+
+    /// Masses that make each node's stiff direction heavy turn a κ = 1e6 problem into a κ = 1
+    /// one: FIRE with them needs far fewer steps than with unit masses and reaches the same
+    /// minimum. Measured: 5,257 steps with unit masses, 248 with the masses (21×; at κ = 1e4, 1,054
+    /// against 173): at κ = 1 the steps are mostly FIRE's Δt ramp, so the bound asks for 10×.
+    #[test]
+    fn masses_along_stiff_directions_precondition_fire() {
+        let (nodes, stiff) = (40, 1e6);
+        let problem = Needles::new(nodes, stiff);
+        let mobile = vec![true; nodes];
+        let start: Vec<Vec3> = problem.minimum.iter().map(|m| m + Vec3::new(0.8, -0.6, 0.5)).collect();
+        let tolerance = 1e-8;
+        let forces_at = |x: &[Vec3], f: &mut [Vec3]| problem.forces(x, f);
+
+        let mut x = start.clone();
+        let mut fire = Fire::new(FireSettings::for_scales(1.0, stiff), nodes);
+        let unit = relax(&mut fire, &mut x, &mobile, forces_at, tolerance, 1_000_000, |_, _, _| {}).expect("converges");
+
+        let masses = problem.masses();
+        let mut y = start.clone();
+        let mut fire = Fire::new(FireSettings::for_scales(1.0, 1.0), nodes);
+        let mut forces = vec![Vec3::zeros(); nodes];
+        let mut heavy = None;
+        for step in 0..200_000 {
+            problem.forces(&y, &mut forces);
+            if max_force(&forces, &mobile) < tolerance {
+                heavy = Some(step);
+                break;
+            }
+            assert_ne!(fire.step_with_masses(&mut y, &forces, &mobile, Some(&masses)), FireStep::NonFinite);
+        }
+        let heavy = heavy.expect("converges with masses");
+        eprintln!("needles κ = {stiff:e}: unit masses {unit} steps, masses along the stiff directions {heavy}");
+        assert!(10 * heavy <= unit, "{heavy} steps with masses vs {unit} without");
+        for ((a, b), m) in x.iter().zip(&y).zip(&problem.minimum) {
+            // |x − x*| ≤ |F|/λ_min = tolerance.
+            assert!((a - m).norm() < 2.0 * tolerance && (b - m).norm() < 2.0 * tolerance, "{a} / {b} vs {m}");
+        }
+    }
+
+    /// Unit masses given explicitly follow the unit-mass trajectory bit for bit.
+    #[test]
+    fn unit_masses_change_nothing() {
+        let problem = Needles::new(12, 50.0);
+        let mobile: Vec<bool> = (0..12).map(|i| i != 4).collect();
+        let masses = vec![NodeMass::UNIT; 12];
+        let mut a: Vec<Vec3> = problem.minimum.iter().map(|m| m + Vec3::new(0.3, 0.2, -0.1)).collect();
+        let mut b = a.clone();
+        let settings = FireSettings::for_scales(1.0, 50.0);
+        let (mut fa, mut fb) = (Fire::new(settings.clone(), 12), Fire::new(settings, 12));
+        let mut forces = vec![Vec3::zeros(); 12];
+        for _ in 0..300 {
+            problem.forces(&a, &mut forces);
+            fa.step(&mut a, &forces, &mobile);
+            problem.forces(&b, &mut forces);
+            fb.step_with_masses(&mut b, &forces, &mobile, Some(&masses));
+            assert_eq!(a, b);
+        }
+    }
+
+    #[test]
+    fn node_mass_inverse_is_the_inverse() {
+        let n1 = Vec3::new(1.0, 2.0, -0.5).normalize();
+        let n2 = Vec3::new(-0.3, 0.1, 1.0).normalize();
+        for extra in [vec![(n1, 40.0)], vec![(n1, 40.0), (n2, 3.0)], vec![]] {
+            let m = NodeMass::along(&extra).unwrap();
+            assert!((m.mass * m.inverse - Mat3::identity()).norm() < 1e-12, "{extra:?}");
+        }
+        let s = NodeMass::scalar(4.0);
+        assert!((s.mass * s.inverse - Mat3::identity()).norm() < 1e-15);
     }
 
     /// Chain of nonlinear springs, tension T(s) = k(s − L0) + k3(s − L0)³, anchored at an immobile

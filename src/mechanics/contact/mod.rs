@@ -76,7 +76,7 @@ pub use spring::{
 use super::CellForces;
 use super::{CellTypeParams, ContactModel, ContactQuadrature};
 use crate::geometry::{Real, SpatialGrid, TriangleRegion, Vec3, closest_point_on_triangle, triangle_area_gradients};
-use crate::mesh::{Adjacency, CellKind, FaceType, Tissue};
+use crate::mesh::{Adjacency, Cell, CellKind, FaceType, Tissue};
 use rayon::prelude::*;
 
 /// Topology of one cell needed by contacts, cached until its triangles change.
@@ -591,6 +591,32 @@ impl ContactWorkspace {
             .map(|p| (p.node, p.other, p.distance))
     }
 
+    /// The stiffness of the contact law along each pair of cell `a`'s nodes at the last
+    /// evaluation, for a minimiser's preconditioner: (node, ∂d/∂p, k) with k = a_p·|dσ/dd| (N/m),
+    /// a_p the node's area (a third of its faces' `areas`) and σ Eq. 2's stress with the node's mean
+    /// ξ and ω (capped like the pair): ξ inside the other cell down to −c, ω in the well, nothing
+    /// elsewhere. The face quadrature's face means bend no more sharply than the law itself.
+    pub fn pair_stiffnesses<'s>(
+        &'s self,
+        a: usize,
+        cell: &'s Cell,
+        params: &'s CellTypeParams,
+        areas: &'s [Real],
+    ) -> impl Iterator<Item = (u32, Vec3, Real)> + 's {
+        let cutoff = self.cutoff;
+        let topology = self.topology.get(a);
+        self.pairs.get(a).into_iter().flatten().filter_map(move |p| {
+            if !(-cutoff..=cutoff).contains(&p.distance) {
+                return None;
+            }
+            let faces = topology?.faces_of(p.node);
+            let (omega, xi) = node_contact_parameters(faces, cell.face_types(), params);
+            let curvature = if p.distance < 0.0 { xi } else { omega.min(p.adhesion_cap) };
+            let area = faces.iter().map(|&f| areas[f as usize]).sum::<Real>() / 3.0;
+            Some((p.node, p.direction, area * curvature))
+        })
+    }
+
     /// Adds contact forces to `forces` (one entry per cell, internal forces already computed, so
     /// face normals and areas are current) and their energy to each cell's `energy.contact`.
     /// Returns the total contact energy (J).
@@ -609,6 +635,7 @@ impl ContactWorkspace {
         self.timings = ContactTimings::default();
         let started = std::time::Instant::now();
         if n < 2 || cutoff <= 0.0 {
+            self.pairs.iter_mut().for_each(Vec::clear);
             return 0.0;
         }
         self.topology.resize_with(n, CellTopology::default);
@@ -666,6 +693,7 @@ impl ContactWorkspace {
             self.candidate_rebuilds += 1;
         }
         if self.candidates.is_empty() {
+            self.pairs.iter_mut().for_each(Vec::clear);
             for f in forces.iter_mut() {
                 f.energy.contact = 0.0;
             }

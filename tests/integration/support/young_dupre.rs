@@ -33,6 +33,8 @@ pub struct Doublet {
     pub integrate: bool,
     pub remesh: u64,
     pub quadrature: ContactQuadrature,
+    /// FIRE with unit masses everywhere (`Simulation::set_fire_contact_masses(false)`).
+    pub unit_masses: bool,
 }
 
 impl Default for Doublet {
@@ -50,6 +52,7 @@ impl Default for Doublet {
             integrate: false,
             remesh: 50,
             quadrature: ContactQuadrature::Vertices,
+            unit_masses: false,
         }
     }
 }
