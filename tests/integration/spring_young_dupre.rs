@@ -87,8 +87,9 @@ fn face_quadrature_doublet_on_a_mesh_coarser_than_the_well_reaches_young_dupre()
 /// A large cell, R = 10 µm on 1 µm elements, l_min = 2·c, spreading from touching spheres. Here the
 /// repulsion's stiffness ξ·a_p ≈ 0.9 N/m is ~900 times the tension's γ = 1e-3 N/m; with unit masses
 /// FIRE's step was held down by it and the contact stopped 13.6° short of Young–Dupré after 40,000
-/// steps (docs: design note "Spring contacts and Young–Dupré"). FIRE now makes nodes in contact
-/// heavier along their contact direction (`Simulation::contact_masses`): +1.1° in the same steps.
+/// steps (the regime table of the design note "Spring contacts and Young–Dupré", made before the
+/// change). FIRE now makes nodes in contact heavier along their contact direction
+/// (`Simulation::contact_masses`): +1.1° in the same steps.
 #[test]
 fn face_quadrature_doublet_of_large_cells_spreads_to_young_dupre() {
     check(faces(10.0, 1.0, 0.5, 0.1, false));
