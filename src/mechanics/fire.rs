@@ -544,6 +544,21 @@ mod tests {
         forces_at: impl Fn(&[Vec3], &mut [Vec3]),
         tolerance: Real,
         max_steps: usize,
+        inspect: impl FnMut(&[Vec3], &[Vec3], FireStep),
+    ) -> Option<usize> {
+        relax_with_masses(fire, positions, mobile, None, forces_at, tolerance, max_steps, inspect)
+    }
+
+    /// [`relax`] with node masses ([`Fire::step_with_masses`]).
+    #[allow(clippy::too_many_arguments)]
+    fn relax_with_masses(
+        fire: &mut Fire,
+        positions: &mut [Vec3],
+        mobile: &[bool],
+        masses: Option<&[NodeMass]>,
+        forces_at: impl Fn(&[Vec3], &mut [Vec3]),
+        tolerance: Real,
+        max_steps: usize,
         mut inspect: impl FnMut(&[Vec3], &[Vec3], FireStep),
     ) -> Option<usize> {
         let mut forces = vec![Vec3::zeros(); positions.len()];
@@ -554,7 +569,7 @@ mod tests {
                 return Some(step);
             }
             before.copy_from_slice(positions);
-            let outcome = fire.step(positions, &forces, mobile);
+            let outcome = fire.step_with_masses(positions, &forces, mobile, masses);
             assert_ne!(outcome, FireStep::NonFinite);
             inspect(&before, positions, outcome);
         }
@@ -693,17 +708,9 @@ mod tests {
         let masses = problem.masses();
         let mut y = start.clone();
         let mut fire = Fire::new(FireSettings::for_scales(1.0, 1.0), nodes);
-        let mut forces = vec![Vec3::zeros(); nodes];
-        let mut heavy = None;
-        for step in 0..200_000 {
-            problem.forces(&y, &mut forces);
-            if max_force(&forces, &mobile) < tolerance {
-                heavy = Some(step);
-                break;
-            }
-            assert_ne!(fire.step_with_masses(&mut y, &forces, &mobile, Some(&masses)), FireStep::NonFinite);
-        }
-        let heavy = heavy.expect("converges with masses");
+        let heavy =
+            relax_with_masses(&mut fire, &mut y, &mobile, Some(&masses), forces_at, tolerance, 200_000, |_, _, _| {})
+                .expect("converges with masses");
         eprintln!("needles κ = {stiff:e}: unit masses {unit} steps, masses along the stiff directions {heavy}");
         assert!(10 * heavy <= unit, "{heavy} steps with masses vs {unit} without");
         for ((a, b), m) in x.iter().zip(&y).zip(&problem.minimum) {
