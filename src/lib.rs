@@ -3,7 +3,7 @@
 //! Stages (see `DESIGN.md`): mesh the labelled cells into closed triangle surfaces, simulate the
 //! SimuCell3D deformable-cell model to equilibrium, measure morphology, and fit surface tension and
 //! adhesion so that simulated and observed morphology agree. Dependencies point one way:
-//! `geometry ← mesh ← {imaging, meshing, mechanics, morphology} ← io ← {inference, render} ← pipeline ← cli` (morphology never depends on
+//! `geometry ← mesh ← {imaging, meshing, mechanics, morphology} ← io ← {inference, render} ← stages ← pipeline ← cli` (morphology never depends on
 //! mechanics: it measures segmented tissues too).
 
 pub mod cli;
@@ -18,3 +18,4 @@ pub mod meshing;
 pub mod morphology;
 pub mod pipeline;
 pub mod render;
+pub mod stages;

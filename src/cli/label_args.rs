@@ -75,7 +75,5 @@ impl LabelOutputArgs {
 
 /// `32x128x128 (z,y,x), voxel 0.235 x 0.15 x 0.15 µm`.
 pub(crate) fn describe_grid(v: &LabelVolume) -> String {
-    let [nz, ny, nx] = v.shape();
-    let [sz, sy, sx] = v.voxel_size().map(|s| s * 1e6);
-    format!("{nz}x{ny}x{nx} (z,y,x), voxel {sz:.6} x {sy:.6} x {sx:.6} µm")
+    v.describe_grid()
 }

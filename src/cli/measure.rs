@@ -3,20 +3,18 @@
 //! `summary.json` (SI units), each written to a temporary name and renamed. With `--compare`, every
 //! cell also gets its IoU and χ = 1 − IoU against the same label of the other input.
 
-use super::label_args::{describe_grid, parse_voxel_size};
-use super::{InputArgs, Outcome, write_csv};
+use super::label_args::parse_voxel_size;
+use super::{InputArgs, Outcome};
 use crate::geometry::Real;
-use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, is_label_volume, label_overlap, read_labels};
-use crate::io::{LengthScale, OutputGroup, OutputPolicy, read_tissue};
-use crate::mesh::{CellKind, Tissue};
+use crate::io::{LengthScale, OutputPolicy};
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
-use crate::morphology::{
-    ContactMorphology, ContactRule, DEFAULT_EXTERIOR_FREE_FRACTION, DroppedLabel, LabelMeasureSettings,
-    MeasureSettings, Morphology, compare_shapes, compare_tissues, mean_edge_length, measure_labels, measure_tissue,
+use crate::morphology::{ContactRule, DEFAULT_EXTERIOR_FREE_FRACTION, Morphology};
+use crate::pipeline::{PipelineConfig, describe_morphology as describe, measure_options};
+use crate::stages::{
+    self,
+    measure::{LabelInputOptions, MeasureOptions, OUTPUT_FILES, is_labels},
 };
-use crate::pipeline::{PipelineConfig, run_measure};
-use anyhow::{Context, bail};
-use serde::Serialize;
+use anyhow::bail;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -96,46 +94,6 @@ pub struct MeasureArgs {
     pub compare_voxel_size: Option<[Real; 3]>,
 }
 
-/// Bytes per voxel that measuring a label volume needs besides the volume itself (4 bytes per voxel):
-/// the dense relabelled copy (4), label statistics and the per-label smoothed fields (~5); about 13
-/// in all. The TIFF reader checks the total against the memory limit before decoding.
-const MEASURE_WORK_BYTES_PER_VOXEL: u64 = 9;
-
-/// Whether `path` is a label volume rather than a tissue mesh: a .vtk/.vtp is a tissue; anything else
-/// is a label volume when its content or extension says so ([`is_label_volume`]).
-pub(super) fn is_labels(path: &Path) -> bool {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    !matches!(ext.as_deref(), Some("vtk" | "vtp")) && is_label_volume(path)
-}
-
-/// A measured or compared input.
-enum Input {
-    Tissue(Tissue),
-    Labels(LabelVolume),
-}
-
-fn read_input(path: &Path, args: &MeasureArgs) -> anyhow::Result<Input> {
-    if is_labels(path) {
-        let options = LabelReadOptions {
-            voxel_size: args.voxel_size,
-            work_bytes_per_voxel: MEASURE_WORK_BYTES_PER_VOXEL,
-            zarr_level: args.zarr_level,
-            ..Default::default()
-        };
-        let read = read_labels(path, &options).with_context(|| format!("reading label volume {}", path.display()))?;
-        for w in &read.warnings {
-            tracing::warn!("{}: {w}", path.display());
-        }
-        Ok(Input::Labels(read.volume))
-    } else {
-        let read = read_tissue(path, &args.input.read_options()).with_context(|| super::mesh::reading_tissue(path))?;
-        for w in &read.warnings {
-            tracing::warn!("{}: {w}", path.display());
-        }
-        Ok(Input::Tissue(read.tissue))
-    }
-}
-
 /// A single length: a number of metres or a number with a unit (m, mm, um, nm).
 pub(super) fn parse_length(s: &str) -> Result<Real, String> {
     let v = s.parse::<LengthScale>()?.0;
@@ -143,28 +101,6 @@ pub(super) fn parse_length(s: &str) -> Result<Real, String> {
         return Err(format!("`{s}`: give one length, not three"));
     }
     Ok(v.x)
-}
-
-#[derive(Serialize)]
-struct SummaryFile<'a> {
-    file: String,
-    /// `tissue` (a mesh) or `labels` (a label volume measured on its voxels).
-    input: &'static str,
-    /// Seconds spent measuring (and comparing), reading excluded.
-    wall_seconds: f64,
-    threads: usize,
-    /// Label volumes: σ of the normal smoothing (m), and the labels left out as debris or border.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    normal_smoothing: Option<Real>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    dropped_labels: Option<&'a [DroppedLabel]>,
-    /// The file compared with (`--compare`) and how many labels were compared.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    compare: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    compared_cells: Option<usize>,
-    #[serde(flatten)]
-    summary: &'a crate::morphology::MorphologySummary,
 }
 
 /// `measure TISSUE --config PIPELINE.toml --out DIR`: the pipeline's measure stage into DIR.
@@ -179,9 +115,18 @@ fn run_stage(tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outco
             pipeline.display()
         );
     }
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let started = Instant::now();
-    let line = run_measure(tissue, &config.measure, out)?;
+    let mut options = measure_options(&config.measure);
+    // summary.json names the tissue as a run directory does (`../mesh/tissue.vtp`) only where it
+    // lies there.
+    let beside = out.parent().map(|run| run.join("mesh").join(crate::pipeline::MESH_TISSUE));
+    let in_run_layout =
+        beside.is_some_and(|beside| matches!((beside.canonicalize(), tissue.canonicalize()), (Ok(a), Ok(b)) if a == b));
+    if !in_run_layout {
+        options.input_name = None;
+    }
+    let report = stages::measure::run(tissue, &options, out)?;
+    let line = describe(&report.morphology);
     println!(
         "measure ({}): {line}; {:.2} s; outputs in {}",
         pipeline.display(),
@@ -190,9 +135,6 @@ fn run_stage(tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outco
     );
     Ok(Outcome::Success)
 }
-
-/// What `measure` writes into --out.
-const OUTPUT_FILES: [&str; 3] = ["cells.csv", "contacts.csv", "summary.json"];
 
 pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
     if let Some(pipeline) = &args.config {
@@ -203,157 +145,41 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
         &args.out,
         &OUTPUT_FILES,
     )?;
-    let input = read_input(&args.tissue, args)?;
-    let labels_only = args.voxel_size.is_some()
-        || args.zarr_level.is_some()
-        || args.border != BorderPolicy::Keep
-        || !args.lumen_labels.is_empty()
-        || args.min_voxels != DEFAULT_MIN_VOXELS
-        || args.normal_smoothing.is_some();
-    if matches!(input, Input::Tissue(_)) && labels_only {
+    let options = MeasureOptions {
+        contact_distance: args.contact_distance,
+        distance_contacts: args.distance_contacts,
+        include_static: args.include_static,
+        exterior_free_fraction: args.exterior_free_fraction,
+        read: args.input.read_options(),
+        labels: LabelInputOptions {
+            voxel_size: args.voxel_size,
+            zarr_level: args.zarr_level,
+            border: args.border,
+            lumen_labels: args.lumen_labels.clone(),
+            min_voxels: args.min_voxels,
+            normal_smoothing: args.normal_smoothing,
+        },
+        compare: args.compare.clone(),
+        compare_voxel_size: args.compare_voxel_size,
+        input_name: None,
+    };
+    let labels = is_labels(&args.tissue);
+    if !labels && options.labels.any_set() {
         bail!(
             "{} is a tissue mesh: --voxel-size, --zarr-level, --border, --lumen-labels, --min-voxels and --normal-smoothing \
              apply to label volumes",
             args.tissue.display()
         );
     }
-    if matches!(input, Input::Labels(_)) && args.contact_distance.is_some() {
+    if labels && args.contact_distance.is_some() {
         bail!(
             "{} is a label volume: contacts are voxel-face adjacency, --contact-distance applies to meshes",
             args.tissue.display()
         );
     }
-    let other = args.compare.as_deref().map(|p| read_input(p, args)).transpose()?;
-    let start = Instant::now();
-    let (mut morphology, label_route) = match &input {
-        Input::Tissue(tissue) => {
-            let settings = MeasureSettings {
-                contact_distance: args.contact_distance,
-                include_static: args.include_static,
-                exterior_free_fraction: args.exterior_free_fraction,
-                interface_labels: !args.distance_contacts,
-            };
-            let m =
-                measure_tissue(tissue, &settings).with_context(|| format!("measuring {}", args.tissue.display()))?;
-            if m.summary.contact_rule == ContactRule::InterfaceLabels && args.contact_distance.is_some() {
-                tracing::warn!(
-                    "{}: contacts were read from the file's interface labels, so --contact-distance only bounds \
-                     the rim search; add --distance-contacts to find contacts by distance",
-                    args.tissue.display()
-                );
-            }
-            (m, None)
-        }
-        Input::Labels(volume) => {
-            let settings = LabelMeasureSettings {
-                include_static: args.include_static,
-                exterior_free_fraction: args.exterior_free_fraction,
-                border: args.border,
-                lumen_labels: args.lumen_labels.clone(),
-                min_voxels: args.min_voxels,
-                normal_smoothing: args.normal_smoothing,
-            };
-            let m = measure_labels(volume, &settings)
-                .with_context(|| format!("measuring {} ({})", args.tissue.display(), describe_grid(volume)))?;
-            for label in &args.lumen_labels {
-                if !m.morphology.cells.iter().any(|c| c.cell == *label) {
-                    tracing::warn!("--lumen-labels: label {label} is not measured in {}", args.tissue.display());
-                }
-            }
-            (m.morphology, Some((m.dropped, m.normal_smoothing)))
-        }
-    };
-    let compared = match (&input, &other) {
-        (_, None) => None,
-        (input, Some(other)) => {
-            let path = args.compare.as_deref().unwrap_or(Path::new(""));
-            let overlaps = compare_inputs(input, other, args)
-                .with_context(|| format!("comparing {} with {}", args.tissue.display(), path.display()))?;
-            morphology.set_overlap(&overlaps);
-            Some((path.display().to_string(), overlaps.iter().filter(|o| o.voxels_a > 0 && o.voxels_b > 0).count()))
-        }
-    };
-    let wall_seconds = start.elapsed().as_secs_f64();
-    let inside_out: Vec<String> =
-        morphology.cells.iter().filter(|c| c.volume <= 0.0).map(|c| c.cell.to_string()).collect();
-    if !inside_out.is_empty() {
-        tracing::warn!(
-            "{}: cells {} have no positive volume (inside-out or open surfaces; sphericity reads 0); --orient repairs mixed windings",
-            args.tissue.display(),
-            inside_out.join(", ")
-        );
-    }
-    if let Some((dropped, _)) = &label_route {
-        for d in dropped {
-            tracing::info!("{}: label {} left out: {}", args.tissue.display(), d.label, d.reason);
-        }
-    }
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let summary = SummaryFile {
-        file: args.tissue.display().to_string(),
-        input: if label_route.is_some() { "labels" } else { "tissue" },
-        wall_seconds,
-        threads: rayon::current_num_threads(),
-        normal_smoothing: label_route.as_ref().map(|r| r.1),
-        dropped_labels: label_route.as_ref().map(|r| r.0.as_slice()),
-        compare: compared.as_ref().map(|c| c.0.clone()),
-        compared_cells: compared.as_ref().map(|c| c.1),
-        summary: &morphology.summary,
-    };
-    write_outputs(&args.out, &morphology, &summary)?;
-    print_summary(&mut std::io::stdout().lock(), &args.tissue, &morphology, wall_seconds)?;
+    let report = stages::measure::run(&args.tissue, &options, &args.out)?;
+    print_summary(&mut std::io::stdout().lock(), &args.tissue, &report.morphology, report.wall_seconds)?;
     Ok(Outcome::Success)
-}
-
-/// Per-label overlap of the measured input (`voxels_a`) with the compared one (`voxels_b`).
-fn compare_inputs(input: &Input, other: &Input, args: &MeasureArgs) -> anyhow::Result<Vec<LabelOverlap>> {
-    let swap = |o: Vec<LabelOverlap>| -> Vec<LabelOverlap> {
-        o.into_iter().map(|o| LabelOverlap { voxels_a: o.voxels_b, voxels_b: o.voxels_a, ..o }).collect()
-    };
-    Ok(match (input, other) {
-        (Input::Labels(a), Input::Labels(b)) => label_overlap(a, b)?,
-        (Input::Tissue(a), Input::Labels(b)) => swap(compare_shapes(a, b)?),
-        (Input::Labels(a), Input::Tissue(b)) => compare_shapes(b, a)?,
-        (Input::Tissue(a), Input::Tissue(b)) => {
-            let voxel_size = match args.compare_voxel_size {
-                Some(v) => v,
-                None => match mean_edge_length(a) {
-                    Some(h) if h.is_finite() && h > 0.0 => [h / 2.0; 3],
-                    _ => bail!("cannot derive a comparison grid from the tissue's edges; give --compare-voxel-size"),
-                },
-            };
-            compare_tissues(a, b, voxel_size)?
-        }
-    })
-}
-
-/// The three files all or nothing ([`OutputGroup`]): a full disk leaves none of them, never two.
-fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> anyhow::Result<()> {
-    let mut group = OutputGroup::new();
-    if let Some(first) = m.cells.first() {
-        write_csv(&mut group, &dir.join("cells.csv"), &m.cells, first)?;
-    }
-    let example = ContactMorphology {
-        cell_a: 0,
-        cell_b: 0,
-        area: 0.0,
-        contact_angle_deg: None,
-        kind_a: CellKind::Epithelial,
-        kind_b: CellKind::Epithelial,
-        area_a: 0.0,
-        area_b: 0.0,
-        rim_edges: 0,
-        far_field_angle_deg: None,
-    };
-    write_csv(&mut group, &dir.join("contacts.csv"), &m.contacts, &example)?;
-    let path = dir.join("summary.json");
-    group
-        .write(&path, |w| {
-            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
-            writeln!(w)
-        })
-        .with_context(|| format!("writing {}", path.display()))?;
-    group.commit().with_context(|| format!("writing the outputs into {}", dir.display()))
 }
 
 fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_seconds: f64) -> std::io::Result<()> {
@@ -386,32 +212,4 @@ fn print_summary(out: &mut impl Write, input: &Path, m: &Morphology, wall_second
         writeln!(out, "  shape deformation ⟨χ⟩ = 1 − ⟨IoU⟩ = {chi:.4}")?;
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::geometry::Vec3;
-    use crate::imaging::{LabelWriteOptions, write_label_tiff};
-
-    #[test]
-    fn label_volumes_are_told_by_content_or_extension() {
-        let dir = tempfile::tempdir().unwrap();
-        let volume = LabelVolume::new(ndarray::Array3::from_elem((2, 3, 4), 1u32), [1e-6; 3], Vec3::zeros()).unwrap();
-        let unnamed = dir.path().join("labels.data");
-        write_label_tiff(&unnamed, &volume, &LabelWriteOptions::default()).unwrap();
-        assert!(is_labels(&unnamed));
-        assert!(is_labels(Path::new("missing.TIF")));
-        assert!(is_labels(Path::new("missing.npy")));
-        assert!(is_labels(Path::new("missing.zarr")));
-        assert!(is_labels(dir.path()), "a folder is an OME-Zarr store");
-        let npy = dir.path().join("labels.raw");
-        std::fs::write(&npy, b"\x93NUMPY\x01\x00").unwrap();
-        assert!(is_labels(&npy));
-        let text = dir.path().join("tissue.mesh");
-        std::fs::write(&text, "# vtk DataFile Version 4.2\n").unwrap();
-        assert!(!is_labels(&text));
-        assert!(!is_labels(&dir.path().join("missing")));
-        assert!(!is_labels(Path::new("missing.vtp")));
-    }
 }

@@ -184,29 +184,3 @@ fn init_logging(verbose: u8, quiet: bool) {
         .with_target(false)
         .try_init();
 }
-
-/// Writes rows under a header of `T`'s serde field names, in field order; the header comes from
-/// `example` (not written) so that a file without rows still has its columns.
-pub(super) fn write_csv<T: serde::Serialize>(
-    group: &mut crate::io::OutputGroup,
-    path: &std::path::Path,
-    rows: &[T],
-    example: &T,
-) -> anyhow::Result<()> {
-    use anyhow::Context as _;
-    group
-        .write(path, |w| {
-            let mut header = csv::Writer::from_writer(Vec::new());
-            header.serialize(example)?;
-            let bytes = header.into_inner().map_err(|e| e.into_error())?;
-            let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
-            std::io::Write::write_all(w, first_line)?;
-            std::io::Write::write_all(w, b"\n")?;
-            let mut csv = csv::WriterBuilder::new().has_headers(false).from_writer(&mut *w);
-            for row in rows {
-                csv.serialize(row)?;
-            }
-            csv.flush()
-        })
-        .with_context(|| format!("writing {}", path.display()))
-}

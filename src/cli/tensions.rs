@@ -5,8 +5,8 @@
 //! written together (all or nothing). A label TIFF is meshed first as `tissuefit mesh` meshes it.
 
 use super::label_args::{describe_grid, parse_voxel_size};
-use super::measure::{is_labels, parse_length};
-use super::{InputArgs, Outcome, write_csv};
+use super::measure::parse_length;
+use super::{InputArgs, Outcome};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_labels};
 use crate::io::{CellField, OutputGroup, OutputPolicy, read_tissue, vtp_bytes};
@@ -14,6 +14,8 @@ use crate::mesh::Tissue;
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, mesh_labels};
 use crate::morphology::ContactRule;
 use crate::morphology::tensions::{Gauge, TensionMap, TensionSettings, estimate_tensions};
+use crate::stages::measure::is_labels;
+use crate::stages::write_csv;
 use anyhow::{Context, bail};
 use serde::Serialize;
 use std::io::Write;
@@ -196,7 +198,8 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Opti
             path.display()
         );
     }
-    let read = read_tissue(path, &args.input.read_options()).with_context(|| super::mesh::reading_tissue(path))?;
+    let read =
+        read_tissue(path, &args.input.read_options()).with_context(|| crate::stages::measure::reading_tissue(path))?;
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }

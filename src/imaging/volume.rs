@@ -244,6 +244,13 @@ impl LabelVolume {
         Ok(Self { labels: Array3::zeros(grid.shape), voxel_size: grid.voxel_size, origin: grid.origin })
     }
 
+    /// `32x128x128 (z,y,x), voxel 0.235 x 0.15 x 0.15 µm`, for messages.
+    pub fn describe_grid(&self) -> String {
+        let [nz, ny, nx] = self.shape();
+        let [sz, sy, sx] = self.voxel_size().map(|s| s * 1e6);
+        format!("{nz}x{ny}x{nx} (z,y,x), voxel {sz:.6} x {sy:.6} x {sx:.6} µm")
+    }
+
     pub fn labels(&self) -> &Array3<u32> {
         &self.labels
     }

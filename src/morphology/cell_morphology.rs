@@ -79,4 +79,43 @@ impl CellMorphology {
     pub fn is_cell_kind(kind: CellKind) -> bool {
         kind.is_cell()
     }
+
+    /// A row of zeros: its serialisation names the columns of `cells.csv` when there is no row.
+    pub fn example() -> Self {
+        Self {
+            cell: 0,
+            kind: CellKind::Epithelial,
+            is_static: false,
+            volume: 0.0,
+            area: 0.0,
+            sphericity: 0.0,
+            neighbours: 0,
+            contact_fraction: 0.0,
+            contact_area: 0.0,
+            lumen_contact_area: 0.0,
+            ecm_contact_area: 0.0,
+            free_area: 0.0,
+            apical_area: None,
+            lateral_area: None,
+            basal_area: None,
+            semi_axis_1: 0.0,
+            semi_axis_2: 0.0,
+            semi_axis_3: 0.0,
+            elongation: 0.0,
+            centroid_x: 0.0,
+            centroid_y: 0.0,
+            centroid_z: 0.0,
+            lumen_facing: false,
+            exterior_facing: false,
+            layer: None,
+            in_statistics: false,
+            nucleus: None,
+            nuclei: 0,
+            nucleus_volume: None,
+            nucleus_sphericity: None,
+            nucleus_offset: None,
+            iou: None,
+            chi: None,
+        }
+    }
 }

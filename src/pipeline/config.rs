@@ -171,6 +171,11 @@ pub struct MeasureSection {
     /// Contact distance δ (m). Default: 0.25 × the tissue's mean edge length.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_distance: Option<Real>,
+    /// Find contacts by the contact distance even when the tissue's faces carry interface labels
+    /// (a multi-material mesh input), whose contacts are otherwise read from the labels. Default
+    /// false (as `tissuefit measure --distance-contacts`).
+    #[serde(default)]
+    pub distance_contacts: bool,
     /// Count static cells in the tissue statistics. Default false.
     #[serde(default)]
     pub include_static: bool,
@@ -186,7 +191,12 @@ fn default_exterior_free_fraction() -> Real {
 
 impl Default for MeasureSection {
     fn default() -> Self {
-        Self { contact_distance: None, include_static: false, exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION }
+        Self {
+            contact_distance: None,
+            distance_contacts: false,
+            include_static: false,
+            exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION,
+        }
     }
 }
 

@@ -35,7 +35,7 @@ pub use config::{
 pub use manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file};
 pub use reference::{REFERENCE_SECTIONS, config_reference};
 pub use run::{DemoCheck, PipelineOptions, PipelineOutcome, interrupt_active_runs, run_pipeline};
-pub use stages::{MESH_TISSUE, run_measure, run_mesh, run_simulate};
+pub use stages::{MESH_TISSUE, describe_morphology, measure_options, run_measure, run_mesh, run_simulate};
 pub use sweep::{RunReport, Sweep, SweepOptions, collect_results, run_sweep};
 pub use sweep_plot::plot_results;
 

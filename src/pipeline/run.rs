@@ -231,8 +231,9 @@ fn run_locked(
         mesh: &config.mesh,
     })?;
     let mesh_key = stage_key("mesh", &mesh_section, &[&input_hash]);
-    let mesh = runner
-        .stage("mesh", mesh_key, false, |dir, _| run_mesh(&config.input, &config.mesh, dir).map(|s| (s, true)))?;
+    let mesh = runner.stage("mesh", mesh_key, false, |dir, _| {
+        run_mesh(&config.input, &config.mesh, dir, options.progress).map(|s| (s, true))
+    })?;
     let tissue_hash = mesh.outputs.get(MESH_TISSUE).cloned().unwrap_or_default();
     let tissue = out.join("mesh").join(MESH_TISSUE);
 

@@ -13,13 +13,14 @@ use crate::io::{
 };
 use crate::mechanics::{MeshFit, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationMode};
 use crate::mesh::{CellKind, Tissue};
-use crate::meshing::{LabelReport, LabelStatus, generate_tissue, mesh_labels};
+use crate::meshing::LabelStatus;
 use crate::morphology::{MeasureSettings, Morphology, compare_tissues, measure_tissue};
+use crate::stages::{self, StageError, measure::MeasureOptions, mesh::MeshOptions};
 use serde::Serialize;
 use std::path::Path;
 
 /// Name of the mesh stage's tissue file.
-pub const MESH_TISSUE: &str = "tissue.vtp";
+pub const MESH_TISSUE: &str = stages::mesh::TISSUE_FILE;
 
 fn stage_err(stage: &'static str) -> impl Fn(String) -> PipelineError {
     move |message| PipelineError::Stage { stage, message }
@@ -35,151 +36,59 @@ fn write_json<T: Serialize>(path: &Path, value: &T, stage: &'static str) -> Resu
     write_bytes_atomically(path, &json_bytes(value, stage)?).map_err(|e| stage_err(stage)(e.to_string()))
 }
 
-fn csv_bytes<T: Serialize>(path: &Path, rows: &[T], stage: &'static str) -> Result<Vec<u8>, PipelineError> {
-    let err = stage_err(stage);
-    let mut w = csv::Writer::from_writer(Vec::new());
-    for row in rows {
-        w.serialize(row).map_err(|e| err(format!("{}: {e}", path.display())))?;
+impl From<StageError> for PipelineError {
+    fn from(e: StageError) -> Self {
+        PipelineError::Stage { stage: e.stage, message: e.message }
     }
-    w.into_inner().map_err(|e| err(format!("{}: {e}", path.display())))
 }
 
-/// `mesh/report.json`: the per-label report of `tissuefit mesh` without wall time.
-#[derive(Serialize)]
-struct MeshReport<'a> {
-    input: &'a Path,
-    /// m; `null` when no label was meshed.
-    l_min: Option<Real>,
-    voxel_size: [Real; 3],
-    shape: [usize; 3],
-    seed: u64,
-    kept: usize,
-    #[serde(rename = "static")]
-    static_cells: usize,
-    dropped: usize,
-    cells: &'a [LabelReport],
+/// The mesh stage's options from `[input]` and `[mesh]`.
+pub fn mesh_options(input: &InputSection, mesh: &MeshingConfig) -> Result<MeshOptions, PipelineError> {
+    Ok(MeshOptions {
+        meshing: mesh.options().map_err(|e| stage_err("mesh")(e.to_string()))?,
+        voxel_size: input.voxel_size,
+        zarr_level: input.zarr_level,
+        nuclei: None,
+        length_unit: None,
+    })
 }
 
-/// `mesh/report.json` of a mesh input: what was read.
-#[derive(Serialize)]
-struct MeshInputReport<'a> {
-    input: &'a Path,
-    length_unit: &'a str,
-    cells: usize,
-    nodes: usize,
-    faces: usize,
-    kinds: std::collections::BTreeMap<String, usize>,
-}
-
-/// Labels → `tissue.vtp` + `report.json`, a mesh input checked and copied, or a generated tissue.
-/// Returns a one-line summary.
-pub fn run_mesh(input: &InputSection, mesh: &MeshingConfig, out: &Path) -> Result<String, PipelineError> {
+/// Labels → `tissue.vtp` + `report.json` ([`stages::mesh::run`], as `tissuefit mesh`), a mesh input
+/// checked and copied, or a generated tissue. Returns a one-line summary.
+pub fn run_mesh(
+    input: &InputSection,
+    mesh: &MeshingConfig,
+    out: &Path,
+    progress: bool,
+) -> Result<String, PipelineError> {
     let err = stage_err("mesh");
     let path = match (&input.labels, &input.mesh) {
         (Some(labels), _) => labels,
-        (None, Some(tissue)) => return copy_mesh(input, tissue, out),
-        (None, None) => return generate_input(input, out),
-    };
-    let read = read_labels(path, &input.read_options()).map_err(|e| err(format!("reading {}: {e}", path.display())))?;
-    for w in &read.warnings {
-        tracing::warn!("{}: {w}", path.display());
-    }
-    let options = mesh.options().map_err(|e| err(e.to_string()))?;
-    let meshing = mesh_labels(&read.volume, &options).map_err(|e| err(format!("meshing {}: {e}", path.display())))?;
-    let (kept, static_cells, dropped) =
-        (meshing.count(LabelStatus::Kept), meshing.count(LabelStatus::Static), meshing.count(LabelStatus::Dropped));
-    if meshing.tissue.is_empty() {
-        return Err(err(format!("{}: all {dropped} labels were dropped; no cell to go on with", path.display())));
-    }
-    write_tissue(&out.join(MESH_TISSUE), &meshing.tissue, &[]).map_err(|e| err(e.to_string()))?;
-    let grid = read.volume.grid();
-    let report = MeshReport {
-        input: path,
-        l_min: meshing.l_min,
-        voxel_size: grid.voxel_size,
-        shape: grid.shape,
-        seed: options.seed,
-        kept,
-        static_cells,
-        dropped,
-        cells: &meshing.report,
-    };
-    write_json(&out.join("report.json"), &report, "mesh")?;
-    Ok(format!(
-        "{} labels: {kept} kept, {static_cells} static, {dropped} dropped; {} nodes; l_min {:.4} µm",
-        meshing.report.len(),
-        meshing.tissue.node_count(),
-        meshing.l_min.unwrap_or(Real::NAN) * 1e6
-    ))
-}
-
-/// A mesh input: read (in `input.length_unit`), every cell checked to be a valid closed surface, written
-/// as `tissue.vtp` in metres, plus `report.json`.
-fn copy_mesh(input: &InputSection, path: &Path, out: &Path) -> Result<String, PipelineError> {
-    let err = stage_err("mesh");
-    let scale = input.length_scale().map_err(&err)?;
-    let read = read_tissue(path, &ReadOptions { length_scale: scale, orient: false })
-        .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
-    for w in &read.warnings {
-        tracing::warn!("{}: {w}", path.display());
-    }
-    let tissue = read.tissue;
-    if tissue.is_empty() {
-        return Err(err(format!("{}: the tissue has no cells", path.display())));
-    }
-    let mut kinds = std::collections::BTreeMap::new();
-    for cell in tissue.cells() {
-        if let Err(defect) = cell.mesh().validate() {
-            return Err(err(format!(
-                "{}: cell {}: {defect}; repair the file (`tissuefit inspect` lists every defect, `tissuefit mesh` \
-                 re-triangulates a tissue) or give the label volume as input.labels",
-                path.display(),
-                cell.id().0
-            )));
+        (None, Some(tissue)) => {
+            let scale = input.length_scale().map_err(&err)?;
+            let unit = input.length_unit.as_deref().unwrap_or("m");
+            return Ok(stages::mesh::check_mesh(tissue, scale, unit, out)?);
         }
-        let kind = serde_json::to_value(cell.kind()).ok().and_then(|v| v.as_str().map(str::to_string));
-        *kinds.entry(kind.unwrap_or_else(|| format!("{:?}", cell.kind()))).or_insert(0) += 1;
-    }
-    write_tissue(&out.join(MESH_TISSUE), &tissue, &[]).map_err(|e| err(e.to_string()))?;
-    let faces = tissue.cells().iter().map(|c| c.mesh().triangles().len()).sum();
-    let report = MeshInputReport {
-        input: path,
-        length_unit: input.length_unit.as_deref().unwrap_or("m"),
-        cells: tissue.len(),
-        nodes: tissue.node_count(),
-        faces,
-        kinds,
+        (None, None) => {
+            let spec = input
+                .generate_spec()
+                .map_err(&err)?
+                .ok_or_else(|| err("[input] has none of `labels`, `mesh`, `generate`".into()))?;
+            return Ok(stages::mesh::generate(&spec, out)?);
+        }
     };
-    write_json(&out.join("report.json"), &report, "mesh")?;
+    let options = mesh_options(input, mesh)?;
+    let outcome =
+        stages::mesh::run(path, &options, &out.join(MESH_TISSUE), &out.join(stages::mesh::REPORT_FILE), progress)?;
+    let m = &outcome.meshing;
     Ok(format!(
-        "{} cells, {} nodes read from {}; every cell a valid closed surface",
-        tissue.len(),
-        tissue.node_count(),
-        path.display()
-    ))
-}
-
-/// A generated input: the tissue of `generate mesh` as `tissue.vtp`, its report (without timing) as
-/// `report.json`.
-fn generate_input(input: &InputSection, out: &Path) -> Result<String, PipelineError> {
-    let err = stage_err("mesh");
-    let spec = input
-        .generate_spec()
-        .map_err(&err)?
-        .ok_or_else(|| err("[input] has none of `labels`, `mesh`, `generate`".into()))?;
-    let generated =
-        generate_tissue(&spec).map_err(|e| err(format!("input.generate: generating a {}: {e}", spec.kind)))?;
-    write_tissue(&out.join(MESH_TISSUE), &generated.tissue, &[]).map_err(|e| err(e.to_string()))?;
-    let summary = generated.summary();
-    write_json(&out.join("report.json"), &summary, "mesh")?;
-    let counts: Vec<String> = summary.kinds.iter().map(|(name, k)| format!("{} {name}", k.bodies)).collect();
-    Ok(format!(
-        "generated a {}: {}; {} nodes; l_min {:.4} µm, l = {:.4} µm",
-        spec.kind,
-        counts.join(", "),
-        summary.nodes,
-        spec.l_min * 1e6,
-        summary.length_scale * 1e6
+        "{} labels: {} kept, {} static, {} dropped; {} nodes; l_min {:.4} µm",
+        m.report.len(),
+        m.count(LabelStatus::Kept),
+        m.count(LabelStatus::Static),
+        m.count(LabelStatus::Dropped),
+        m.tissue.node_count(),
+        m.l_min.unwrap_or(Real::NAN) * 1e6
     ))
 }
 
@@ -189,19 +98,18 @@ fn read_meshed(path: &Path, stage: &'static str) -> Result<Tissue, PipelineError
     Ok(read.tissue)
 }
 
-/// cells.csv, contacts.csv and summary.json, all or nothing ([`OutputGroup`]).
+/// cells.csv, contacts.csv (headers even without rows) and summary.json, all or nothing
+/// ([`OutputGroup`]).
 fn write_morphology(out: &Path, m: &Morphology, stage: &'static str) -> Result<(), PipelineError> {
     let err = |e: crate::io::IoError| stage_err(stage)(e.to_string());
     let mut group = OutputGroup::new();
-    let cells = out.join("cells.csv");
-    group.write_bytes(&cells, &csv_bytes(&cells, &m.cells, stage)?).map_err(err)?;
-    let contacts = out.join("contacts.csv");
-    group.write_bytes(&contacts, &csv_bytes(&contacts, &m.contacts, stage)?).map_err(err)?;
+    stages::measure::write_tables(&mut group, out, m).map_err(err)?;
     group.write_bytes(&out.join("summary.json"), &json_bytes(&m.summary, stage)?).map_err(err)?;
     group.commit().map_err(err)
 }
 
-fn describe(m: &Morphology) -> String {
+/// `2 cells, ⟨Ψ⟩ = …, ⟨φ⟩ = …, ⟨z⟩ = …`: the one-line summary of a measurement.
+pub fn describe_morphology(m: &Morphology) -> String {
     let s = &m.summary;
     let opt = |v: Option<Real>| v.map_or("n/a".to_string(), |x| format!("{x:.4}"));
     format!(
@@ -218,17 +126,28 @@ fn settings(measure: &MeasureSection) -> MeasureSettings {
         contact_distance: measure.contact_distance,
         include_static: measure.include_static,
         exterior_free_fraction: measure.exterior_free_fraction,
-        interface_labels: true,
+        interface_labels: !measure.distance_contacts,
     }
 }
 
-/// The meshed tissue → `cells.csv`, `contacts.csv`, `summary.json`.
+/// The measure stage's options from `[measure]` (a tissue file in metres, as the mesh stage writes,
+/// named in `summary.json` relative to the measure folder).
+pub fn measure_options(measure: &MeasureSection) -> MeasureOptions {
+    MeasureOptions {
+        input_name: Some(format!("../mesh/{MESH_TISSUE}")),
+        contact_distance: measure.contact_distance,
+        distance_contacts: measure.distance_contacts,
+        include_static: measure.include_static,
+        exterior_free_fraction: measure.exterior_free_fraction,
+        ..MeasureOptions::default()
+    }
+}
+
+/// The meshed tissue → `cells.csv`, `contacts.csv`, `summary.json` ([`stages::measure::run`], as
+/// `tissuefit measure`).
 pub fn run_measure(tissue: &Path, measure: &MeasureSection, out: &Path) -> Result<String, PipelineError> {
-    let t = read_meshed(tissue, "measure")?;
-    let m = measure_tissue(&t, &settings(measure))
-        .map_err(|e| stage_err("measure")(format!("measuring {}: {e}", tissue.display())))?;
-    write_morphology(out, &m, "measure")?;
-    Ok(describe(&m))
+    let report = stages::measure::run(tissue, &measure_options(measure), out)?;
+    Ok(describe_morphology(&report.morphology))
 }
 
 /// The stage's observer: no samples, progress on stderr (a bar on a terminal, a line every 30 s
@@ -466,7 +385,7 @@ pub fn run_simulate(
             "{} steps, {how}, residual {:.3e}; final {}{layers}{chi}{passed}{derived}",
             summary.steps,
             summary.residual,
-            describe(&m)
+            describe_morphology(&m)
         ),
         (time_run || summary.converged) && reference_converged && inside.is_empty(),
     ))
@@ -510,18 +429,15 @@ pub fn run_fit_stage(
     let err = stage_err("fit");
     let config = fit_config(fit, input, mesh);
     let tissue = read_meshed(&mesh_dir.join(MESH_TISSUE), "fit")?;
-    let report_path = mesh_dir.join("report.json");
-    let report: serde_json::Value = std::fs::read_to_string(&report_path)
-        .map_err(|e| e.to_string())
-        .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
-        .map_err(|e| err(format!("reading {}: {e}", report_path.display())))?;
+    let l_min =
+        stages::mesh::read_report_l_min(&mesh_dir.join(stages::mesh::REPORT_FILE)).map_err(|e| err(e.message))?;
     let observation = match &input.labels {
         Some(path) => {
             let read = read_labels(path, &input.read_options())
                 .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
             let mut options = mesh.options().map_err(|e| err(e.to_string()))?;
             // Simulations are measured like the data: the meshing's options with the l_min it used.
-            options.l_min = report["l_min"].as_f64();
+            options.l_min = l_min;
             Observation::new(tissue, Some(read.volume), Some(options))
         }
         // A mesh input: the observation is the tissue alone, as `tissuefit fit` with `observed.tissue`.
@@ -553,7 +469,7 @@ mod tests {
         assert!(e.to_string().contains(&mesh_dir.join(MESH_TISSUE).display().to_string()), "{e}");
         // With them, its observation is that tissue: the fit's meshed labels are the mesh stage's.
         std::fs::create_dir_all(&mesh_dir).unwrap();
-        run_mesh(&input, &mesh, &mesh_dir).unwrap();
+        run_mesh(&input, &mesh, &mesh_dir, false).unwrap();
         let written = read_meshed(&mesh_dir.join(MESH_TISSUE), "test").unwrap();
         let observed = crate::inference::load_observation(&fit_config(&fit, &input, &mesh)).unwrap();
         assert_eq!(written.node_count(), observed.tissue.node_count());

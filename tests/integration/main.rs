@@ -45,4 +45,5 @@ mod retriangulate;
 mod scenarios;
 mod simulate_defaults;
 mod spring_young_dupre;
+mod stage_parity;
 mod sweep;

@@ -1,0 +1,380 @@
+//! The measure stage: morphology of a tissue mesh, or of a label volume measured on its voxels, into
+//! `cells.csv`, `contacts.csv` and `summary.json` (SI units), all or nothing. With a comparison
+//! input, every cell also gets its IoU and χ = 1 − IoU against the same label of the other input.
+//! `tissuefit measure` and the pipeline's `[measure]` both run [`run`].
+
+use super::{StageError, write_csv, write_json};
+use crate::geometry::Real;
+use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, is_label_volume, label_overlap, read_labels};
+use crate::io::{OutputGroup, ReadOptions, read_tissue};
+use crate::mesh::{CellKind, Tissue};
+use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
+use crate::morphology::{
+    CellMorphology, ContactMorphology, ContactRule, DEFAULT_EXTERIOR_FREE_FRACTION, DroppedLabel, LabelMeasureSettings,
+    MeasureSettings, Morphology, compare_shapes, compare_tissues, mean_edge_length, measure_labels, measure_tissue,
+};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What the stage writes into its folder.
+pub const OUTPUT_FILES: [&str; 3] = ["cells.csv", "contacts.csv", "summary.json"];
+
+/// Bytes per voxel that measuring a label volume needs besides the volume itself (4 bytes per voxel):
+/// the dense relabelled copy (4), label statistics and the per-label smoothed fields (~5); about 13
+/// in all. The label reader checks the total against the memory limit before decoding.
+const MEASURE_WORK_BYTES_PER_VOXEL: u64 = 9;
+
+/// Options of a label-volume input (ignored for a tissue mesh).
+#[derive(Clone, Debug)]
+pub struct LabelInputOptions {
+    /// Voxel size `[z, y, x]` (m) overriding the file's metadata.
+    pub voxel_size: Option<[Real; 3]>,
+    /// OME-Zarr: the multiscales level to read.
+    pub zarr_level: Option<usize>,
+    /// Labels touching the image border: kept, static or dropped.
+    pub border: BorderPolicy,
+    /// Lumen bodies (for the layer count).
+    pub lumen_labels: Vec<u32>,
+    /// Labels with fewer voxels are debris and dropped.
+    pub min_voxels: u64,
+    /// σ of the normal smoothing (m); default 2 × the largest voxel size.
+    pub normal_smoothing: Option<Real>,
+}
+
+impl Default for LabelInputOptions {
+    fn default() -> Self {
+        Self {
+            voxel_size: None,
+            zarr_level: None,
+            border: BorderPolicy::Keep,
+            lumen_labels: Vec::new(),
+            min_voxels: DEFAULT_MIN_VOXELS,
+            normal_smoothing: None,
+        }
+    }
+}
+
+impl LabelInputOptions {
+    /// Whether any option differs from its default (they apply to label volumes only).
+    pub fn any_set(&self) -> bool {
+        self.voxel_size.is_some()
+            || self.zarr_level.is_some()
+            || self.border != BorderPolicy::Keep
+            || !self.lumen_labels.is_empty()
+            || self.min_voxels != DEFAULT_MIN_VOXELS
+            || self.normal_smoothing.is_some()
+    }
+}
+
+/// The stage's settings (the pipeline's `[measure]`, the flags of `tissuefit measure`).
+#[derive(Clone, Debug)]
+pub struct MeasureOptions {
+    /// Contact distance δ (m); default 0.25 × the tissue's mean edge length. Meshes only.
+    pub contact_distance: Option<Real>,
+    /// Find contacts by δ even when the faces carry interface labels.
+    pub distance_contacts: bool,
+    /// Count static cells in the tissue statistics.
+    pub include_static: bool,
+    /// Without an ECM body, a cell faces the exterior when at least this fraction of it is free.
+    pub exterior_free_fraction: Real,
+    /// How a tissue file is read (length unit, re-orientation).
+    pub read: ReadOptions,
+    /// Label-volume inputs only.
+    pub labels: LabelInputOptions,
+    /// Compare shapes with this tissue or label volume (cells matched by id = label).
+    pub compare: Option<PathBuf>,
+    /// Voxel size of the common grid when both inputs are tissues; default half the mean edge length.
+    pub compare_voxel_size: Option<[Real; 3]>,
+    /// How `summary.json` names the input (`file`); default the path as given. The pipeline names
+    /// its mesh stage's tissue relative to the measure folder (`../mesh/tissue.vtp`), so that a run
+    /// directory's files do not depend on where it lies.
+    pub input_name: Option<String>,
+}
+
+impl Default for MeasureOptions {
+    fn default() -> Self {
+        Self {
+            contact_distance: None,
+            distance_contacts: false,
+            include_static: false,
+            exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION,
+            read: ReadOptions::default(),
+            labels: LabelInputOptions::default(),
+            compare: None,
+            compare_voxel_size: None,
+            input_name: None,
+        }
+    }
+}
+
+/// What [`run`] measured.
+pub struct MeasureReport {
+    pub morphology: Morphology,
+    /// Seconds spent measuring (and comparing), reading excluded.
+    pub wall_seconds: f64,
+}
+
+/// `summary.json`: the tissue statistics and how they were made.
+#[derive(Serialize)]
+struct SummaryFile<'a> {
+    file: String,
+    /// `tissue` (a mesh) or `labels` (a label volume measured on its voxels).
+    input: &'static str,
+    /// Seconds spent measuring (and comparing), reading excluded.
+    wall_seconds: f64,
+    threads: usize,
+    /// Label volumes: σ of the normal smoothing (m), and the labels left out as debris or border.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    normal_smoothing: Option<Real>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    dropped_labels: Option<&'a [DroppedLabel]>,
+    /// The file compared with and how many labels were compared.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    compare: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    compared_cells: Option<usize>,
+    #[serde(flatten)]
+    summary: &'a crate::morphology::MorphologySummary,
+}
+
+/// Whether `path` is a label volume rather than a tissue mesh: a .vtk/.vtp is a tissue; anything else
+/// is a label volume when its content or extension says so ([`is_label_volume`]).
+pub fn is_labels(path: &Path) -> bool {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    !matches!(ext.as_deref(), Some("vtk" | "vtp")) && is_label_volume(path)
+}
+
+/// A measured or compared input.
+enum Input {
+    Tissue(Tissue),
+    Labels(LabelVolume),
+}
+
+fn err(message: String) -> StageError {
+    StageError::new("measure", message)
+}
+
+fn read_input(path: &Path, options: &MeasureOptions) -> Result<Input, StageError> {
+    if is_labels(path) {
+        let read_options = LabelReadOptions {
+            voxel_size: options.labels.voxel_size,
+            work_bytes_per_voxel: MEASURE_WORK_BYTES_PER_VOXEL,
+            zarr_level: options.labels.zarr_level,
+            ..Default::default()
+        };
+        let read = read_labels(path, &read_options)
+            .map_err(|e| err(format!("reading label volume {}: {e}", path.display())))?;
+        for w in &read.warnings {
+            tracing::warn!("{}: {w}", path.display());
+        }
+        Ok(Input::Labels(read.volume))
+    } else {
+        let read = read_tissue(path, &options.read).map_err(|e| err(format!("{}: {e}", reading_tissue(path))))?;
+        for w in &read.warnings {
+            tracing::warn!("{}: {w}", path.display());
+        }
+        Ok(Input::Tissue(read.tissue))
+    }
+}
+
+/// Context for a failed tissue read where a label volume was also possible: names the label formats
+/// too when the extension did not say "tissue".
+pub fn reading_tissue(path: &Path) -> String {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("vtk" | "vtp") => format!("reading {}", path.display()),
+        _ => format!(
+            "reading {} (not a label volume either: those are {})",
+            path.display(),
+            crate::imaging::SUPPORTED_FORMATS
+        ),
+    }
+}
+
+/// Measures `input` (a tissue file or a label volume) into the folder `out` (made when missing, only
+/// once the measurement succeeded):
+/// `cells.csv`, `contacts.csv` (a header when nothing touches) and `summary.json`, all or nothing.
+pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<MeasureReport, StageError> {
+    let measured = read_input(input, options)?;
+    match &measured {
+        Input::Tissue(_) if options.labels.any_set() => {
+            return Err(err(format!(
+                "{} is a tissue mesh: the voxel size, Zarr level, border policy, lumen labels, minimum voxels and \
+                 normal smoothing apply to label volumes",
+                input.display()
+            )));
+        }
+        Input::Labels(_) if options.contact_distance.is_some() => {
+            return Err(err(format!(
+                "{} is a label volume: contacts are voxel-face adjacency, the contact distance applies to meshes",
+                input.display()
+            )));
+        }
+        _ => {}
+    }
+    let other = options.compare.as_deref().map(|p| read_input(p, options)).transpose()?;
+    let start = Instant::now();
+    let (mut morphology, label_route) = match &measured {
+        Input::Tissue(tissue) => {
+            let settings = MeasureSettings {
+                contact_distance: options.contact_distance,
+                include_static: options.include_static,
+                exterior_free_fraction: options.exterior_free_fraction,
+                interface_labels: !options.distance_contacts,
+            };
+            let m =
+                measure_tissue(tissue, &settings).map_err(|e| err(format!("measuring {}: {e}", input.display())))?;
+            if m.summary.contact_rule == ContactRule::InterfaceLabels && options.contact_distance.is_some() {
+                tracing::warn!(
+                    "{}: contacts were read from the file's interface labels, so the contact distance only bounds \
+                     the rim search; find contacts by distance (--distance-contacts) to use it",
+                    input.display()
+                );
+            }
+            (m, None)
+        }
+        Input::Labels(volume) => {
+            let l = &options.labels;
+            let settings = LabelMeasureSettings {
+                include_static: options.include_static,
+                exterior_free_fraction: options.exterior_free_fraction,
+                border: l.border,
+                lumen_labels: l.lumen_labels.clone(),
+                min_voxels: l.min_voxels,
+                normal_smoothing: l.normal_smoothing,
+            };
+            let m = measure_labels(volume, &settings)
+                .map_err(|e| err(format!("measuring {} ({}): {e}", input.display(), volume.describe_grid())))?;
+            for label in &l.lumen_labels {
+                if !m.morphology.cells.iter().any(|c| c.cell == *label) {
+                    tracing::warn!("lumen label {label} is not measured in {}", input.display());
+                }
+            }
+            (m.morphology, Some((m.dropped, m.normal_smoothing)))
+        }
+    };
+    let compared = match (&measured, &other, options.compare.as_deref()) {
+        (input_read, Some(other), Some(path)) => {
+            let overlaps = compare_inputs(input_read, other, options)
+                .map_err(|e| err(format!("comparing {} with {}: {e}", input.display(), path.display())))?;
+            morphology.set_overlap(&overlaps);
+            Some((path.display().to_string(), overlaps.iter().filter(|o| o.voxels_a > 0 && o.voxels_b > 0).count()))
+        }
+        _ => None,
+    };
+    let wall_seconds = start.elapsed().as_secs_f64();
+    let inside_out: Vec<String> =
+        morphology.cells.iter().filter(|c| c.volume <= 0.0).map(|c| c.cell.to_string()).collect();
+    if !inside_out.is_empty() {
+        tracing::warn!(
+            "{}: cells {} have no positive volume (inside-out or open surfaces; sphericity reads 0); --orient repairs mixed windings",
+            input.display(),
+            inside_out.join(", ")
+        );
+    }
+    if let Some((dropped, _)) = &label_route {
+        for d in dropped {
+            tracing::info!("{}: label {} left out: {}", input.display(), d.label, d.reason);
+        }
+    }
+    let summary = SummaryFile {
+        file: options.input_name.clone().unwrap_or_else(|| input.display().to_string()),
+        input: if label_route.is_some() { "labels" } else { "tissue" },
+        wall_seconds,
+        threads: rayon::current_num_threads(),
+        normal_smoothing: label_route.as_ref().map(|r| r.1),
+        dropped_labels: label_route.as_ref().map(|r| r.0.as_slice()),
+        compare: compared.as_ref().map(|c| c.0.clone()),
+        compared_cells: compared.as_ref().map(|c| c.1),
+        summary: &morphology.summary,
+    };
+    write_outputs(out, &morphology, &summary)?;
+    Ok(MeasureReport { morphology, wall_seconds })
+}
+
+/// Per-label overlap of the measured input (`voxels_a`) with the compared one (`voxels_b`).
+fn compare_inputs(input: &Input, other: &Input, options: &MeasureOptions) -> Result<Vec<LabelOverlap>, String> {
+    let swap = |o: Vec<LabelOverlap>| -> Vec<LabelOverlap> {
+        o.into_iter().map(|o| LabelOverlap { voxels_a: o.voxels_b, voxels_b: o.voxels_a, ..o }).collect()
+    };
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    Ok(match (input, other) {
+        (Input::Labels(a), Input::Labels(b)) => label_overlap(a, b).map_err(|x| e(&x))?,
+        (Input::Tissue(a), Input::Labels(b)) => swap(compare_shapes(a, b).map_err(|x| e(&x))?),
+        (Input::Labels(a), Input::Tissue(b)) => compare_shapes(b, a).map_err(|x| e(&x))?,
+        (Input::Tissue(a), Input::Tissue(b)) => {
+            let voxel_size = match options.compare_voxel_size {
+                Some(v) => v,
+                None => match mean_edge_length(a) {
+                    Some(h) if h.is_finite() && h > 0.0 => [h / 2.0; 3],
+                    _ => {
+                        return Err(
+                            "cannot derive a comparison grid from the tissue's edges; give --compare-voxel-size".into(),
+                        );
+                    }
+                },
+            };
+            compare_tissues(a, b, voxel_size).map_err(|x| e(&x))?
+        }
+    })
+}
+
+/// The three files all or nothing ([`OutputGroup`]): a full disk leaves none of them, never two.
+fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> Result<(), StageError> {
+    let io = |e: crate::io::IoError| err(format!("writing the outputs into {}: {e}", dir.display()));
+    if m.cells.is_empty() {
+        return Err(err(format!("{}: no cell was measured", summary.file)));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| err(format!("creating {}: {e}", dir.display())))?;
+    let mut group = OutputGroup::new();
+    write_tables(&mut group, dir, m).map_err(io)?;
+    write_json(&mut group, &dir.join("summary.json"), summary).map_err(io)?;
+    group.commit().map_err(io)
+}
+
+/// `DIR/cells.csv` and `DIR/contacts.csv` into `group`, each with its header even without rows.
+pub fn write_tables(group: &mut OutputGroup, dir: &Path, m: &Morphology) -> Result<(), crate::io::IoError> {
+    let cell_example = m.cells.first().cloned().unwrap_or_else(CellMorphology::example);
+    write_csv(group, &dir.join("cells.csv"), &m.cells, &cell_example)?;
+    let example = ContactMorphology {
+        cell_a: 0,
+        cell_b: 0,
+        area: 0.0,
+        contact_angle_deg: None,
+        kind_a: CellKind::Epithelial,
+        kind_b: CellKind::Epithelial,
+        area_a: 0.0,
+        area_b: 0.0,
+        rim_edges: 0,
+        far_field_angle_deg: None,
+    };
+    write_csv(group, &dir.join("contacts.csv"), &m.contacts, &example)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+    use crate::imaging::{LabelWriteOptions, write_label_tiff};
+
+    #[test]
+    fn label_volumes_are_told_by_content_or_extension() {
+        let dir = tempfile::tempdir().unwrap();
+        let volume = LabelVolume::new(ndarray::Array3::from_elem((2, 3, 4), 1u32), [1e-6; 3], Vec3::zeros()).unwrap();
+        let unnamed = dir.path().join("labels.data");
+        write_label_tiff(&unnamed, &volume, &LabelWriteOptions::default()).unwrap();
+        assert!(is_labels(&unnamed));
+        assert!(is_labels(Path::new("missing.TIF")));
+        assert!(is_labels(Path::new("missing.npy")));
+        assert!(is_labels(Path::new("missing.zarr")));
+        assert!(is_labels(dir.path()), "a folder is an OME-Zarr store");
+        let npy = dir.path().join("labels.raw");
+        std::fs::write(&npy, b"\x93NUMPY\x01\x00").unwrap();
+        assert!(is_labels(&npy));
+        let text = dir.path().join("tissue.mesh");
+        std::fs::write(&text, "# vtk DataFile Version 4.2\n").unwrap();
+        assert!(!is_labels(&text));
+        assert!(!is_labels(&dir.path().join("missing")));
+        assert!(!is_labels(Path::new("missing.vtp")));
+    }
+}

@@ -1,0 +1,59 @@
+//! The stages as library functions: typed options in, files and a typed report out. The CLI
+//! subcommands (`tissuefit mesh`, `tissuefit measure`) and the pipeline (`tissuefit run`) both call
+//! these, so the same settings give the same files whichever way a stage is run, except the
+//! wall-time fields (`wall_seconds`, `threads`).
+//!
+//! Layering: `io ← {inference, render} ← stages ← pipeline ← cli`.
+
+pub mod measure;
+pub mod mesh;
+
+use crate::io::OutputGroup;
+use serde::Serialize;
+use std::path::Path;
+
+/// A stage that failed; the message names the file or setting and what to do.
+#[derive(Debug, thiserror::Error)]
+#[error("{message}")]
+pub struct StageError {
+    /// `mesh`, `measure`, …
+    pub stage: &'static str,
+    pub message: String,
+}
+
+impl StageError {
+    pub(crate) fn new(stage: &'static str, message: impl Into<String>) -> Self {
+        Self { stage, message: message.into() }
+    }
+}
+
+/// Writes rows under a header of `T`'s serde field names, in field order; the header comes from
+/// `example` (not written) so that a file without rows still has its columns (pandas reads it).
+pub fn write_csv<T: Serialize>(
+    group: &mut OutputGroup,
+    path: &Path,
+    rows: &[T],
+    example: &T,
+) -> Result<(), crate::io::IoError> {
+    group.write(path, |w| {
+        let mut header = csv::Writer::from_writer(Vec::new());
+        header.serialize(example).map_err(std::io::Error::other)?;
+        let bytes = header.into_inner().map_err(|e| e.into_error())?;
+        let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
+        std::io::Write::write_all(w, first_line)?;
+        std::io::Write::write_all(w, b"\n")?;
+        let mut csv = csv::WriterBuilder::new().has_headers(false).from_writer(&mut *w);
+        for row in rows {
+            csv.serialize(row).map_err(std::io::Error::other)?;
+        }
+        csv.flush()
+    })
+}
+
+/// Writes `value` as pretty JSON with a final newline.
+pub fn write_json<T: Serialize>(group: &mut OutputGroup, path: &Path, value: &T) -> Result<(), crate::io::IoError> {
+    group.write(path, |w| {
+        serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
+        std::io::Write::write_all(w, b"\n")
+    })
+}

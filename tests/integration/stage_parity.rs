@@ -1,0 +1,121 @@
+//! One stage layer: `tissuefit mesh` / `tissuefit measure` with flags and `tissuefit run` with the
+//! same settings in a pipeline file write the same files (byte for byte, the wall-time fields
+//! `wall_seconds` and `threads` aside), because both call `tissuefit::stages`.
+
+use crate::support::cli::{repo, tissuefit};
+use crate::support::run_dirs::normalised_hash;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+fn ok(args: &[&str]) {
+    let o = tissuefit(args);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "tissuefit {args:?}\n{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// `name → normalised hash` of every file in `dir`.
+fn hashes(dir: &Path) -> BTreeMap<String, String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let path = e.unwrap().path();
+            (path.file_name().unwrap().to_string_lossy().into_owned(), normalised_hash(&path))
+        })
+        .collect()
+}
+
+#[test]
+fn mesh_and_measure_write_the_same_files_from_the_cli_and_from_a_pipeline() {
+    let tmp = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let pipeline = tmp.path().join("p.toml");
+    std::fs::write(
+        &pipeline,
+        format!(
+            "[input]\nlabels = {labels:?}\nseed = 3\n\n[mesh]\ntarget_nodes = 150\nmin_voxels = 50\nborder = \"static\"\n\n\
+             [measure]\ncontact_distance = 1e-7\ninclude_static = true\nexterior_free_fraction = 0.2\n",
+            labels = labels.display().to_string()
+        ),
+    )
+    .unwrap();
+    let run = tmp.path().join("run");
+    ok(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+
+    let cli = tmp.path().join("cli");
+    let (tissue, report) = (cli.join("mesh/tissue.vtp"), cli.join("mesh/report.json"));
+    std::fs::create_dir_all(cli.join("mesh")).unwrap();
+    ok(&[
+        "mesh",
+        labels.to_str().unwrap(),
+        "--out",
+        tissue.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "--seed",
+        "3",
+        "--target-nodes",
+        "150",
+        "--min-voxels",
+        "50",
+        "--border",
+        "static",
+    ]);
+    // The pipeline measures its own mesh stage's tissue and names it relative to its measure folder
+    // (`../mesh/tissue.vtp`): measure that very file from there.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .current_dir(run.join("measure"))
+        .args(["measure", "../mesh/tissue.vtp", "--out", cli.join("measure").to_str().unwrap()])
+        .args(["--contact-distance", "1e-7", "--include-static", "--exterior-free-fraction", "0.2"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    for stage in ["mesh", "measure"] {
+        let (a, b) = (hashes(&run.join(stage)), hashes(&cli.join(stage)));
+        assert_eq!(a, b, "{stage}: the pipeline's files differ from the CLI's");
+    }
+    let names: Vec<String> = hashes(&run.join("measure")).into_keys().collect();
+    assert_eq!(names, ["cells.csv", "contacts.csv", "summary.json"]);
+    // The reports are the full ones (timing and options included), not a pipeline-only subset.
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("mesh/report.json")).unwrap()).unwrap();
+    for key in ["wall_seconds", "threads", "output", "min_voxels", "border", "cells"] {
+        assert!(report.get(key).is_some(), "mesh/report.json has no `{key}`: {report}");
+    }
+    assert_eq!(report["output"], "tissue.vtp");
+    assert_eq!(report["border"], "static");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("measure/summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["input"], "tissue");
+    assert_eq!(summary["file"], "../mesh/tissue.vtp");
+    assert_eq!(summary["cells"], 2);
+    assert!(summary["wall_seconds"].as_f64().is_some(), "{summary}");
+}
+
+#[test]
+fn a_tissue_without_contacts_gets_a_contacts_header_from_run_and_from_measure() {
+    let tmp = tempfile::tempdir().unwrap();
+    let pipeline = tmp.path().join("p.toml");
+    std::fs::write(&pipeline, "[input]\ngenerate = { kind = \"sphere\", cell_size = 4e-6 }\n\n[measure]\n").unwrap();
+    let run = tmp.path().join("run");
+    ok(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    let alone = tmp.path().join("alone");
+    ok(&["measure", run.join("mesh/tissue.vtp").to_str().unwrap(), "--out", alone.to_str().unwrap()]);
+    for dir in [run.join("measure"), alone] {
+        let text = std::fs::read_to_string(dir.join("contacts.csv")).unwrap();
+        let mut lines = text.lines();
+        let header = lines.next().unwrap_or_default();
+        assert!(header.starts_with("cell_a,cell_b,area"), "{}: {text:?}", dir.display());
+        assert_eq!(lines.count(), 0, "one cell touches nothing: {text:?}");
+        let cells = std::fs::read_to_string(dir.join("cells.csv")).unwrap();
+        assert_eq!(cells.lines().count(), 2, "header and one cell: {cells}");
+    }
+    assert_eq!(
+        normalised_hash(&run.join("measure/contacts.csv")),
+        normalised_hash(&tmp.path().join("alone/contacts.csv"))
+    );
+}
