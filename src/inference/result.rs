@@ -70,7 +70,8 @@ pub struct FitResult {
     pub ratios: BTreeMap<String, RatioResult>,
     /// Plain statements of what is and is not identifiable.
     pub identifiability: Vec<String>,
-    pub optimizer: String,
+    /// The optimiser, named as in the config (`nelder_mead`, `particle_swarm`).
+    pub optimizer: super::config::OptimizerMethod,
     pub stop_reason: String,
     /// Profile evaluations (after the optimum, in the trace after the optimisation rows).
     pub profile_evaluations: usize,
@@ -82,8 +83,8 @@ pub struct FitResult {
     pub length_scale: Real,
     /// K (Pa) of the first epithelial cell type, for the dimensionless groups.
     pub bulk_modulus: Real,
-    /// Contact model of the forward simulations.
-    pub contact_model: String,
+    /// Contact model of the forward simulations, named as in the model file (`spring`, `coupling`, …).
+    pub contact_model: crate::mechanics::ContactModel,
     /// Contact cutoff c (m) of the forward simulations (spring adhesion energy w = ω·c²/2).
     pub contact_cutoff: Real,
     pub threads: usize,

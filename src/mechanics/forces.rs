@@ -31,9 +31,13 @@ pub struct EnergyTerms {
 
 impl EnergyTerms {
     /// Names of the terms, in field order.
-    pub const NAMES: [&'static str; 5] = ["pressure", "area_elasticity", "tension", "bending", "contact"];
-    /// The terms computed per cell (all but contact).
-    pub const INTERNAL: [&'static str; 4] = ["pressure", "area_elasticity", "tension", "bending"];
+    pub const NAMES: [&'static str; 5] = [
+        CellTerm::Pressure.name(),
+        CellTerm::AreaElasticity.name(),
+        CellTerm::Tension.name(),
+        CellTerm::Bending.name(),
+        "contact",
+    ];
 
     /// Sum of all terms.
     pub fn total(&self) -> Real {
@@ -69,17 +73,48 @@ impl TermSet {
     pub const ALL: TermSet = TermSet { pressure: true, area_elasticity: true, tension: true, bending: true };
     pub const NONE: TermSet = TermSet { pressure: false, area_elasticity: false, tension: false, bending: false };
 
-    /// Only the term with this name (one of [`EnergyTerms::NAMES`]).
-    pub fn only(name: &str) -> TermSet {
+    /// Only `term`.
+    pub fn only(term: CellTerm) -> TermSet {
         let mut t = TermSet::NONE;
-        match name {
-            "pressure" => t.pressure = true,
-            "area_elasticity" => t.area_elasticity = true,
-            "tension" => t.tension = true,
-            "bending" => t.bending = true,
-            _ => {}
+        match term {
+            CellTerm::Pressure => t.pressure = true,
+            CellTerm::AreaElasticity => t.area_elasticity = true,
+            CellTerm::Tension => t.tension = true,
+            CellTerm::Bending => t.bending = true,
         }
         t
+    }
+}
+
+/// An energy term computed per cell (all but contact, which needs the other cells): the choices of
+/// [`TermSet::only`], so a misspelt term cannot select nothing.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CellTerm {
+    Pressure,
+    AreaElasticity,
+    Tension,
+    Bending,
+}
+
+impl CellTerm {
+    /// Every per-cell term, in [`EnergyTerms::NAMES`] order.
+    pub const ALL: [CellTerm; 4] = [CellTerm::Pressure, CellTerm::AreaElasticity, CellTerm::Tension, CellTerm::Bending];
+
+    /// The term's name, as in [`EnergyTerms::NAMES`] and the `energy_*` columns.
+    pub const fn name(self) -> &'static str {
+        match self {
+            CellTerm::Pressure => "pressure",
+            CellTerm::AreaElasticity => "area_elasticity",
+            CellTerm::Tension => "tension",
+            CellTerm::Bending => "bending",
+        }
+    }
+}
+
+impl std::fmt::Display for CellTerm {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 

@@ -31,7 +31,7 @@ pub use contact::{
 };
 pub use fire::*;
 pub use forces::{
-    CellForces, EnergyTerms, TermSet, TissueForces, UnknownCellType, apply_configured_kinds, cell_parameters,
+    CellForces, CellTerm, EnergyTerms, TermSet, TissueForces, UnknownCellType, apply_configured_kinds, cell_parameters,
 };
 pub use growth::{division_seed, draw_division_volume, draw_division_volumes, draw_growth_rate, draw_growth_rates};
 pub use motion::integrate_step;

@@ -29,7 +29,7 @@
 //! step, counted as rejected). Only a cell that is topologically broken is an error naming it.
 
 use super::fire::{Fire, FireSettings, NodeMass};
-use super::forces::{TermSet, TissueForces, UnknownCellType, apply_configured_kinds, cell_parameters};
+use super::forces::{CellTerm, TermSet, TissueForces, UnknownCellType, apply_configured_kinds, cell_parameters};
 use super::growth::{division_seed, draw_division_volume, draw_division_volumes, draw_growth_rate, draw_growth_rates};
 use super::motion::integrate_step;
 use super::polarity::{RayCastSettings, polarize_by_ray_casting, polarize_from_contacts};
@@ -891,11 +891,11 @@ impl<'p> Simulation<'p> {
     /// The first force term that is non-finite for cell `c`.
     fn culprit(&self, c: usize) -> &'static str {
         let cell = &self.tissue.cells()[c];
-        for name in EnergyTerms::INTERNAL {
+        for term in CellTerm::ALL {
             let mut work = CellForces::default();
-            work.compute(cell, self.cell_params[c], TermSet::only(name));
+            work.compute(cell, self.cell_params[c], TermSet::only(term));
             if !work.all_finite() || !work.energy.total().is_finite() {
-                return name;
+                return term.name();
             }
         }
         "contact"

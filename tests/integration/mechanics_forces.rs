@@ -2,7 +2,7 @@
 //! and exert no net force or torque.
 
 use tissuefit::geometry::{Real, Vec3};
-use tissuefit::mechanics::{CellForces, CellTypeParams, EnergyTerms, Parameters, TermSet};
+use tissuefit::mechanics::{CellForces, CellTerm, CellTypeParams, Parameters, TermSet};
 use tissuefit::mesh::shapes::icosphere;
 use tissuefit::mesh::{Cell, CellId, CellKind, FaceType};
 
@@ -81,7 +81,7 @@ fn every_term_and_the_total_is_minus_the_gradient_of_its_energy() {
     let p = params();
     for (subdivisions, seed) in [(2, 1), (3, 2)] {
         let cell = perturbed_cell(subdivisions, seed);
-        for name in EnergyTerms::INTERNAL {
+        for name in CellTerm::ALL {
             let e = gradient_error(&cell, &p, TermSet::only(name));
             assert!(e <= 1e-6, "{name} at {subdivisions} subdivisions: relative error {e:e}");
         }
@@ -101,7 +101,7 @@ fn capped_pressure_is_still_a_gradient() {
     let mut w = CellForces::default();
     w.compute(&cell, &p, TermSet::ALL);
     assert_eq!(w.pressure, 100.0);
-    let e = gradient_error(&cell, &p, TermSet::only("pressure"));
+    let e = gradient_error(&cell, &p, TermSet::only(CellTerm::Pressure));
     assert!(e <= 1e-6, "capped pressure: relative error {e:e}");
 }
 
@@ -109,7 +109,7 @@ fn capped_pressure_is_still_a_gradient() {
 fn internal_forces_have_no_net_force_or_torque() {
     let p = params();
     let cell = perturbed_cell(3, 9);
-    for name in EnergyTerms::INTERNAL {
+    for name in CellTerm::ALL {
         let mut w = CellForces::default();
         w.compute(&cell, &p, TermSet::only(name));
         let positions = cell.mesh().positions();
