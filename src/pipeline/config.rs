@@ -68,6 +68,12 @@ pub struct InputSection {
     /// has none: give it here). Only with `labels`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub voxel_size: Option<[Real; 3]>,
+    /// Nuclei label volume on the grid of `labels` (any label format): each nucleus becomes a nucleus
+    /// cell inside the cell holding most of its voxels, as `tissuefit mesh --nuclei`; nuclei outside
+    /// every meshed cell are reported as dropped in `mesh/report.json`. Relative to the pipeline
+    /// file. Only with `labels`, and not with `[fit]` (the fit's observed tissue has no nuclei).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nuclei: Option<PathBuf>,
     /// OME-Zarr `labels` only: the multiscales scale level to read (0 = full resolution, level N
     /// usually 2^N times coarser in x and y). Default 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -261,6 +267,7 @@ impl PipelineConfig {
         };
         config.input.labels.as_mut().map(fix);
         config.input.mesh.as_mut().map(fix);
+        config.input.nuclei.as_mut().map(fix);
         if let Some(s) = &mut config.simulate {
             s.model.as_mut().map(fix);
         }
@@ -269,6 +276,9 @@ impl PipelineConfig {
         }
         let origin = path.display();
         let mut files: Vec<(&str, &Path)> = config.input.source().into_iter().collect();
+        if let Some(p) = &config.input.nuclei {
+            files.push(("input.nuclei", p.as_path()));
+        }
         if let Some(p) = config.simulate.as_ref().and_then(|s| s.model.as_ref()) {
             files.push(("simulate.model", p.as_path()));
         }
@@ -277,8 +287,9 @@ impl PipelineConfig {
         }
         for (key, file) in files {
             // An OME-Zarr label input is a folder; an HDF5 one may name a dataset (FILE.h5/DATASET).
-            let exists = file.is_file()
-                || (key == "input.labels" && (file.is_dir() || crate::imaging::split_hdf5_path(file).is_some()));
+            let label_input = matches!(key, "input.labels" | "input.nuclei");
+            let exists =
+                file.is_file() || (label_input && (file.is_dir() || crate::imaging::split_hdf5_path(file).is_some()));
             if !exists {
                 return Err(PipelineError::Config(format!("{origin}: {key}: {} does not exist", file.display())));
             }
@@ -350,6 +361,13 @@ impl PipelineConfig {
             return Err(format!("measure.contact_distance: must be a length > 0 (m); got {d}"));
         }
         if let Some(fit) = &self.fit {
+            if self.input.nuclei.is_some() {
+                return Err(
+                    "input.nuclei: the fit's observed tissue and simulations have no nuclei yet; fit in a pipeline \
+                            without `input.nuclei`"
+                        .into(),
+                );
+            }
             if fit.observed.is_some() {
                 return Err(
                     "fit.observed: the pipeline's observed tissue is [input] meshed with [mesh]; remove [fit.observed]"
@@ -461,6 +479,9 @@ impl InputSection {
             0 => return Err(format!("input: give {ONE_OF}")),
             1 => {}
             _ => return Err(format!("input: give one of {ONE_OF}, not several")),
+        }
+        if self.nuclei.is_some() && self.labels.is_none() {
+            return Err("input.nuclei: applies to a `labels` input (the nuclei are meshed on its grid)".into());
         }
         if self.generate.is_some() {
             if self.length_unit.is_some() || self.voxel_size.is_some() || self.zarr_level.is_some() {

@@ -172,6 +172,15 @@ fn run_locked(
         }
         None => (String::new(), Vec::new()),
     };
+    // The nuclei volume is a second input of the mesh stage.
+    let nuclei_hash = match &config.input.nuclei {
+        Some(path) => {
+            let h = hash_file(path)?;
+            inputs.push(FileHash { path: path.clone(), blake3: h.clone() });
+            Some(h)
+        }
+        None => None,
+    };
     let generate = config.input.generate_spec().map_err(PipelineError::Config)?;
     let simulate_model = config.simulate.as_ref().and_then(|s| s.model.clone());
     let fit_model = config.fit.as_ref().and_then(|f| f.model.clone());
@@ -230,7 +239,8 @@ fn run_locked(
         generate: generate.as_ref(),
         mesh: &config.mesh,
     })?;
-    let mesh_key = stage_key("mesh", &mesh_section, &[&input_hash]);
+    let mesh_deps: Vec<&str> = std::iter::once(input_hash.as_str()).chain(nuclei_hash.as_deref()).collect();
+    let mesh_key = stage_key("mesh", &mesh_section, &mesh_deps);
     let mesh = runner.stage("mesh", mesh_key, false, |dir, _| {
         run_mesh(&config.input, &config.mesh, dir, options.progress).map(|s| (s, true))
     })?;

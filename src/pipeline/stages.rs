@@ -48,7 +48,7 @@ pub fn mesh_options(input: &InputSection, mesh: &MeshingConfig) -> Result<MeshOp
         meshing: mesh.options().map_err(|e| stage_err("mesh")(e.to_string()))?,
         voxel_size: input.voxel_size,
         zarr_level: input.zarr_level,
-        nuclei: None,
+        nuclei: input.nuclei.clone(),
         length_unit: None,
     })
 }

@@ -119,3 +119,72 @@ fn a_tissue_without_contacts_gets_a_contacts_header_from_run_and_from_measure() 
         normalised_hash(&tmp.path().join("alone/contacts.csv"))
     );
 }
+
+#[test]
+fn a_pipeline_meshes_nuclei_as_tissuefit_mesh_does_and_its_fit_refuses_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (cells, nuclei) = (tmp.path().join("cells.tif"), tmp.path().join("nuclei.tif"));
+    ok(&[
+        "generate",
+        "labels",
+        "--kind",
+        "aggregate",
+        "--cells",
+        "6",
+        "--shape",
+        "64",
+        "--voxel-size",
+        "0.5um",
+        "--seed",
+        "2",
+        "--out",
+        cells.to_str().unwrap(),
+        "--nuclei",
+        nuclei.to_str().unwrap(),
+    ]);
+    let pipeline = tmp.path().join("p.toml");
+    let text = "[input]\nlabels = \"cells.tif\"\nnuclei = \"nuclei.tif\"\n\n[mesh]\ntarget_nodes = 150\n";
+    std::fs::write(&pipeline, text).unwrap();
+    let run = tmp.path().join("run");
+    ok(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+
+    // The same meshing from the CLI; the report names its inputs as given, so give the paths the
+    // pipeline resolved (relative to its file).
+    let cli = tmp.path().join("cli");
+    std::fs::create_dir_all(&cli).unwrap();
+    let (tissue, report) = (cli.join("tissue.vtp"), cli.join("report.json"));
+    ok(&[
+        "mesh",
+        cells.to_str().unwrap(),
+        "--nuclei",
+        nuclei.to_str().unwrap(),
+        "--target-nodes",
+        "150",
+        "--out",
+        tissue.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(hashes(&run.join("mesh")), hashes(&cli));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("mesh/report.json")).unwrap()).unwrap();
+    let kept = report["nuclei"].as_array().unwrap().iter().filter(|n| n["status"] == "kept").count();
+    assert_eq!(kept, 6, "{report}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("measure/summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["cells_with_nucleus"], 6, "{summary}");
+    // The nuclei file is an input of the run: hashed in the manifest.
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("manifest.json")).unwrap()).unwrap();
+    let inputs: Vec<&str> =
+        manifest["inputs"].as_array().unwrap().iter().map(|i| i["path"].as_str().unwrap()).collect();
+    assert!(inputs.iter().any(|p| p.ends_with("nuclei.tif")), "{inputs:?}");
+
+    // A fit does not take nuclei yet: refused before anything runs, naming the key.
+    std::fs::write(&pipeline, format!("{text}\n[fit.parameters.surface_tension]\nbounds = [1e-4, 1e-3]\n")).unwrap();
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", tmp.path().join("fit").to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("input.nuclei"), "{stderr}");
+    assert!(!tmp.path().join("fit").exists(), "nothing written for a refused pipeline");
+}
