@@ -163,20 +163,6 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
         compare_voxel_size: args.compare_voxel_size,
         input_name: None,
     };
-    let labels = is_labels(&args.tissue);
-    if !labels && options.labels.any_set() {
-        bail!(
-            "{} is a tissue mesh: --voxel-size, --zarr-level, --border, --lumen-labels, --min-voxels and --normal-smoothing \
-             apply to label volumes",
-            args.tissue.display()
-        );
-    }
-    if labels && args.contact_distance.is_some() {
-        bail!(
-            "{} is a label volume: contacts are voxel-face adjacency, --contact-distance applies to meshes",
-            args.tissue.display()
-        );
-    }
     let report = stages::measure::run(&args.tissue, &options, &args.out)?;
     print_summary(&mut std::io::stdout().lock(), &args.tissue, &report.morphology, report.wall_seconds)?;
     Ok(Outcome::Success)

@@ -11,7 +11,6 @@
 use super::Outcome;
 use super::label_args::parse_voxel_size;
 use crate::geometry::Real;
-use crate::imaging::is_label_volume;
 use crate::io::{Format, LengthScale, OutputPolicy, parse_lengths};
 use crate::meshing::{
     BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, LabelStatus,
@@ -21,7 +20,7 @@ use crate::stages::{
     self,
     mesh::{MeshOptions, MeshOutcome, default_report_path},
 };
-use anyhow::{Context, bail};
+use anyhow::Context;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -134,21 +133,6 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
     let mut outputs = OutputPolicy::new().input("LABELS", labels).input_opt("--nuclei", args.nuclei.as_deref());
     outputs.file("--out", &args.out, Format::Tissue)?;
     outputs.file("--report", &report_path, Format::Json)?;
-    if is_label_volume(labels) {
-        if args.length_unit.is_some() {
-            bail!("--length-unit applies to a mesh input (.vtk/.vtp); for a label volume use --voxel-size");
-        }
-    } else if matches!(
-        labels.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(),
-        Some("vtk" | "vtp")
-    ) {
-        if args.nuclei.is_some() {
-            bail!("--nuclei applies to a label volume input, not to a mesh ({})", labels.display());
-        }
-        if args.zarr_level.is_some() {
-            bail!("--zarr-level applies to an OME-Zarr label input, not to a mesh ({})", labels.display());
-        }
-    }
     let options = MeshOptions {
         meshing: LabelMeshingOptions {
             l_min: args.l_min,
@@ -164,7 +148,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
         nuclei: args.nuclei.clone(),
         length_unit: args.length_unit,
     };
-    let MeshOutcome { meshing, wall_seconds, threads, .. } =
+    let MeshOutcome { meshing, wall_seconds, threads } =
         stages::mesh::run(labels, &options, &args.out, &report_path, true)?;
     for r in meshing.report.iter().filter(|r| r.status == LabelStatus::Dropped) {
         println!("  label {} dropped: {}", r.label, r.reason.as_deref().unwrap_or("?"));

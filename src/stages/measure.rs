@@ -199,14 +199,14 @@ pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<Measure
     match &measured {
         Input::Tissue(_) if options.labels.any_set() => {
             return Err(err(format!(
-                "{} is a tissue mesh: the voxel size, Zarr level, border policy, lumen labels, minimum voxels and \
-                 normal smoothing apply to label volumes",
+                "{} is a tissue mesh: --voxel-size, --zarr-level, --border, --lumen-labels, --min-voxels and \
+                 --normal-smoothing apply to label volumes",
                 input.display()
             )));
         }
         Input::Labels(_) if options.contact_distance.is_some() => {
             return Err(err(format!(
-                "{} is a label volume: contacts are voxel-face adjacency, the contact distance applies to meshes",
+                "{} is a label volume: contacts are voxel-face adjacency, --contact-distance applies to meshes",
                 input.display()
             )));
         }

@@ -37,8 +37,6 @@ pub struct MeshOptions {
 /// What [`run`] made.
 pub struct MeshOutcome {
     pub meshing: LabelMeshing,
-    /// The label grid, for messages.
-    pub grid_description: String,
     pub wall_seconds: f64,
     pub threads: usize,
 }
@@ -122,11 +120,11 @@ fn mesh_input(input: &Path, options: &MeshOptions, progress: bool) -> Result<Mes
             }
         }
         if options.nuclei.is_some() {
-            return Err(err(format!("nuclei apply to a label volume input, not to a mesh ({})", input.display())));
+            return Err(err(format!("--nuclei applies to a label volume input, not to a mesh ({})", input.display())));
         }
         if options.zarr_level.is_some() {
             return Err(err(format!(
-                "the Zarr level applies to an OME-Zarr label input, not to a mesh ({})",
+                "--zarr-level applies to an OME-Zarr label input, not to a mesh ({})",
                 input.display()
             )));
         }
@@ -160,7 +158,7 @@ fn mesh_input(input: &Path, options: &MeshOptions, progress: bool) -> Result<Mes
     }
     if options.length_unit.is_some() {
         return Err(err(
-            "the length unit applies to a mesh input (.vtk/.vtp); for a label volume give the voxel size".into()
+            "--length-unit applies to a mesh input (.vtk/.vtp); for a label volume use --voxel-size".into()
         ));
     }
     let volume = read_label_volume(input, options, "label volume")?;
@@ -264,7 +262,7 @@ pub fn run(
             report_path.display()
         )));
     }
-    Ok(MeshOutcome { meshing, grid_description, wall_seconds, threads })
+    Ok(MeshOutcome { meshing, wall_seconds, threads })
 }
 
 /// The l_min (m) a mesh stage's `report.json` says the labels were meshed at (`None` for a report
