@@ -68,7 +68,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
         ok = false;
     }
     if outcome.simulate_converged == Some(false) {
-        println!("simulate: the relaxation ended unconverged (see {}/simulate/simulation.json)", out.display());
+        println!(
+            "simulate: the run ended unconverged or with cells passed through each other (see {}/simulate/summary.json)",
+            out.display()
+        );
     }
     if !outcome.demo.is_empty() {
         println!(

@@ -16,10 +16,10 @@ use super::{CellTypeParams, Parameters};
 use crate::geometry::{Real, Vec3, triangle_area_gradients};
 use crate::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Energy of each term (J).
-#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct EnergyTerms {
     pub pressure: Real,
     pub area_elasticity: Real,

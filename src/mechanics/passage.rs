@@ -15,7 +15,7 @@ use crate::mesh::{CellKind, Tissue};
 use rayon::prelude::*;
 
 /// A cell whose volume centroid lies inside another cell at the end of a run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct CellInside {
     /// The cell whose centre is inside `host`.
     pub cell: u32,

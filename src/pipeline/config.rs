@@ -220,9 +220,9 @@ pub struct SimulateSection {
     /// Cell deformation by the nuclei (paper Fig. 4f): when true, the stage also relaxes the same
     /// input tissue with its nuclei removed (same model, same run settings) into `reference.vtp`, and
     /// writes χ = 1 − IoU(cell with nucleus, the same cell without) per cell into `cells.csv`
-    /// (`iou`, `chi`) and their mean into `summary.json` (`mean_chi`), both tissues voxelised on one
-    /// grid of voxel `chi_voxel_size`. The reference's steps and convergence go into
-    /// `simulation.json` (`reference`). An input without nuclei is an error. Default false.
+    /// (`iou`, `chi`) and their mean into `morphology.json` (`mean_chi`), both tissues voxelised on
+    /// one grid of voxel `chi_voxel_size`. The reference's steps and convergence go into
+    /// `summary.json` (`reference`). An input without nuclei is an error. Default false.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub chi_without_nuclei: bool,
     /// Voxel edge [m] of the χ comparison. Default: numerics.min_edge_length / 4.

@@ -100,7 +100,9 @@ pub struct PipelineOutcome {
     pub fit_converged: Option<bool>,
     /// `Some(poor_fit)` when a fit stage is configured (result.json's `poor_fit`).
     pub fit_poor: Option<bool>,
-    /// `Some(converged)` when a simulate stage is configured.
+    /// `Some(reached)` when a simulate stage is configured: the run reached its goal (a relaxation
+    /// and its reference converged, no cell passed through another; see
+    /// [`crate::stages::simulate::RunSummary::reached_goal`]).
     pub simulate_converged: Option<bool>,
     /// The `[demo]` truths against the fit (empty without `[demo]`).
     pub demo: Vec<DemoCheck>,
@@ -241,7 +243,7 @@ fn run_locked(
     })?;
     let mesh_deps: Vec<&str> = std::iter::once(input_hash.as_str()).chain(nuclei_hash.as_deref()).collect();
     let mesh_key = stage_key("mesh", &mesh_section, &mesh_deps);
-    let mesh = runner.stage("mesh", mesh_key, false, |dir, _| {
+    let mesh = runner.stage("mesh", mesh_key, None, |dir, _| {
         run_mesh(&config.input, &config.mesh, dir, options.progress).map(|s| (s, true))
     })?;
     let tissue_hash = mesh.outputs.get(MESH_TISSUE).cloned().unwrap_or_default();
@@ -250,21 +252,18 @@ fn run_locked(
     // measure
     let measure_key = stage_key("measure", &toml_of(&config.measure)?, &[&tissue_hash]);
     runner
-        .stage("measure", measure_key, false, |dir, _| run_measure(&tissue, &config.measure, dir).map(|s| (s, true)))?;
+        .stage("measure", measure_key, None, |dir, _| run_measure(&tissue, &config.measure, dir).map(|s| (s, true)))?;
 
     // simulate
     let mut simulate_converged = None;
     if let Some(section) = &config.simulate {
         let text = toml_of(section)? + &toml_of(&config.measure)?;
         let key = stage_key("simulate", &text, &[&tissue_hash, &simulate_model_hash]);
-        let record = runner.stage("simulate", key, false, |dir, _| {
-            run_simulate(&tissue, section, &config.measure, dir, options.progress)
+        let record = runner.stage("simulate", key, Some(Resumable::Checkpoint), |dir, resume| {
+            run_simulate(&tissue, section, &config.measure, dir, false, resume, options.progress)
         })?;
-        let run = read_json(&out.join("simulate").join("simulation.json"))?;
-        let time_run = run["mode"] == "time";
-        let reference_ok =
-            run["reference"].is_null() || time_run || run["reference"]["converged"].as_bool().unwrap_or(false);
-        simulate_converged = Some((time_run || run["converged"].as_bool().unwrap_or(false)) && reference_ok);
+        let summary = out.join("simulate").join(crate::stages::simulate::SUMMARY_FILE);
+        simulate_converged = Some(crate::stages::simulate::RunSummary::read(&summary)?.reached_goal());
         debug_assert!(record.status.done());
     }
 
@@ -277,7 +276,7 @@ fn run_locked(
         // The fit starts from the mesh stage's tissue and measures simulations on the labels' grid.
         let key = stage_key("fit", &text, &[&input_hash, &tissue_hash, &fit_model_hash]);
         let mesh_dir = out.join("mesh");
-        runner.stage("fit", key, true, |dir, resume| {
+        runner.stage("fit", key, Some(Resumable::Trace), |dir, resume| {
             let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, resume, options.progress)?;
             let line = r.summary_line();
             Ok((line, r.converged))
@@ -343,14 +342,15 @@ impl Runner<'_, '_> {
     /// files into the stage folder, replacing only the files the program owns there (see the
     /// module doc of [`crate::pipeline`]), and records it.
     ///
-    /// A `resumable` stage (the fit) whose run with the same key was interrupted (killed, Ctrl-C, a
-    /// time limit) goes on in the temporary folder that run left, from its `trace.csv`: `body` is
-    /// called with `true` then, and the finished stage is the one an uninterrupted run makes.
+    /// A `resumable` stage (the fit, the simulation) whose run with the same key was interrupted
+    /// (killed, Ctrl-C, a time limit) goes on in the temporary folder that run left, from its
+    /// `trace.csv` or `checkpoint.bin`: `body` is called with `true` then, and the finished stage
+    /// is the one an uninterrupted run makes.
     fn stage<F>(
         &mut self,
         name: &'static str,
         key: String,
-        resumable: bool,
+        resumable: Option<Resumable>,
         body: F,
     ) -> Result<StageRecord, PipelineError>
     where
@@ -436,9 +436,9 @@ impl Runner<'_, '_> {
                 stale.push(entry.path());
             }
         }
-        let keep = (resumable && interrupted && !self.options.force)
-            .then(|| stale.iter().position(|d| d.join("trace.csv").is_file()))
-            .flatten()
+        let keep = resumable
+            .filter(|_| interrupted && !self.options.force)
+            .and_then(|r| stale.iter().position(|d| d.join(r.marker()).is_file()))
             .map(|i| stale.swap_remove(i));
         for d in stale {
             std::fs::remove_dir_all(&d).map_err(io_err(&d))?;
@@ -450,11 +450,9 @@ impl Runner<'_, '_> {
                 // The files the killed process was writing (`trace.csv.tmp-PID`, ...).
                 crate::io::remove_stale_temporaries(&tmp)
                     .map_err(|e| PipelineError::Io { path: tmp.clone(), message: e.to_string() })?;
-                let rows = std::fs::read_to_string(tmp.join("trace.csv")).map_or(0, |t| t.lines().count().max(1) - 1);
-                tracing::info!("stage {name}: going on from {} ({rows} evaluations)", kept.display());
-                (self.options.on_event)(&format!(
-                    "{name}: resuming the interrupted run from the {rows} evaluations in its trace"
-                ));
+                let from = resumable.map_or(String::new(), |r| r.describe(&tmp));
+                tracing::info!("stage {name}: going on from {} ({from})", kept.display());
+                (self.options.on_event)(&format!("{name}: resuming the interrupted run from {from}"));
                 true
             }
             None => {
@@ -462,8 +460,11 @@ impl Runner<'_, '_> {
                 false
             }
         };
-        // A resumed fit's earlier sessions count in the time that made the outputs.
-        let earlier = if resume { crate::inference::recorded_elapsed_seconds(&tmp.join("trace.csv")) } else { 0.0 };
+        // A resumed stage's earlier sessions count in the time that made the outputs.
+        let earlier = match resumable {
+            Some(r) if resume => r.earlier_seconds(&tmp),
+            _ => 0.0,
+        };
         let started = Instant::now();
         let result = body(&tmp, resume).and_then(|r| {
             let made = hash_outputs(&tmp)?;
@@ -505,6 +506,47 @@ impl Runner<'_, '_> {
         self.publish()?;
         (self.options.on_event)(&format!("{name}: done in {wall:.2} s: {line}"));
         Ok(record)
+    }
+}
+
+/// How a stage goes on from the temporary folder of an interrupted run.
+#[derive(Clone, Copy, Debug)]
+enum Resumable {
+    /// The fit, from the evaluations in its `trace.csv`.
+    Trace,
+    /// The simulation, from its last periodic `checkpoint.bin`.
+    Checkpoint,
+}
+
+impl Resumable {
+    /// The file whose presence makes a temporary folder worth going on from.
+    fn marker(self) -> &'static str {
+        match self {
+            Resumable::Trace => "trace.csv",
+            Resumable::Checkpoint => crate::io::CHECKPOINT_FILE,
+        }
+    }
+
+    /// `the 12 evaluations in its trace`, `its checkpoint at step 4000`.
+    fn describe(self, tmp: &Path) -> String {
+        match self {
+            Resumable::Trace => {
+                let rows = std::fs::read_to_string(tmp.join("trace.csv")).map_or(0, |t| t.lines().count().max(1) - 1);
+                format!("the {rows} evaluations in its trace")
+            }
+            Resumable::Checkpoint => match crate::stages::simulate::checkpoint_progress(tmp) {
+                Some((step, _)) => format!("its checkpoint at step {step}"),
+                None => "its checkpoint".to_string(),
+            },
+        }
+    }
+
+    /// Wall time (s) the earlier sessions spent on what the folder holds.
+    fn earlier_seconds(self, tmp: &Path) -> f64 {
+        match self {
+            Resumable::Trace => crate::inference::recorded_elapsed_seconds(&tmp.join("trace.csv")),
+            Resumable::Checkpoint => crate::stages::simulate::checkpoint_progress(tmp).map_or(0.0, |(_, s)| s),
+        }
     }
 }
 

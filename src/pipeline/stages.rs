@@ -7,16 +7,13 @@ use super::config::{InputSection, MeasureSection, SimulateSection, fit_config};
 use crate::geometry::Real;
 use crate::imaging::read_labels;
 use crate::inference::{FitConfig, FitOptions, FitResult, MeshingConfig, Observation, run_fit_observed};
-use crate::io::{
-    LengthScale, OutputGroup, ReadOptions, read_tissue, write_bytes_atomically, write_events, write_simucell3d,
-    write_tissue,
-};
-use crate::mechanics::{MeshFit, Observer, Parameters, RelaxMethod, Sample, Simulation, SimulationMode};
-use crate::mesh::{CellKind, Tissue};
+use crate::io::{LengthScale, ReadOptions, read_tissue};
+use crate::mechanics::{Parameters, SimulationMode};
+use crate::mesh::Tissue;
 use crate::meshing::LabelStatus;
-use crate::morphology::{MeasureSettings, Morphology, compare_tissues, measure_tissue};
+use crate::morphology::{MeasureSettings, Morphology};
+use crate::stages::simulate::{Model, SimulateOptions, SimulateOutcome};
 use crate::stages::{self, StageError, measure::MeasureOptions, mesh::MeshOptions};
-use serde::Serialize;
 use std::path::Path;
 
 /// Name of the mesh stage's tissue file.
@@ -24,16 +21,6 @@ pub const MESH_TISSUE: &str = stages::mesh::TISSUE_FILE;
 
 fn stage_err(stage: &'static str) -> impl Fn(String) -> PipelineError {
     move |message| PipelineError::Stage { stage, message }
-}
-
-fn json_bytes<T: Serialize>(value: &T, stage: &'static str) -> Result<Vec<u8>, PipelineError> {
-    let mut json = serde_json::to_string_pretty(value).map_err(|e| stage_err(stage)(e.to_string()))?;
-    json.push('\n');
-    Ok(json.into_bytes())
-}
-
-fn write_json<T: Serialize>(path: &Path, value: &T, stage: &'static str) -> Result<(), PipelineError> {
-    write_bytes_atomically(path, &json_bytes(value, stage)?).map_err(|e| stage_err(stage)(e.to_string()))
 }
 
 impl From<StageError> for PipelineError {
@@ -98,16 +85,6 @@ fn read_meshed(path: &Path, stage: &'static str) -> Result<Tissue, PipelineError
     Ok(read.tissue)
 }
 
-/// cells.csv, contacts.csv (headers even without rows) and summary.json, all or nothing
-/// ([`OutputGroup`]).
-fn write_morphology(out: &Path, m: &Morphology, stage: &'static str) -> Result<(), PipelineError> {
-    let err = |e: crate::io::IoError| stage_err(stage)(e.to_string());
-    let mut group = OutputGroup::new();
-    stages::measure::write_tables(&mut group, out, m).map_err(err)?;
-    group.write_bytes(&out.join("summary.json"), &json_bytes(&m.summary, stage)?).map_err(err)?;
-    group.commit().map_err(err)
-}
-
 /// `2 cells, ⟨Ψ⟩ = …, ⟨φ⟩ = …, ⟨z⟩ = …`: the one-line summary of a measurement.
 pub fn describe_morphology(m: &Morphology) -> String {
     let s = &m.summary;
@@ -121,7 +98,8 @@ pub fn describe_morphology(m: &Morphology) -> String {
     )
 }
 
-fn settings(measure: &MeasureSection) -> MeasureSettings {
+/// How the simulate stage measures its final tissue: as `[measure]` says.
+fn measure_settings(measure: &MeasureSection) -> MeasureSettings {
     MeasureSettings {
         contact_distance: measure.contact_distance,
         include_static: measure.include_static,
@@ -150,208 +128,79 @@ pub fn run_measure(tissue: &Path, measure: &MeasureSection, out: &Path) -> Resul
     Ok(describe_morphology(&report.morphology))
 }
 
-/// The stage's observer: no samples, progress on stderr (a bar on a terminal, a line every 30 s
-/// otherwise; nothing in a sweep).
-struct StageProgress(crate::io::Progress);
-
-impl Observer for StageProgress {
-    fn sample(&mut self, _sample: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(())
-    }
-
-    fn progress(&mut self, step: u64, residual: Real) {
-        self.0.step(step, residual);
-    }
+/// The model of `[simulate]` (its file with its overrides), checked alone first: the warnings it
+/// raises then were logged when the pipeline was loaded, and the stage does not repeat them.
+fn simulate_model(section: &SimulateSection) -> Result<Model, String> {
+    let origin = section.origin();
+    let (params, explicit) =
+        Parameters::load_with_overrides_explicit(section.model.as_deref(), section.model_overrides.as_ref())
+            .map_err(|e| e.to_string())?;
+    let reported = params.validate().map_err(|e| format!("{origin}: {e}"))?;
+    Ok(Model { params, explicit, origin, reported })
 }
 
-impl StageProgress {
-    fn new(label: String, params: &Parameters, enabled: bool) -> Self {
-        Self(crate::io::Progress::of_steps(label, params.planned_steps(), enabled))
-    }
-}
-
-/// `simulate/simulation.json`: how the run went (no wall time: see the manifest).
-#[derive(Serialize)]
-struct SimulationRecord<'a> {
-    mode: SimulationMode,
-    method: RelaxMethod,
-    steps: u64,
-    force_evaluations: u64,
-    converged: bool,
-    /// Volume by which cells overlap at the end (m³ and µm³; only penetrations within the contact
-    /// cutoff are seen), and the largest overlap of one cell as a fraction of its volume.
-    overlap_volume: Real,
-    overlap_volume_um3: Real,
-    max_overlap_fraction: Real,
-    /// Why an equilibrium run did not converge (absent when it did).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    stop_reason: Option<String>,
-    /// The step whose state the files hold, when not the last one (a run that did not converge
-    /// ends at its lowest-residual state).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    ended_at_step: Option<u64>,
-    residual: Real,
-    simulated_time: Real,
-    energy: &'a crate::mechanics::EnergyTerms,
-    energy_total: Real,
-    /// Cells and nodes at the start and at the end (divisions, removals and remeshing change them).
-    cells: usize,
-    nodes: usize,
-    final_cells: usize,
-    final_nodes: usize,
-    divisions: u64,
-    removals: u64,
-    topology: &'a crate::mechanics::TopologyStats,
-    /// The relaxation without nuclei of `chi_without_nuclei`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    reference: Option<ReferenceRecord>,
-    /// The numerics derived from the input mesh (l_min, contact cutoff, time step) where the model
-    /// leaves them unset, and the model's values that contradict the mesh.
-    mesh_defaults: &'a MeshFit,
-    /// Cells whose centre lies inside another cell at the end: they passed through each other.
-    cells_inside_others: &'a [crate::mechanics::CellInside],
-}
-
-/// How the nucleus-free reference relaxation of `chi_without_nuclei` went.
-#[derive(Serialize)]
-struct ReferenceRecord {
-    steps: u64,
-    converged: bool,
-    residual: Real,
-    /// Bodies removed from the input (the nuclei).
-    nuclei_removed: usize,
-    /// Voxel edge of the χ comparison (m).
-    voxel_size: Real,
-}
-
-/// The meshed tissue simulated with the section's model (an equilibrium relaxation or a time run, as
-/// `simulation.mode` says) → `final.vtp`, `final.vtk` (SimuCell3D legacy), `simulation.json`,
-/// `events.csv`, `config.toml`, and the morphology of the final tissue as the measure stage writes it
-/// (`cells.csv`, `contacts.csv`, `summary.json`). Returns the summary line and whether the run
-/// reached what it was asked for (an equilibrium run converged; a time run always). `progress`:
-/// show the relaxations' progress on stderr.
+/// The meshed tissue simulated with the section's model by [`stages::simulate::run`] (as
+/// `tissuefit simulate`: the same files, the final tissue measured with `[measure]`), with the
+/// nucleus-free reference of `chi_without_nuclei`. Returns the summary line and whether the run
+/// reached what it was asked for (an equilibrium run converged; a time run always; no cell passed
+/// through another). `force`: replace an earlier run's files in `out`; `resume`: go on from
+/// `out/checkpoint.bin` (an interrupted run's periodic checkpoint); `progress`: show the
+/// relaxations' progress on stderr.
 pub fn run_simulate(
     tissue: &Path,
     section: &SimulateSection,
     measure: &MeasureSection,
     out: &Path,
+    force: bool,
+    resume: bool,
     progress: bool,
 ) -> Result<(String, bool), PipelineError> {
-    let err = stage_err("simulate");
-    let t = read_meshed(tissue, "simulate")?;
-    let (params, mesh_defaults) = fit_model_to_mesh(section, &t).map_err(&err)?;
-    let (cells, nodes) = (t.len(), t.node_count());
-    // The nucleus-free input of `chi_without_nuclei`, taken before the run consumes the tissue.
-    let without_nuclei = if section.chi_without_nuclei {
-        let kept: Vec<_> = t.cells().iter().filter(|c| c.kind() != CellKind::Nucleus).cloned().collect();
-        let removed = t.len() - kept.len();
-        if removed == 0 {
-            return Err(err(format!(
-                "simulate.chi_without_nuclei: {} has no nucleus (cell kind 3) to remove; drop the option or give a \
-                 tissue with nuclei (e.g. input.generate with nuclei = true)",
-                tissue.display()
-            )));
+    let options = SimulateOptions {
+        input_name: Some(format!("../mesh/{MESH_TISSUE}")),
+        measure: measure_settings(measure),
+        reference: section
+            .chi_without_nuclei
+            .then_some(stages::simulate::NucleusFreeReference { voxel_size: section.chi_voxel_size }),
+        force,
+        progress,
+        label: Some("simulate".into()),
+        ..SimulateOptions::default()
+    };
+    let outcome = if resume {
+        stages::simulate::resume(out, &options, Some(tissue))?
+    } else {
+        let model = simulate_model(section).map_err(stage_err("simulate"))?;
+        stages::simulate::run(tissue, model, &options, out)?
+    };
+    let report = match outcome {
+        SimulateOutcome::Completed(r) => r,
+        SimulateOutcome::Interrupted { step } => {
+            return Err(stage_err("simulate")(format!("interrupted at step {step}")));
         }
-        Some((Tissue::from_cells(kept).map_err(|e| err(e.to_string()))?, removed))
-    } else {
-        None
     };
-    let mut sim = Simulation::new(t, &params).map_err(|e| err(format!("{}: {e}", tissue.display())))?;
-    for line in sim.repulsion_shortfalls() {
-        tracing::warn!("{line}");
-    }
-    let mut observer = StageProgress::new("simulate".to_string(), &params, progress);
-    let result = sim.run(&mut observer);
-    observer.0.finish();
-    let summary = result.map_err(|e| err(format!("{}: {e}", tissue.display())))?;
-    if let Some(warning) = summary.overlap_warning() {
-        tracing::warn!("{warning}");
-    }
-    write_events(&out.join("events.csv"), sim.events()).map_err(|e| err(e.to_string()))?;
-    let final_tissue = sim.into_tissue();
-    let inside = crate::mechanics::cells_inside_others(&final_tissue);
-    if let Some(warning) = crate::mechanics::passage_warning(&inside) {
-        tracing::warn!("{}: {warning}", tissue.display());
-    }
-    write_tissue(&out.join("final.vtp"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
-    write_simucell3d(&out.join("final.vtk"), &final_tissue, &[]).map_err(|e| err(e.to_string()))?;
-    write_bytes_atomically(&out.join("config.toml"), params.to_toml_string().as_bytes())
-        .map_err(|e| err(e.to_string()))?;
-    let s = &params.simulation;
-    let record = SimulationRecord {
-        mode: s.mode,
-        method: s.method,
-        steps: summary.steps,
-        force_evaluations: summary.force_evaluations,
-        converged: summary.converged,
-        overlap_volume: summary.overlap_volume,
-        overlap_volume_um3: summary.overlap_volume * 1e18,
-        max_overlap_fraction: summary.max_overlap_fraction,
-        stop_reason: summary.stop_reason.clone(),
-        ended_at_step: summary.ended_at_step,
-        residual: summary.residual,
-        simulated_time: summary.time,
-        energy: &summary.energy,
-        energy_total: summary.energy.total(),
-        cells,
-        nodes,
-        final_cells: final_tissue.len(),
-        final_nodes: final_tissue.node_count(),
-        divisions: summary.topology.divisions,
-        removals: summary.topology.removals,
-        topology: &summary.topology,
-        reference: None,
-        mesh_defaults: &mesh_defaults,
-        cells_inside_others: &inside,
-    };
-    let mut m = measure_tissue(&final_tissue, &settings(measure)).map_err(|e| err(format!("measuring: {e}")))?;
-    let mut record = record;
-    let mut reference_converged = true;
-    if let Some((reference, nuclei_removed)) = without_nuclei {
-        let mut rsim = Simulation::new(reference, &params)
-            .map_err(|e| err(format!("{} without nuclei: {e}", tissue.display())))?;
-        let mut observer = StageProgress::new("simulate (without nuclei)".to_string(), &params, progress);
-        let result = rsim.run(&mut observer);
-        observer.0.finish();
-        let rsummary = result.map_err(|e| err(format!("{} without nuclei: {e}", tissue.display())))?;
-        let reference = rsim.into_tissue();
-        write_tissue(&out.join("reference.vtp"), &reference, &[]).map_err(|e| err(e.to_string()))?;
-        let voxel = section.chi_voxel_size.unwrap_or(params.numerics.min_edge_length / 4.0);
-        let overlaps = compare_tissues(&final_tissue, &reference, [voxel; 3])
-            .map_err(|e| err(format!("comparing with the nucleus-free reference: {e}")))?;
-        m.set_overlap(&overlaps);
-        reference_converged = s.mode == SimulationMode::Time || rsummary.converged;
-        record.reference = Some(ReferenceRecord {
-            steps: rsummary.steps,
-            converged: rsummary.converged,
-            residual: rsummary.residual,
-            nuclei_removed,
-            voxel_size: voxel,
-        });
-    }
-    write_json(&out.join("simulation.json"), &record, "simulate")?;
-    write_morphology(out, &m, "simulate")?;
-    let time_run = s.mode == SimulationMode::Time;
-    let how = if time_run {
-        format!(
-            "{:.3e} s simulated, {} divisions, {} removals",
-            summary.time, summary.topology.divisions, summary.topology.removals
-        )
-    } else if summary.converged {
-        "converged".to_string()
+    Ok((describe_simulation(&report), report.summary.reached_goal()))
+}
+
+/// The one-line summary of a simulate stage: steps, verdict, residual, the final morphology, the
+/// reference, cells that passed through others, and the numerics derived from the mesh.
+fn describe_simulation(report: &stages::simulate::SimulateReport) -> String {
+    let (s, m) = (&report.summary, &report.morphology);
+    let how = if s.mode == SimulationMode::Time {
+        format!("{:.3e} s simulated, {} divisions, {} removals", s.simulated_time, s.divisions, s.removals)
     } else {
-        format!("NOT converged ({})", summary.stop_reason.as_deref().unwrap_or("no reason recorded"))
+        s.verdict()
     };
     let layers = m.summary.layers.map_or(String::new(), |n| format!(", {n} layers"));
-    let passed = if inside.is_empty() {
+    let passed = if s.cells_inside_others.is_empty() {
         String::new()
     } else {
         format!(
-            "; CELLS PASSED THROUGH EACH OTHER ({} inside another; simulation.json, cells_inside_others)",
-            inside.len()
+            "; CELLS PASSED THROUGH EACH OTHER ({} inside another; summary.json, cells_inside_others)",
+            s.cells_inside_others.len()
         )
     };
-    let derived: Vec<String> = mesh_defaults
+    let fit = &s.mesh_defaults;
+    let derived: Vec<String> = fit
         .derived
         .iter()
         .map(|d| {
@@ -367,50 +216,25 @@ pub fn run_simulate(
         String::new()
     } else {
         format!(
-            "; from the mesh's mean edge length {:.4} µm: {} (see simulation.json, mesh_defaults)",
-            mesh_defaults.mesh_mean_edge.unwrap_or(Real::NAN) * 1e6,
+            "; from the mesh's mean edge length {:.4} µm: {} (see summary.json, mesh_defaults)",
+            fit.mesh_mean_edge.unwrap_or(Real::NAN) * 1e6,
             derived.join(", ")
         )
     };
-    let chi = match (&record.reference, m.summary.mean_chi) {
+    let chi = match (&s.reference, m.summary.mean_chi) {
         (Some(r), Some(chi)) => format!(
             "; without nuclei {} steps{}, mean χ {chi:.4}",
             r.steps,
-            if reference_converged { "" } else { " (NOT converged)" }
+            if r.converged || s.mode == SimulationMode::Time { "" } else { " (NOT converged)" }
         ),
         _ => String::new(),
     };
-    Ok((
-        format!(
-            "{} steps, {how}, residual {:.3e}; final {}{layers}{chi}{passed}{derived}",
-            summary.steps,
-            summary.residual,
-            describe_morphology(&m)
-        ),
-        (time_run || summary.converged) && reference_converged && inside.is_empty(),
-    ))
-}
-
-/// The stage's model with the mesh-dependent numerics it leaves unset derived from the tissue `t`
-/// ([`Parameters::fit_to_mesh`]), validated. Logs the warnings of the contradictions, and those of
-/// validation that the model alone did not raise (the pipeline's loading logged those).
-fn fit_model_to_mesh(section: &SimulateSection, t: &Tissue) -> Result<(Parameters, MeshFit), String> {
-    let origin = section.origin();
-    let (mut params, explicit) =
-        Parameters::load_with_overrides_explicit(section.model.as_deref(), section.model_overrides.as_ref())
-            .map_err(|e| e.to_string())?;
-    let before = params.validate().map_err(|e| format!("{origin}: {e}"))?;
-    let fit = params.fit_to_tissue(&explicit, t);
-    for w in &fit.warnings {
-        tracing::warn!("{origin}: {w}");
-    }
-    let after = params.validate().map_err(|e| {
-        format!("{origin} with the numerics derived from the input mesh ({}): {e}", fit.lines().join("; "))
-    })?;
-    for w in after.iter().filter(|w| !before.contains(w)) {
-        tracing::warn!("{origin}: {w}");
-    }
-    Ok((params, fit))
+    format!(
+        "{} steps, {how}, residual {:.3e}; final {}{layers}{chi}{passed}{derived}",
+        s.steps,
+        s.residual,
+        describe_morphology(m)
+    )
 }
 
 /// The fit of `tissuefit fit` with observed = the input labels meshed like `[mesh]`. The meshed

@@ -8,7 +8,7 @@
 //! "mesh.target_nodes" = [100, 200]
 //! "simulate.model_overrides.cell_types[0].faces.lateral.surface_tension" = [2e-4, 5e-4]
 //! [table]                             # optional: the outputs in results.csv, FILE:JSON.PATH
-//! columns = ["simulate/summary.json:mean_sphericity", "simulate/summary.json:layers"]
+//! columns = ["simulate/morphology.json:mean_sphericity", "simulate/morphology.json:layers"]
 //! ```
 //! or, instead of `[grid]`, an explicit list `[[runs]]` of tables of dotted keys. A grid runs the
 //! Cartesian product: the keys sorted by name, the first varying slowest and the last fastest, each
@@ -28,6 +28,7 @@ use super::manifest::Manifest;
 use super::run::{PipelineOptions, run_pipeline_locked};
 use super::{PipelineError, nearest};
 use crate::io::write_bytes_atomically;
+use crate::stages::simulate::RunSummary;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -39,7 +40,7 @@ pub const OUTPUT_FILES: [&str; 5] = [
     "mesh/report.json",
     "measure/summary.json",
     "simulate/summary.json",
-    "simulate/simulation.json",
+    "simulate/morphology.json",
     "fit/result.json",
 ];
 
@@ -71,7 +72,7 @@ pub struct SweepRun {
     pub pipeline: String,
 }
 
-/// One results column: `FILE:PATH` (e.g. `simulate/summary.json:layers`).
+/// One results column: `FILE:PATH` (e.g. `simulate/morphology.json:layers`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Column {
     pub file: String,
@@ -445,7 +446,7 @@ fn describe_values(kv: &[(String, Value)]) -> String {
 fn parse_column(spec: &str) -> Result<Column, String> {
     let Some((file, path)) = spec.split_once(':') else {
         return Err(format!(
-            "table.columns `{spec}`: expected FILE:JSON.PATH, e.g. `simulate/summary.json:layers` (FILE one of {})",
+            "table.columns `{spec}`: expected FILE:JSON.PATH, e.g. `simulate/morphology.json:layers` (FILE one of {})",
             OUTPUT_FILES.join(", ")
         ));
     };
@@ -460,6 +461,16 @@ fn parse_column(spec: &str) -> Result<Column, String> {
     if path.is_empty() || path.split('.').any(str::is_empty) {
         return Err(format!("table.columns `{spec}`: give a dotted JSON path after the colon, e.g. `layers`"));
     }
+    // The simulate stage's summary.json is the run's; its final tissue's morphology is morphology.json
+    // (a run summary key read from the morphology is left to the run: those files vary by tissue).
+    let first = path.split('.').next().unwrap_or_default();
+    if file == "simulate/summary.json" && !RunSummary::keys().iter().any(|k| k == first) {
+        return Err(format!(
+            "table.columns `{spec}`: simulate/summary.json is the run summary (steps, converged, residual, …) \
+             and has no `{first}`; the final tissue's morphology is in simulate/morphology.json: \
+             `simulate/morphology.json:{path}`"
+        ));
+    }
     Ok(Column { file: file.to_string(), path: path.to_string() })
 }
 
@@ -468,15 +479,15 @@ fn parse_column(spec: &str) -> Result<Column, String> {
 fn default_columns(runs: &[SweepRun]) -> Vec<Column> {
     let tables: Vec<Table> = runs.iter().filter_map(|r| toml::from_str(&r.pipeline).ok()).collect();
     let simulate = tables.iter().any(|t| t.contains_key("simulate"));
-    let morph = if simulate { "simulate/summary.json" } else { "measure/summary.json" };
+    let morph = if simulate { "simulate/morphology.json" } else { "measure/summary.json" };
     let col = |file: &str, path: &str| Column { file: file.to_string(), path: path.to_string() };
     let mut cols: Vec<Column> = ["cells", "mean_sphericity", "mean_contact_fraction", "mean_coordination", "layers"]
         .iter()
         .map(|p| col(morph, p))
         .collect();
     if simulate {
-        cols.push(col("simulate/simulation.json", "steps"));
-        cols.push(col("simulate/simulation.json", "converged"));
+        cols.push(col("simulate/summary.json", "steps"));
+        cols.push(col("simulate/summary.json", "converged"));
     }
     let mut fitted: Vec<String> = tables
         .iter()
@@ -670,7 +681,7 @@ pub fn json_at<'v>(v: &'v serde_json::Value, path: &str) -> Option<&'v serde_jso
 fn unconverged(stage: &str, read_json: &dyn Fn(&str) -> Option<serde_json::Value>) -> Option<String> {
     match stage {
         "simulate" => {
-            let run = read_json("simulate/simulation.json")?;
+            let run = read_json("simulate/summary.json")?;
             (run["mode"] == "equilibrium" && run["converged"] == false)
                 .then(|| "simulate: the relaxation did not converge".to_string())
         }
@@ -892,5 +903,10 @@ mod tests {
             parse_column("simulate/sumary.json:layers").unwrap_err().contains("did you mean `simulate/summary.json`")
         );
         assert!(parse_column("layers").is_err());
+        // The final tissue's morphology is not in the run summary: the column says where it is.
+        assert_eq!(parse_column("simulate/summary.json:residual").unwrap().path, "residual");
+        assert_eq!(parse_column("simulate/summary.json:reference.converged").unwrap().path, "reference.converged");
+        let e = parse_column("simulate/summary.json:mean_sphericity").unwrap_err();
+        assert!(e.contains("`simulate/morphology.json:mean_sphericity`"), "{e}");
     }
 }

@@ -7,6 +7,7 @@
 
 pub mod measure;
 pub mod mesh;
+pub mod simulate;
 
 use crate::io::OutputGroup;
 use serde::Serialize;

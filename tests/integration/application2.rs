@@ -279,11 +279,11 @@ fn the_simulate_stage_writes_chi_against_the_relaxation_without_nuclei() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(dir.join("reference.vtp").is_file());
     let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("simulation.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
     assert_eq!(record["reference"]["steps"], 20);
     assert_eq!(record["reference"]["nuclei_removed"], 1);
     let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.join("morphology.json")).unwrap()).unwrap();
     // 20 steps move the cells little: χ is small, but measured.
     let chi = summary["mean_chi"].as_f64().unwrap();
     assert!((0.0..0.5).contains(&chi), "{chi}");

@@ -330,7 +330,7 @@ fn the_pipeline_fit_line_says_a_value_is_at_its_search_bound_as_tissuefit_fit_do
     let line = stdout.lines().find(|l| l.starts_with("simulate: done in ")).unwrap_or_else(|| panic!("{stdout}"));
     assert!(line.contains("from the mesh's mean edge length") && line.contains("min_edge_length"), "{line}");
     let simulation: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("simulate/simulation.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(run.join("simulate/summary.json")).unwrap()).unwrap();
     let derived = simulation["mesh_defaults"]["derived"].as_array().unwrap();
     let keys: Vec<&str> = derived.iter().map(|d| d["key"].as_str().unwrap()).collect();
     // And the default spring model's repulsion, from the cells' Laplace pressure (issue 20 item 3).

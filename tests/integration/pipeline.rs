@@ -5,8 +5,7 @@
 use crate::support::run_dirs;
 
 use crate::support::cli::{repo, tissuefit};
-use run_dirs::{data_hashes, normalised_hash, read_json, strip_wall_times};
-use std::collections::BTreeMap;
+use run_dirs::{data_hashes, normalised_hash, read_json, stage_hashes, strip_wall_times};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -264,20 +263,10 @@ fn the_stage_subcommands_fed_the_pipeline_file_write_the_bytes_of_tissuefit_run(
     let o = tissuefit(&["simulate", tissue, "--config", p, "--out", &dir("simulate")]);
     // The demo's 1000 steps end unconverged (the coupling model's hovering residual): exit 1, as
     // `simulate` says for any unconverged relaxation.
-    let converged = read_json(&by.join("simulate/simulation.json"))["converged"].as_bool().unwrap();
+    let converged = read_json(&by.join("simulate/summary.json"))["converged"].as_bool().unwrap();
     assert_eq!(o.status.code(), Some(if converged { 0 } else { 1 }), "{:?}", text(&o));
 
-    let hashes = |run: &Path| -> BTreeMap<String, String> {
-        let mut out = BTreeMap::new();
-        for stage in ["mesh", "measure", "simulate"] {
-            for entry in std::fs::read_dir(run.join(stage)).unwrap() {
-                let path = entry.unwrap().path();
-                let name = path.file_name().unwrap().to_string_lossy().into_owned();
-                out.insert(format!("{stage}/{name}"), normalised_hash(&path));
-            }
-        }
-        out
-    };
+    let hashes = |run: &Path| stage_hashes(run, &["mesh", "measure", "simulate"]);
     let expected = hashes(&whole);
     assert!(expected.len() >= 10, "{expected:?}");
     assert_eq!(hashes(&by), expected);
@@ -536,11 +525,65 @@ fn a_second_run_into_a_busy_folder_fails_at_once_and_an_interrupted_stage_is_rec
 
 /// The fit's temporary folder (`.fit.tmp-PID`) in a run directory, if any.
 fn fit_temporary(run: &Path) -> Option<PathBuf> {
+    stage_temporary(run, "fit")
+}
+
+/// A stage's temporary folder (`.STAGE.tmp-PID`) in a run directory, if any.
+fn stage_temporary(run: &Path, stage: &str) -> Option<PathBuf> {
+    let prefix = format!(".{stage}.tmp-");
     std::fs::read_dir(run)
         .ok()?
         .flatten()
         .map(|e| e.path())
-        .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with(".fit.tmp-")))
+        .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with(&prefix)))
+}
+
+/// A pipeline's simulation killed with SIGKILL goes on from its last periodic checkpoint at the next
+/// run (not from step 0) and ends with the files of an uninterrupted run (wall times aside).
+#[test]
+fn a_pipeline_simulation_killed_with_sigkill_resumes_from_its_checkpoint_to_the_uninterrupted_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 30,000 steps (the demo's relaxation does not converge before: the coupling residual hovers),
+    // a checkpoint every 1,000.
+    let pipeline = demo_pipeline(tmp.path(), |t| {
+        t.split("[fit]")
+            .next()
+            .unwrap()
+            .replace("max_steps = 1000", "max_steps = 30000\ncheckpoint_every_steps = 1000\nsample_every_steps = 5000")
+    });
+    let p = pipeline.to_str().unwrap();
+    let reference = tmp.path().join("reference");
+    let o = tissuefit(&["run", p, "--out", reference.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    assert_eq!(read_json(&reference.join("simulate/summary.json"))["steps"], 30000);
+
+    let run = tmp.path().join("run");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(["run", p, "--out", run.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while !stage_temporary(&run, "simulate").is_some_and(|d| d.join("checkpoint.bin").is_file()) {
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before its first checkpoint");
+        assert!(started.elapsed().as_secs() < 300, "no checkpoint after 5 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(stage_status(&run, "simulate").as_deref(), Some("running"));
+
+    let o = tissuefit(&["run", p, "--out", run.to_str().unwrap()]);
+    let (stdout, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{stdout}{stderr}");
+    assert!(stdout.contains("simulate: resuming the interrupted run from its checkpoint at step "), "{stdout}");
+    assert!(stage_temporary(&run, "simulate").is_none(), "a temporary simulate folder is left");
+    assert_eq!(data_hashes(&run), data_hashes(&reference));
+    let manifest = read_json(&run.join("manifest.json"));
+    let simulate = manifest["stages"].as_array().unwrap().iter().find(|s| s["name"] == "simulate").unwrap();
+    let (ran, wall) = (simulate["ran_seconds"].as_f64().unwrap(), simulate["wall_seconds"].as_f64().unwrap());
+    assert!(ran > wall, "ran_seconds {ran} counts only the last session ({wall} s)");
 }
 
 /// Issue 23, item 7: a pipeline's fit lost every evaluation to kill -9. Now the next run goes on from

@@ -1,9 +1,9 @@
-//! One stage layer: `tissuefit mesh` / `tissuefit measure` with flags and `tissuefit run` with the
-//! same settings in a pipeline file write the same files (byte for byte, the wall-time fields
+//! One stage layer: `tissuefit mesh` / `tissuefit measure` with flags, `tissuefit simulate` with a
+//! model file, and `tissuefit run` with the same settings in a pipeline file write the same files (byte for byte, the wall-time fields
 //! `wall_seconds` and `threads` aside), because both call `tissuefit::stages`.
 
 use crate::support::cli::{repo, tissuefit};
-use crate::support::run_dirs::normalised_hash;
+use crate::support::run_dirs::{normalised_hash, stage_hashes};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -187,4 +187,47 @@ fn a_pipeline_meshes_nuclei_as_tissuefit_mesh_does_and_its_fit_refuses_them() {
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("input.nuclei"), "{stderr}");
     assert!(!tmp.path().join("fit").exists(), "nothing written for a refused pipeline");
+}
+
+/// `tissuefit simulate TISSUE --config MODEL --max-steps N` and the pipeline's `[simulate]` with the
+/// same model write the same files: the frames, `stats.csv`, `events.csv`, the final tissue, the run
+/// summary (wall times aside), `config.toml` and the final tissue measured (`cells.csv`,
+/// `contacts.csv`, `morphology.json`).
+#[test]
+fn simulate_writes_the_same_files_from_the_cli_and_from_a_pipeline() {
+    let tmp = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let model = repo().join("data/demo/doublet_truth.toml");
+    let pipeline = tmp.path().join("p.toml");
+    std::fs::write(
+        &pipeline,
+        format!(
+            "[input]\nlabels = {labels:?}\n\n[mesh]\ntarget_nodes = 120\n\n[simulate]\nmodel = {model:?}\n\
+             [simulate.model_overrides.simulation]\nmax_steps = 300\n",
+            labels = labels.display().to_string(),
+            model = model.display().to_string()
+        ),
+    )
+    .unwrap();
+    let run = tmp.path().join("run");
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
+
+    // The same model file with the same overrides given as flags; the tissue named as the run names
+    // it (relative to its simulate folder), so that summary.json's `input` agrees too.
+    let cli = tmp.path().join("cli");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .current_dir(run.join("simulate"))
+        .args(["simulate", "../mesh/tissue.vtp", "--config", model.to_str().unwrap()])
+        .args(["--max-steps", "300", "--out", cli.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
+    let (a, b) = (stage_hashes(&run, &["simulate"]), stage_hashes(tmp.path(), &["cli"]));
+    let b: BTreeMap<String, String> = b.into_iter().map(|(k, v)| (k.replacen("cli/", "simulate/", 1), v)).collect();
+    assert_eq!(a, b, "the pipeline's simulate files differ from `tissuefit simulate`'s");
+    for file in ["summary.json", "morphology.json", "cells.csv", "contacts.csv", "stats.csv", "frames.pvd"] {
+        assert!(a.contains_key(&format!("simulate/{file}")), "{file} missing: {a:?}");
+    }
+    assert!(a.keys().any(|k| k.starts_with("simulate/frames/frame_")), "{a:?}");
 }

@@ -5,7 +5,7 @@
 //! time run (growth and divisions) in the simulate stage, measured at its end.
 
 use crate::support::cli::{repo, tissuefit};
-use crate::support::run_dirs::normalised_hash;
+use crate::support::run_dirs::stage_hashes;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 use tissuefit::io::{ReadOptions, read_tissue, write_simucell3d};
@@ -42,19 +42,10 @@ fn csv_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
     (header, rows)
 }
 
-/// The data files of a run directory's stages (every file but the manifest's timings), name → bytes.
-/// Every data file of a run folder's stages, hashed with the wall-time fields taken out (byte for
-/// byte otherwise, see [`normalised_hash`]).
+/// Every data file of a run folder's stages (frames included), hashed with the wall-time fields taken
+/// out (byte for byte otherwise, see [`normalised_hash`]).
 fn data_files(run: &Path) -> Vec<(String, String)> {
-    let mut out = Vec::new();
-    for stage in ["mesh", "measure", "simulate"] {
-        let mut names: Vec<_> = std::fs::read_dir(run.join(stage)).unwrap().map(|e| e.unwrap().path()).collect();
-        names.sort();
-        for p in names {
-            out.push((format!("{stage}/{}", p.file_name().unwrap().to_string_lossy()), normalised_hash(&p)));
-        }
-    }
-    out
+    stage_hashes(run, &["mesh", "measure", "simulate"]).into_iter().collect()
 }
 
 #[test]
@@ -92,8 +83,9 @@ fn a_two_by_two_grid_runs_lists_reproduces_skips_and_collects() {
     assert!(resolved.contains("target_nodes = 200"), "{resolved}");
     let (header, rows) = csv_rows(&out.join("results.csv"));
     assert_eq!(&header[..4], ["index", "run", "mesh.target_nodes", LATERAL]);
-    assert!(header.contains(&"simulate/summary.json:mean_sphericity".to_string()), "{header:?}");
-    assert!(header.contains(&"simulate/summary.json:layers".to_string()), "{header:?}");
+    assert!(header.contains(&"simulate/morphology.json:mean_sphericity".to_string()), "{header:?}");
+    assert!(header.contains(&"simulate/morphology.json:layers".to_string()), "{header:?}");
+    assert!(header.contains(&"simulate/summary.json:steps".to_string()), "{header:?}");
     assert_eq!(&header[header.len() - 3..], ["status", "reason", "wall_seconds"]);
     assert_eq!(rows.len(), 4);
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
@@ -101,17 +93,19 @@ fn a_two_by_two_grid_runs_lists_reproduces_skips_and_collects() {
         assert_eq!(row[0], i.to_string());
         assert_eq!(row[col("status")], "complete", "{row:?}");
         // The table's values are the run's own outputs.
+        let morphology = read_json(&out.join(format!("run-{i:04}/simulate/morphology.json")));
+        let psi: f64 = row[col("simulate/morphology.json:mean_sphericity")].parse().unwrap();
+        assert_eq!(psi, morphology["mean_sphericity"].as_f64().unwrap());
+        assert_eq!(row[col("simulate/morphology.json:cells")], "2");
         let summary = read_json(&out.join(format!("run-{i:04}/simulate/summary.json")));
-        let psi: f64 = row[col("simulate/summary.json:mean_sphericity")].parse().unwrap();
-        assert_eq!(psi, summary["mean_sphericity"].as_f64().unwrap());
-        assert_eq!(row[col("simulate/summary.json:cells")], "2");
+        assert_eq!(row[col("simulate/summary.json:steps")], summary["steps"].to_string());
     }
     assert_eq!(rows[2][2], "200");
     assert_eq!(rows[2][3], "0.0003");
     // A higher lateral tension makes rounder cells (smaller contact): the sweep resolves the parameter.
-    let psi = |r: &Vec<String>| r[col("simulate/summary.json:mean_sphericity")].parse::<f64>().unwrap();
+    let psi = |r: &Vec<String>| r[col("simulate/morphology.json:mean_sphericity")].parse::<f64>().unwrap();
     assert!(psi(&rows[1]) > psi(&rows[0]) && psi(&rows[3]) > psi(&rows[2]), "{rows:?}");
-    let plot = out.join("plots/simulate_summary_json_mean_sphericity.png");
+    let plot = out.join("plots/simulate_morphology_json_mean_sphericity.png");
     assert!(std::fs::metadata(&plot).unwrap().len() > 1000);
 
     // --index 2 alone (one thread) into another directory: byte-identical data outputs.
@@ -296,8 +290,9 @@ fn a_sweep_over_a_mesh_input_runs_growth_and_measures_the_final_tissue() {
     assert_eq!(o.status.code(), Some(0), "{stdout}\n{stderr}");
     let (header, rows) = csv_rows(&out.join("results.csv"));
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    assert_eq!(rows[0][col("simulate/summary.json:cells")], "1");
-    assert_eq!(rows[1][col("simulate/summary.json:cells")], "4");
+    assert_eq!(rows[0][col("simulate/morphology.json:cells")], "1");
+    assert_eq!(rows[1][col("simulate/morphology.json:cells")], "4");
+    assert_eq!(rows[1][col("simulate/summary.json:steps")], "300");
 
     let run = out.join("run-0001");
     // The mesh stage copied the input into mesh/tissue.vtp; the manifest hashes the input.
@@ -312,7 +307,7 @@ fn a_sweep_over_a_mesh_input_runs_growth_and_measures_the_final_tissue() {
     assert!((volume - original.signed_volume()).abs() < 1e-6 * original.signed_volume(), "{volume:e}");
     assert_eq!(read_json(&run.join("mesh/report.json"))["cells"], 1);
     // The time run: three divisions, the final tissue written and measured like the measure stage.
-    let sim = read_json(&run.join("simulate/simulation.json"));
+    let sim = read_json(&run.join("simulate/summary.json"));
     assert_eq!(
         (sim["mode"].as_str(), sim["divisions"].as_u64(), sim["final_cells"].as_u64()),
         (Some("time"), Some(3), Some(4))
@@ -320,7 +315,7 @@ fn a_sweep_over_a_mesh_input_runs_growth_and_measures_the_final_tissue() {
     let last = read_tissue(&run.join("simulate/final.vtp"), &ReadOptions::default()).unwrap().tissue;
     assert_eq!(last.len(), 4);
     assert_eq!(std::fs::read_to_string(run.join("simulate/events.csv")).unwrap().lines().count(), 4);
-    let summary = read_json(&run.join("simulate/summary.json"));
+    let summary = read_json(&run.join("simulate/morphology.json"));
     let measured = read_json(&run.join("measure/summary.json"));
     // The measure stage's summary also says what it measured and how long it took.
     let keys = |v: &serde_json::Value| {

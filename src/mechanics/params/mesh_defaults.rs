@@ -104,7 +104,7 @@ pub struct DerivedValue {
     pub from: String,
 }
 
-/// What [`Parameters::fit_to_mesh`] did: written into summary.json / simulation.json
+/// What [`Parameters::fit_to_mesh`] did: written into the simulate stage's summary.json
 /// (`mesh_defaults`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MeshFit {

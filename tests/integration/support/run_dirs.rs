@@ -13,13 +13,15 @@ pub fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-/// Removes the wall-time fields (`wall_seconds`, `session_wall_seconds`, `threads`) at every depth.
+/// Removes the wall-time fields (`wall_seconds`, `session_wall_seconds`, `threads`,
+/// `seconds_per_node_step`) at every depth.
 pub fn strip_wall_times(v: &mut serde_json::Value) {
     match v {
         serde_json::Value::Object(map) => {
             map.remove("wall_seconds");
             map.remove("session_wall_seconds");
             map.remove("threads");
+            map.remove("seconds_per_node_step");
             map.values_mut().for_each(strip_wall_times);
         }
         serde_json::Value::Array(items) => items.iter_mut().for_each(strip_wall_times),
@@ -27,8 +29,7 @@ pub fn strip_wall_times(v: &mut serde_json::Value) {
     }
 }
 
-/// blake3 of a data file with its wall times taken out (JSON keys `wall_seconds`,
-/// `session_wall_seconds` and `threads`, CSV columns `wall_seconds` and `elapsed_seconds`); everything
+/// blake3 of a data file with its wall times taken out (JSON keys of [`strip_wall_times`], CSV columns `wall_seconds` and `elapsed_seconds`); everything
 /// else byte for byte.
 pub fn normalised_hash(path: &Path) -> String {
     let name = path.file_name().unwrap().to_string_lossy().into_owned();
@@ -56,15 +57,26 @@ pub fn normalised_hash(path: &Path) -> String {
 }
 
 /// [`normalised_hash`] of every file of the stage folders (`mesh`, `measure`, `simulate`, `fit`, those
-/// present) of a run directory, as `stage/file`.
+/// present) of a run directory, as `stage/file` (`simulate/frames/frame_000000.vtp`).
 pub fn data_hashes(run: &Path) -> BTreeMap<String, String> {
+    stage_hashes(run, &["mesh", "measure", "simulate", "fit"])
+}
+
+/// [`normalised_hash`] of every file under the folders `stages` of `run` (subfolders included), as
+/// paths relative to `run` with `/`.
+pub fn stage_hashes(run: &Path, stages: &[&str]) -> BTreeMap<String, String> {
     let mut out = BTreeMap::new();
-    for stage in ["mesh", "measure", "simulate", "fit"] {
-        let Ok(entries) = std::fs::read_dir(run.join(stage)) else { continue };
+    let mut stack: Vec<String> = stages.iter().map(|s| s.to_string()).collect();
+    while let Some(rel) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(run.join(&rel)) else { continue };
         for entry in entries {
-            let path = entry.unwrap().path();
-            let name = path.file_name().unwrap().to_string_lossy().into_owned();
-            out.insert(format!("{stage}/{name}"), normalised_hash(&path));
+            let entry = entry.unwrap();
+            let name = format!("{rel}/{}", entry.file_name().to_string_lossy());
+            if entry.file_type().unwrap().is_dir() {
+                stack.push(name);
+            } else {
+                out.insert(name, normalised_hash(&entry.path()));
+            }
         }
     }
     out
