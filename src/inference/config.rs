@@ -207,6 +207,32 @@ pub struct ObjectiveConfig {
     pub failure_penalty: Real,
 }
 
+impl ObjectiveConfig {
+    /// The weight of metric `m`.
+    pub fn weight(&self, m: super::forward::Metric) -> Real {
+        use super::forward::Metric;
+        match m {
+            Metric::Sphericity => self.sphericity,
+            Metric::ContactFraction => self.contact_fraction,
+            Metric::Coordination => self.coordination,
+            Metric::ContactAngle => self.contact_angle,
+            Metric::Shape => self.shape,
+        }
+    }
+
+    /// The scale of metric `m`'s differences.
+    pub fn scale(&self, m: super::forward::Metric) -> Real {
+        use super::forward::Metric;
+        match m {
+            Metric::Sphericity => self.sphericity_scale,
+            Metric::ContactFraction => self.contact_fraction_scale,
+            Metric::Coordination => self.coordination_scale,
+            Metric::ContactAngle => self.contact_angle_scale,
+            Metric::Shape => self.shape_scale,
+        }
+    }
+}
+
 fn one() -> Real {
     1.0
 }
@@ -493,12 +519,12 @@ impl FitConfig {
         }
         let mut fitted = 0;
         for (name, p) in &self.parameters {
-            if !super::PARAMETER_NAMES.contains(&name.as_str()) {
+            let Some(parameter) = super::FitParameter::from_name(name) else {
                 return Err(format!(
                     "parameters.{name}: unknown parameter; one of {}",
                     super::PARAMETER_NAMES.join(", ")
                 ));
-            }
+            };
             match (p.bounds, p.value) {
                 (Some(_), Some(_)) => return Err(format!("parameters.{name}: give `bounds` or `value`, not both")),
                 (None, None) => return Err(format!("parameters.{name}: give `bounds` (to fit) or `value` (fixed)")),
@@ -506,7 +532,7 @@ impl FitConfig {
                     if !(lo > 0.0 && hi > lo && hi.is_finite()) {
                         return Err(format!("parameters.{name}.bounds: need 0 < lo < hi, finite; got [{lo}, {hi}]"));
                     }
-                    if name.starts_with("surface_tension")
+                    if parameter.is_tension()
                         && let Some(bad) = [lo, hi]
                             .iter()
                             .find_map(|&g| crate::io::implausible_tension(&format!("parameters.{name}.bounds"), g))
@@ -524,7 +550,7 @@ impl FitConfig {
                     if !(v.is_finite() && v >= 0.0) {
                         return Err(format!("parameters.{name}.value: need a finite value ≥ 0; got {v}"));
                     }
-                    if name.starts_with("surface_tension")
+                    if parameter.is_tension()
                         && let Some(bad) = crate::io::implausible_tension(&format!("parameters.{name}.value"), v)
                     {
                         return Err(bad);
@@ -539,30 +565,20 @@ impl FitConfig {
             return Err("parameters: every parameter is fixed; give `bounds` to at least one".into());
         }
         let o = &self.objective;
-        for (key, v) in [
-            ("sphericity", o.sphericity),
-            ("contact_fraction", o.contact_fraction),
-            ("coordination", o.coordination),
-            ("contact_angle", o.contact_angle),
-            ("shape", o.shape),
-        ] {
+        use super::forward::Metric;
+        for m in Metric::ALL {
+            let (key, v) = (m.name(), o.weight(m));
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("objective.{key}: a weight must be finite and ≥ 0; got {v}"));
             }
         }
-        for (key, v) in [
-            ("sphericity_scale", o.sphericity_scale),
-            ("contact_fraction_scale", o.contact_fraction_scale),
-            ("coordination_scale", o.coordination_scale),
-            ("contact_angle_scale", o.contact_angle_scale),
-            ("shape_scale", o.shape_scale),
-            ("failure_penalty", o.failure_penalty),
-        ] {
+        let scales = Metric::ALL.map(|m| (format!("{}_scale", m.name()), o.scale(m)));
+        for (key, v) in scales.into_iter().chain([("failure_penalty".to_string(), o.failure_penalty)]) {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("objective.{key}: must be finite and > 0; got {v}"));
             }
         }
-        if o.sphericity + o.contact_fraction + o.coordination + o.contact_angle + o.shape <= 0.0 {
+        if Metric::ALL.iter().map(|&m| o.weight(m)).sum::<Real>() <= 0.0 {
             return Err("objective: every weight is 0".into());
         }
         if o.shape > 0.0 && self.observed.as_ref().is_some_and(|obs| obs.labels.is_none()) {

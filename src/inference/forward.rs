@@ -80,16 +80,68 @@ pub struct Metrics {
     pub shape: Option<Real>,
 }
 
-impl Metrics {
-    /// Names of the metric columns, in [`Metrics::values`] order.
-    pub const NAMES: [&'static str; 5] = ["sphericity", "contact_fraction", "coordination", "contact_angle", "shape"];
+/// One metric of [`Metrics`]; its name is the field's, the trace column's and the objective weight's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Metric {
+    Sphericity,
+    ContactFraction,
+    Coordination,
+    ContactAngle,
+    Shape,
+}
 
-    pub fn values(&self) -> [Option<Real>; 5] {
-        [self.sphericity, self.contact_fraction, self.coordination, self.contact_angle, self.shape]
+impl Metric {
+    /// Every metric, in field (and trace column) order.
+    pub const ALL: [Metric; 5] =
+        [Metric::Sphericity, Metric::ContactFraction, Metric::Coordination, Metric::ContactAngle, Metric::Shape];
+    /// The tissue summaries the objective averages with their weights; the shape term is added apart.
+    pub const SUMMARY: [Metric; 4] =
+        [Metric::Sphericity, Metric::ContactFraction, Metric::Coordination, Metric::ContactAngle];
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            Metric::Sphericity => "sphericity",
+            Metric::ContactFraction => "contact_fraction",
+            Metric::Coordination => "coordination",
+            Metric::ContactAngle => "contact_angle",
+            Metric::Shape => "shape",
+        }
+    }
+}
+
+impl Metrics {
+    /// Names of the metric columns, in [`Metric::ALL`] order.
+    pub const NAMES: [&'static str; 5] = [
+        Metric::Sphericity.name(),
+        Metric::ContactFraction.name(),
+        Metric::Coordination.name(),
+        Metric::ContactAngle.name(),
+        Metric::Shape.name(),
+    ];
+
+    pub fn get(&self, m: Metric) -> Option<Real> {
+        match m {
+            Metric::Sphericity => self.sphericity,
+            Metric::ContactFraction => self.contact_fraction,
+            Metric::Coordination => self.coordination,
+            Metric::ContactAngle => self.contact_angle,
+            Metric::Shape => self.shape,
+        }
     }
 
-    pub fn from_values(v: [Option<Real>; 5]) -> Self {
-        Self { sphericity: v[0], contact_fraction: v[1], coordination: v[2], contact_angle: v[3], shape: v[4] }
+    pub fn get_mut(&mut self, m: Metric) -> &mut Option<Real> {
+        match m {
+            Metric::Sphericity => &mut self.sphericity,
+            Metric::ContactFraction => &mut self.contact_fraction,
+            Metric::Coordination => &mut self.coordination,
+            Metric::ContactAngle => &mut self.contact_angle,
+            Metric::Shape => &mut self.shape,
+        }
+    }
+
+    /// The values in [`Metric::ALL`] order.
+    pub fn values(&self) -> [Option<Real>; 5] {
+        Metric::ALL.map(|m| self.get(m))
     }
 
     /// The summary metrics of a tissue (not the shape term), faces within `contact_distance` δ (m) of
@@ -299,19 +351,15 @@ impl ForwardModel {
     /// Scores simulated metrics against the observed ones (see the module doc).
     pub fn score(&self, sim: &Metrics) -> Real {
         let o = &self.objective;
-        let obs = self.observation.metrics.values();
-        let sim_v = sim.values();
-        let weights = [o.sphericity, o.contact_fraction, o.coordination, o.contact_angle];
-        let scales = [o.sphericity_scale, o.contact_fraction_scale, o.coordination_scale, o.contact_angle_scale];
         let (mut sum, mut wsum) = (0.0, 0.0);
-        for i in 0..4 {
-            let w = weights[i];
-            let Some(ov) = obs[i] else { continue };
+        for m in Metric::SUMMARY {
+            let w = o.weight(m);
+            let Some(ov) = self.observation.metrics.get(m) else { continue };
             if w == 0.0 {
                 continue;
             }
-            let misfit = match sim_v[i] {
-                Some(sv) => (sv - ov) / scales[i],
+            let misfit = match sim.get(m) {
+                Some(sv) => (sv - ov) / o.scale(m),
                 None => MISSING_METRIC_MISFIT,
             };
             sum += w * misfit * misfit;
@@ -595,12 +643,12 @@ pub fn shift_offset(k: usize) -> [Real; 3] {
 
 /// Mean of each metric over measurements (a metric missing from any of them is missing).
 fn average_metrics(all: &[Metrics]) -> Metrics {
-    let mut out = [None; 5];
-    for (i, slot) in out.iter_mut().enumerate() {
-        let values: Option<Vec<Real>> = all.iter().map(|m| m.values()[i]).collect();
-        *slot = values.filter(|v| !v.is_empty()).map(|v| v.iter().sum::<Real>() / v.len() as Real);
+    let mut out = Metrics::default();
+    for m in Metric::ALL {
+        let values: Option<Vec<Real>> = all.iter().map(|x| x.get(m)).collect();
+        *out.get_mut(m) = values.filter(|v| !v.is_empty()).map(|v| v.iter().sum::<Real>() / v.len() as Real);
     }
-    Metrics::from_values(out)
+    out
 }
 
 #[cfg(test)]
@@ -631,6 +679,31 @@ mod tests {
             p.faces.get_mut(t).surface_tension = 1e-3;
         }
         p
+    }
+
+    #[test]
+    fn every_metric_reads_its_own_field_weight_and_scale() {
+        assert_eq!(Metrics::NAMES, Metric::ALL.map(Metric::name));
+        // Distinct values per metric, keyed by the metric's name as the config spells it.
+        let mut text = String::new();
+        for (i, m) in Metric::ALL.into_iter().enumerate() {
+            text += &format!("{} = {}\n{}_scale = {}\n", m.name(), i + 1, m.name(), 10 * (i + 1));
+        }
+        let o: super::super::config::ObjectiveConfig = toml::from_str(&text).unwrap();
+        let metrics = Metrics {
+            sphericity: Some(1.0),
+            contact_fraction: Some(2.0),
+            coordination: Some(3.0),
+            contact_angle: Some(4.0),
+            shape: Some(5.0),
+        };
+        let json = serde_json::to_value(metrics).unwrap();
+        for (i, m) in Metric::ALL.into_iter().enumerate() {
+            assert_eq!(o.weight(m), (i + 1) as Real, "{}", m.name());
+            assert_eq!(o.scale(m), (10 * (i + 1)) as Real, "{}", m.name());
+            assert_eq!(metrics.get(m), Some((i + 1) as Real), "{}", m.name());
+            assert_eq!(json[m.name()].as_f64(), metrics.get(m), "{}", m.name());
+        }
     }
 
     #[test]

@@ -29,13 +29,15 @@ pub use config::{
     FitConfig, ForwardConfig, MeshingConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod,
     ParameterConfig, ProfileConfig,
 };
-pub use forward::{Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metrics, Observation, Status, shift_offset};
+pub use forward::{
+    Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metric, Metrics, Observation, Status, shift_offset,
+};
 pub use optimise::{BOUND_PENALTY, BudgetSpent, Evaluator, OptimiserOutcome, optimise};
 pub use plot::{plot_landscape, plot_objective};
 pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};
 pub use result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
 pub use run::{FitOptions, load_observation, run_fit, run_fit_observed};
-pub use space::{FittedParameter, PARAMETER_NAMES, ParameterSpace};
+pub use space::{FitParameter, FittedParameter, PARAMETER_NAMES, ParameterSpace};
 pub use trace::{read_trace, recorded_elapsed_seconds, write_trace};
 
 /// Why a fit could not run (a failed evaluation is not an error: it is penalised and recorded).

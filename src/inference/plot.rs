@@ -123,7 +123,7 @@ pub fn plot_landscape(path: &Path, space: &ParameterSpace, trace: &[Evaluation])
             let p1 = &space.fitted[1];
             let [a1, b1] = p1.log_bounds();
             (
-                format!("log10 {} (SI)", p1.name),
+                format!("log10 {} (SI)", p1.name()),
                 padded(a1 / ln10, b1 / ln10),
                 trace.iter().map(|e| e.x[1] / ln10).collect(),
             )
@@ -142,7 +142,7 @@ pub fn plot_landscape(path: &Path, space: &ParameterSpace, trace: &[Evaluation])
             .map_err(|e| err(path, e))?;
         chart
             .configure_mesh()
-            .x_desc(format!("log10 {} (SI)", p0.name))
+            .x_desc(format!("log10 {} (SI)", p0.name()))
             .y_desc(ylab)
             .draw()
             .map_err(|e| err(path, e))?;

@@ -166,7 +166,7 @@ pub fn profile(
     if config.points == 0 {
         return (Vec::new(), NoiseFloor::estimate(best_objective, &[], config));
     }
-    let fitted: Vec<String> = space.fitted.iter().map(|p| p.name.clone()).collect();
+    let fitted: Vec<String> = space.fitted.iter().map(|p| p.name().to_string()).collect();
     let mut dirs: Vec<Direction> = (0..n)
         .map(|i| {
             let mut d = vec![0.0; n];
@@ -178,7 +178,7 @@ pub fn profile(
         dirs.push(Direction { name: "scale".into(), direction: vec![1.0; n] });
     }
     let mut all: Vec<String> = fitted.clone();
-    all.extend(space.fixed.iter().map(|(k, _)| k.clone()));
+    all.extend(space.fixed.iter().map(|(k, _)| k.name().to_string()));
     for (name, num, den) in ratio_parts(&all) {
         let Some(d) = ratio_direction(&fitted, num, den) else { continue };
         // With a single fitted parameter the ratio's direction is that parameter's slice.

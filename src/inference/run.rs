@@ -5,7 +5,7 @@ use super::forward::{Evaluation, ForwardModel, Observation, Status};
 use super::optimise::{Evaluator, optimise};
 use super::profile::{NoiseFloor, Slice, profile, ratio_direction, ratio_parts};
 use super::result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
-use super::space::ParameterSpace;
+use super::space::{FitParameter, ParameterSpace};
 use super::trace::{read_trace, write_trace};
 use super::{InferenceError, plot};
 use crate::geometry::Real;
@@ -279,7 +279,7 @@ fn check_fitted_parameters_act(model: &ForwardModel) -> Result<(), InferenceErro
         .filter(|c| c.kind().is_cell() && !c.kind().is_immobile())
         .filter(|c| base.cell_type(c.cell_type()).is_some_and(|t| t.kind == CellKind::Epithelial))
         .collect();
-    let fitted: Vec<&str> = model.space.fitted.iter().map(|p| p.name.as_str()).collect();
+    let fitted: Vec<&str> = model.space.fitted.iter().map(|p| p.name()).collect();
     if moving.is_empty() {
         return Err(InferenceError::Config(format!(
             "parameters: {} cannot change the model: a fit writes them into the model's epithelial cell types \
@@ -288,13 +288,6 @@ fn check_fitted_parameters_act(model: &ForwardModel) -> Result<(), InferenceErro
             fitted.join(", ")
         )));
     }
-    let named =
-        |n: &str| model.space.fitted.iter().any(|p| p.name == n) || model.space.fixed.iter().any(|(f, _)| f == n);
-    let per_type = [
-        ("surface_tension_apical", FaceType::Apical),
-        ("surface_tension_lateral", FaceType::Lateral),
-        ("surface_tension_basal", FaceType::Basal),
-    ];
     let several_cells = tissue.cells().iter().filter(|c| c.kind().is_cell()).count() > 1;
     // Which face types can exist on the moving epithelial cells during a relaxation, and why not.
     let possible = |ft: FaceType| -> Result<(), String> {
@@ -326,10 +319,14 @@ fn check_fitted_parameters_act(model: &ForwardModel) -> Result<(), InferenceErro
         }
     };
     for p in &model.space.fitted {
-        let why = match p.name.as_str() {
-            "surface_tension" => {
-                // It sets the face types that no per-type name overrides.
-                let open: Vec<FaceType> = per_type.iter().filter(|(n, _)| !named(n)).map(|(_, ft)| *ft).collect();
+        let why = match p.parameter {
+            FitParameter::SurfaceTension => {
+                // It sets the face types that no per-type parameter overrides.
+                let open: Vec<FaceType> = FitParameter::ALL
+                    .into_iter()
+                    .filter(|&q| !model.space.names(q))
+                    .filter_map(FitParameter::face_type)
+                    .collect();
                 if open.is_empty() {
                     Some(
                         "surface_tension_apical, _lateral and _basal are all given, and they override it on every face"
@@ -342,15 +339,15 @@ fn check_fitted_parameters_act(model: &ForwardModel) -> Result<(), InferenceErro
                     None
                 }
             }
-            "adhesion" if tissue.cells().len() < 2 => {
+            FitParameter::Adhesion if tissue.cells().len() < 2 => {
                 Some("adhesion acts between cells, and the observed tissue has one cell".to_string())
             }
-            name => per_type.iter().find(|(n, _)| *n == name).and_then(|(_, ft)| possible(*ft).err()),
+            q => q.face_type().and_then(|ft| possible(ft).err()),
         };
         if let Some(why) = why {
             return Err(InferenceError::Config(format!(
                 "parameters.{}: fitting it cannot change the model, so the data cannot determine it: {why}",
-                p.name
+                p.name()
             )));
         }
     }
@@ -379,7 +376,9 @@ fn assemble(
         .iter()
         .find(|t| t.kind == CellKind::Epithelial)
         .map_or(model.base.cell_types[0].bulk_modulus, |t| t.bulk_modulus);
-    let dimensionless = |name: &str, v: Real| if name == "adhesion" { v * l / k } else { v / (k * l) };
+    // (`values` holds the space's own names, so every name is a parameter's.)
+    let dimensionless =
+        |name: &str, v: Real| FitParameter::from_name(name).map_or(Real::NAN, |p| p.dimensionless(v, l, k));
     let slice = |name: &str| slices.iter().find(|s| s.name == name);
     let scale_open = space.dim() > 1 && slice("scale").is_some_and(|s| !s.determined());
     let mut parameters = BTreeMap::new();
@@ -399,7 +398,7 @@ fn assemble(
     let given = if space.fixed.is_empty() {
         String::new()
     } else {
-        let fixed: Vec<&str> = space.fixed.iter().map(|(n, _)| n.as_str()).collect();
+        let fixed: Vec<&str> = space.fixed.iter().map(|(n, _)| n.name()).collect();
         format!(" given the fixed {}", fixed.join(", "))
     };
     let all_names: Vec<String> = values.keys().cloned().collect();
@@ -411,14 +410,14 @@ fn assemble(
         directions.push((s, vec![1.0; space.dim()]));
     }
     for (rname, num, den) in ratio_parts(&all_names) {
-        let fitted: Vec<&str> = space.fitted.iter().map(|p| p.name.as_str()).collect();
+        let fitted: Vec<&str> = space.fitted.iter().map(|p| p.name()).collect();
         let Some(d) = ratio_direction(&fitted, num, den) else { continue };
         if let Some(s) = slice(rname) {
             directions.push((s, d));
         }
     }
     for (name, &v) in &values {
-        let fitted = space.fitted.iter().position(|p| &p.name == name);
+        let fitted = space.fitted.iter().position(|p| p.name() == name);
         let mut at_bound = None;
         let mut widened_by = Vec::new();
         let (range, determined, bounds) = match fitted.map(|k| (k, &space.fitted[k])) {
@@ -519,7 +518,7 @@ fn assemble(
                 space
                     .fitted
                     .iter()
-                    .find(|p| p.name == n)
+                    .find(|p| p.name() == n)
                     .map_or(values[n], |p| if lo { p.bounds[0] } else { p.bounds[1] })
             };
             b(num, lo) / b(den, !lo)

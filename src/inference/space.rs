@@ -8,14 +8,76 @@ use crate::mechanics::Parameters;
 use crate::mesh::{CellKind, FaceType};
 use std::collections::BTreeMap;
 
-/// Names of the parameters a fit can set (applied to every epithelial cell type).
-pub const PARAMETER_NAMES: [&str; 5] =
-    ["surface_tension", "surface_tension_apical", "surface_tension_lateral", "surface_tension_basal", "adhesion"];
+/// A model parameter a fit can set (in every epithelial cell type).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FitParameter {
+    /// γ of every face type (a per-face-type parameter given too overrides its type).
+    SurfaceTension,
+    SurfaceTensionApical,
+    SurfaceTensionLateral,
+    SurfaceTensionBasal,
+    /// ω of every face type.
+    Adhesion,
+}
 
-/// One fitted parameter: its name and log-space bounds.
+impl FitParameter {
+    pub const ALL: [FitParameter; 5] = [
+        FitParameter::SurfaceTension,
+        FitParameter::SurfaceTensionApical,
+        FitParameter::SurfaceTensionLateral,
+        FitParameter::SurfaceTensionBasal,
+        FitParameter::Adhesion,
+    ];
+
+    /// The name in fit configs, trace columns and `result.json`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            FitParameter::SurfaceTension => "surface_tension",
+            FitParameter::SurfaceTensionApical => "surface_tension_apical",
+            FitParameter::SurfaceTensionLateral => "surface_tension_lateral",
+            FitParameter::SurfaceTensionBasal => "surface_tension_basal",
+            FitParameter::Adhesion => "adhesion",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// The one face type a per-face-type tension sets.
+    pub const fn face_type(self) -> Option<FaceType> {
+        match self {
+            FitParameter::SurfaceTensionApical => Some(FaceType::Apical),
+            FitParameter::SurfaceTensionLateral => Some(FaceType::Lateral),
+            FitParameter::SurfaceTensionBasal => Some(FaceType::Basal),
+            FitParameter::SurfaceTension | FitParameter::Adhesion => None,
+        }
+    }
+
+    /// A surface tension (N/m), as opposed to the adhesion strength (Pa/m).
+    pub const fn is_tension(self) -> bool {
+        !matches!(self, FitParameter::Adhesion)
+    }
+
+    /// The value made dimensionless with the bulk modulus K and the length scale l: γ/(K·l), ω·l/K.
+    pub fn dimensionless(self, v: Real, l: Real, k: Real) -> Real {
+        if self.is_tension() { v / (k * l) } else { v * l / k }
+    }
+}
+
+/// Names of the parameters a fit can set, in [`FitParameter::ALL`] order.
+pub const PARAMETER_NAMES: [&str; 5] = [
+    FitParameter::SurfaceTension.name(),
+    FitParameter::SurfaceTensionApical.name(),
+    FitParameter::SurfaceTensionLateral.name(),
+    FitParameter::SurfaceTensionBasal.name(),
+    FitParameter::Adhesion.name(),
+];
+
+/// One fitted parameter: which, and its log-space bounds.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FittedParameter {
-    pub name: String,
+    pub parameter: FitParameter,
     /// SI bounds `[lo, hi]`.
     pub bounds: [Real; 2],
     /// Start of the search (SI).
@@ -23,6 +85,10 @@ pub struct FittedParameter {
 }
 
 impl FittedParameter {
+    pub fn name(&self) -> &'static str {
+        self.parameter.name()
+    }
+
     /// `[ln lo, ln hi]`.
     pub fn log_bounds(&self) -> [Real; 2] {
         [self.bounds[0].ln(), self.bounds[1].ln()]
@@ -33,7 +99,7 @@ impl FittedParameter {
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParameterSpace {
     pub fitted: Vec<FittedParameter>,
-    pub fixed: Vec<(String, Real)>,
+    pub fixed: Vec<(FitParameter, Real)>,
 }
 
 impl ParameterSpace {
@@ -42,12 +108,18 @@ impl ParameterSpace {
         let mut fitted = Vec::new();
         let mut fixed = Vec::new();
         for (name, p) in parameters {
+            let parameter = FitParameter::from_name(name).ok_or_else(|| {
+                InferenceError::Config(format!(
+                    "parameters.{name}: unknown parameter; one of {}",
+                    PARAMETER_NAMES.join(", ")
+                ))
+            })?;
             match (p.bounds, p.value) {
                 (Some(bounds), None) => {
                     let initial = p.initial.unwrap_or_else(|| (bounds[0] * bounds[1]).sqrt());
-                    fitted.push(FittedParameter { name: name.clone(), bounds, initial });
+                    fitted.push(FittedParameter { parameter, bounds, initial });
                 }
-                (None, Some(v)) => fixed.push((name.clone(), v)),
+                (None, Some(v)) => fixed.push((parameter, v)),
                 _ => return Err(InferenceError::Config(format!("parameters.{name}: give `bounds` or `value`"))),
             }
         }
@@ -95,39 +167,84 @@ impl ParameterSpace {
 
     /// Every parameter's SI value at a log point: fixed ones and fitted ones, by name.
     pub fn values(&self, x: &[Real]) -> BTreeMap<String, Real> {
-        let mut all: BTreeMap<String, Real> = self.fixed.iter().cloned().collect();
-        for (p, v) in self.fitted.iter().zip(x) {
-            all.insert(p.name.clone(), v.exp());
-        }
-        all
+        self.parameter_values(x).into_iter().map(|(p, v)| (p.name().to_string(), v)).collect()
+    }
+
+    /// Every parameter with its SI value at a log point: the fixed ones, then the fitted ones.
+    pub fn parameter_values(&self, x: &[Real]) -> Vec<(FitParameter, Real)> {
+        let fitted = self.fitted.iter().zip(x).map(|(p, v)| (p.parameter, v.exp()));
+        self.fixed.iter().copied().chain(fitted).collect()
+    }
+
+    /// Whether the space names `p`, fitted or fixed.
+    pub fn names(&self, p: FitParameter) -> bool {
+        self.fitted.iter().any(|f| f.parameter == p) || self.fixed.iter().any(|(f, _)| *f == p)
     }
 
     /// The model with the parameters of log point `x` written into every epithelial cell type.
     /// `surface_tension` sets every face type first; a per-face-type name then overrides its type.
     pub fn apply(&self, base: &Parameters, x: &[Real]) -> Parameters {
-        let values = self.values(x);
+        let mut values = self.parameter_values(x);
+        // `surface_tension` first: a per-face-type tension overrides it on its type.
+        values.sort_by_key(|(p, _)| *p != FitParameter::SurfaceTension);
         let mut params = base.clone();
         for cell_type in params.cell_types.iter_mut().filter(|t| t.kind == CellKind::Epithelial) {
-            if let Some(&g) = values.get("surface_tension") {
-                for ft in FaceType::ALL {
-                    cell_type.faces.get_mut(ft).surface_tension = g;
-                }
-            }
-            for (name, ft) in [
-                ("surface_tension_apical", FaceType::Apical),
-                ("surface_tension_lateral", FaceType::Lateral),
-                ("surface_tension_basal", FaceType::Basal),
-            ] {
-                if let Some(&g) = values.get(name) {
-                    cell_type.faces.get_mut(ft).surface_tension = g;
-                }
-            }
-            if let Some(&w) = values.get("adhesion") {
-                for ft in FaceType::ALL {
-                    cell_type.faces.get_mut(ft).adhesion = w;
+            for &(p, v) in &values {
+                for ft in p.face_type().map_or(FaceType::ALL.to_vec(), |ft| vec![ft]) {
+                    let face = cell_type.faces.get_mut(ft);
+                    if p.is_tension() {
+                        face.surface_tension = v;
+                    } else {
+                        face.adhesion = v;
+                    }
                 }
             }
         }
         params
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn space(toml: &str) -> ParameterSpace {
+        let parameters: BTreeMap<String, ParameterConfig> = toml::from_str(toml).unwrap();
+        ParameterSpace::from_config(&parameters).unwrap()
+    }
+
+    #[test]
+    fn every_parameter_name_reads_back_and_an_unknown_one_is_refused() {
+        for p in FitParameter::ALL {
+            assert_eq!(FitParameter::from_name(p.name()), Some(p));
+        }
+        assert_eq!(PARAMETER_NAMES, FitParameter::ALL.map(FitParameter::name));
+        let parameters: BTreeMap<String, ParameterConfig> =
+            toml::from_str("[surface_tension_lateal]\nvalue = 1e-3\n").unwrap();
+        let e = ParameterSpace::from_config(&parameters).unwrap_err().to_string();
+        assert!(e.contains("surface_tension_lateal") && e.contains("surface_tension_lateral"), "{e}");
+    }
+
+    #[test]
+    fn a_face_type_tension_overrides_the_all_faces_one_and_adhesion_sets_every_face() {
+        // `adhesion` < `surface_tension` < `surface_tension_lateral` in name order: the all-faces
+        // tension must still be written before the per-type one overrides it.
+        let s = space(
+            "[adhesion]\nvalue = 2e9\n[surface_tension]\nvalue = 1e-3\n\
+             [surface_tension_lateral]\nbounds = [1e-4, 1e-3]\ninitial = 4e-4\n",
+        );
+        assert_eq!(s.fitted.len(), 1);
+        assert!(s.names(FitParameter::SurfaceTension) && !s.names(FitParameter::SurfaceTensionApical));
+        let params = s.apply(&Parameters::default(), &s.initial_point());
+        let faces = &params.cell_types[0].faces;
+        assert!((faces.get(FaceType::Lateral).surface_tension - 4e-4).abs() < 1e-15);
+        for ft in [FaceType::Apical, FaceType::Basal] {
+            assert_eq!(faces.get(ft).surface_tension, 1e-3);
+        }
+        for ft in FaceType::ALL {
+            assert_eq!(faces.get(ft).adhesion, 2e9);
+        }
+        assert_eq!(FitParameter::Adhesion.dimensionless(2e9, 1e-5, 2500.0), 2e9 * 1e-5 / 2500.0);
+        assert_eq!(FitParameter::SurfaceTension.dimensionless(1e-3, 1e-5, 2500.0), 1e-3 / (2500.0 * 1e-5));
     }
 }

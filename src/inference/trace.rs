@@ -11,7 +11,7 @@
 //! read too (the column is then NaN).
 
 use super::InferenceError;
-use super::forward::{Evaluation, Metrics, Status};
+use super::forward::{Evaluation, Metric, Metrics, Status};
 use super::space::ParameterSpace;
 use crate::geometry::Real;
 use std::io::Write;
@@ -20,8 +20,8 @@ use std::path::Path;
 /// The header of a trace for this space.
 pub fn header(space: &ParameterSpace) -> Vec<String> {
     let mut h = vec!["evaluation".to_string()];
-    h.extend(space.fitted.iter().map(|p| format!("x_{}", p.name)));
-    h.extend(space.fitted.iter().map(|p| p.name.clone()));
+    h.extend(space.fitted.iter().map(|p| format!("x_{}", p.name())));
+    h.extend(space.fitted.iter().map(|p| p.name().to_string()));
     h.extend(Metrics::NAMES.iter().map(|s| s.to_string()));
     h.extend(
         ["objective", "status", "converged", "steps", "residual", "wall_seconds", "elapsed_seconds", "reason"]
@@ -87,17 +87,17 @@ pub fn read_trace(path: &Path, space: &ParameterSpace) -> Result<Vec<Evaluation>
         let rec = rec.map_err(|e| bad(e.to_string()))?;
         let x = (0..n).map(|i| parse(&rec[1 + i], &expected[1 + i], row)).collect::<Result<Vec<_>, _>>()?;
         let m0 = 1 + 2 * n;
-        let mut metrics = [None; 5];
-        for (k, m) in metrics.iter_mut().enumerate() {
+        let mut metrics = Metrics::default();
+        for (k, m) in Metric::ALL.into_iter().enumerate() {
             let s = &rec[m0 + k];
-            *m = if s.is_empty() { None } else { Some(parse(s, Metrics::NAMES[k], row)?) };
+            *metrics.get_mut(m) = if s.is_empty() { None } else { Some(parse(s, m.name(), row)?) };
         }
-        let o = m0 + 5;
+        let o = m0 + Metric::ALL.len();
         let status = Status::from_name(&rec[o + 1])
             .ok_or_else(|| bad(format!("row {row}: unknown status `{}`", &rec[o + 1])))?;
         out.push(Evaluation {
             x,
-            metrics: Metrics::from_values(metrics),
+            metrics,
             objective: parse(&rec[o], "objective", row)?,
             status,
             steps: rec[o + 3].parse().map_err(|_| bad(format!("row {row}: steps `{}`", &rec[o + 3])))?,
