@@ -12,7 +12,7 @@ use crate::morphology::{ContactRule, DEFAULT_EXTERIOR_FREE_FRACTION, Morphology}
 use crate::pipeline::{PipelineConfig, describe_morphology as describe, measure_options};
 use crate::stages::{
     self,
-    measure::{LabelInputOptions, MeasureOptions, OUTPUT_FILES, is_labels},
+    measure::{LabelInputOptions, MeasureConfig, MeasureOptions, OUTPUT_FILES, is_labels},
 };
 use anyhow::bail;
 use std::io::Write;
@@ -146,10 +146,12 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
         &OUTPUT_FILES,
     )?;
     let options = MeasureOptions {
-        contact_distance: args.contact_distance,
-        distance_contacts: args.distance_contacts,
-        include_static: args.include_static,
-        exterior_free_fraction: args.exterior_free_fraction,
+        config: MeasureConfig {
+            contact_distance: args.contact_distance,
+            distance_contacts: args.distance_contacts,
+            include_static: args.include_static,
+            exterior_free_fraction: args.exterior_free_fraction,
+        },
         read: args.input.read_options(),
         labels: LabelInputOptions {
             voxel_size: args.voxel_size,

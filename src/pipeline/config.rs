@@ -10,7 +10,6 @@ use crate::inference::{FitConfig, MeshingConfig, ObservedConfig};
 use crate::io::LengthScale;
 use crate::mechanics::{ExplicitNumerics, Parameters};
 use crate::meshing::{BorderPolicy, TissueKind, TissueSpec};
-use crate::morphology::DEFAULT_EXTERIOR_FREE_FRACTION;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -170,41 +169,8 @@ impl GenerateInput {
     }
 }
 
-/// `[measure]`.
-#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct MeasureSection {
-    /// Contact distance δ (m). Default: 0.25 × the tissue's mean edge length.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub contact_distance: Option<Real>,
-    /// Find contacts by the contact distance even when the tissue's faces carry interface labels
-    /// (a multi-material mesh input), whose contacts are otherwise read from the labels. Default
-    /// false (as `tissuefit measure --distance-contacts`).
-    #[serde(default)]
-    pub distance_contacts: bool,
-    /// Count static cells in the tissue statistics. Default false.
-    #[serde(default)]
-    pub include_static: bool,
-    /// Without an ECM body, a cell faces the exterior when at least this fraction of its surface is
-    /// free. Default 0.1 ([`DEFAULT_EXTERIOR_FREE_FRACTION`]).
-    #[serde(default = "default_exterior_free_fraction")]
-    pub exterior_free_fraction: Real,
-}
-
-fn default_exterior_free_fraction() -> Real {
-    DEFAULT_EXTERIOR_FREE_FRACTION
-}
-
-impl Default for MeasureSection {
-    fn default() -> Self {
-        Self {
-            contact_distance: None,
-            distance_contacts: false,
-            include_static: false,
-            exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION,
-        }
-    }
-}
+/// `[measure]`: the measure stage's own settings ([`crate::stages::measure::MeasureConfig`]).
+pub type MeasureSection = crate::stages::measure::MeasureConfig;
 
 /// `[simulate]`: relax the meshed tissue with `model` (+ `model_overrides`), same schema as `simulate --config`.
 #[derive(Clone, Debug, Default, Deserialize, Serialize, JsonSchema)]

@@ -11,7 +11,7 @@ use crate::io::{LengthScale, ReadOptions, read_tissue};
 use crate::mechanics::{Parameters, SimulationMode};
 use crate::mesh::Tissue;
 use crate::meshing::LabelStatus;
-use crate::morphology::{MeasureSettings, Morphology};
+use crate::morphology::Morphology;
 use crate::stages::simulate::{Model, SimulateOptions, SimulateOutcome};
 use crate::stages::{self, StageError, measure::MeasureOptions, mesh::MeshOptions};
 use std::path::Path;
@@ -98,25 +98,12 @@ pub fn describe_morphology(m: &Morphology) -> String {
     )
 }
 
-/// How the simulate stage measures its final tissue: as `[measure]` says.
-fn measure_settings(measure: &MeasureSection) -> MeasureSettings {
-    MeasureSettings {
-        contact_distance: measure.contact_distance,
-        include_static: measure.include_static,
-        exterior_free_fraction: measure.exterior_free_fraction,
-        interface_labels: !measure.distance_contacts,
-    }
-}
-
 /// The measure stage's options from `[measure]` (a tissue file in metres, as the mesh stage writes,
 /// named in `summary.json` relative to the measure folder).
 pub fn measure_options(measure: &MeasureSection) -> MeasureOptions {
     MeasureOptions {
+        config: measure.clone(),
         input_name: Some(format!("../mesh/{MESH_TISSUE}")),
-        contact_distance: measure.contact_distance,
-        distance_contacts: measure.distance_contacts,
-        include_static: measure.include_static,
-        exterior_free_fraction: measure.exterior_free_fraction,
         ..MeasureOptions::default()
     }
 }
@@ -157,7 +144,7 @@ pub fn run_simulate(
 ) -> Result<(String, bool), PipelineError> {
     let options = SimulateOptions {
         input_name: Some(format!("../mesh/{MESH_TISSUE}")),
-        measure: measure_settings(measure),
+        measure: measure.settings(),
         reference: section
             .chi_without_nuclei
             .then_some(stages::simulate::NucleusFreeReference { voxel_size: section.chi_voxel_size }),

@@ -13,7 +13,8 @@ use crate::morphology::{
     CellMorphology, ContactMorphology, ContactRule, DEFAULT_EXTERIOR_FREE_FRACTION, DroppedLabel, LabelMeasureSettings,
     MeasureSettings, Morphology, compare_shapes, compare_tissues, mean_edge_length, measure_labels, measure_tissue,
 };
-use serde::Serialize;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -67,17 +68,60 @@ impl LabelInputOptions {
     }
 }
 
-/// The stage's settings (the pipeline's `[measure]`, the flags of `tissuefit measure`).
-#[derive(Clone, Debug)]
-pub struct MeasureOptions {
-    /// Contact distance δ (m); default 0.25 × the tissue's mean edge length. Meshes only.
+/// How a tissue is measured: the pipeline's `[measure]` as written (its fields' docs are the
+/// configuration reference's), the flags of `tissuefit measure`, and how the simulate stage
+/// measures its final tissue.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeasureConfig {
+    /// Contact distance δ (m). Default: 0.25 × the tissue's mean edge length.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_distance: Option<Real>,
-    /// Find contacts by δ even when the faces carry interface labels.
+    /// Find contacts by the contact distance even when the tissue's faces carry interface labels
+    /// (a multi-material mesh input), whose contacts are otherwise read from the labels. Default
+    /// false (as `tissuefit measure --distance-contacts`).
+    #[serde(default)]
     pub distance_contacts: bool,
-    /// Count static cells in the tissue statistics.
+    /// Count static cells in the tissue statistics. Default false.
+    #[serde(default)]
     pub include_static: bool,
-    /// Without an ECM body, a cell faces the exterior when at least this fraction of it is free.
+    /// Without an ECM body, a cell faces the exterior when at least this fraction of its surface is
+    /// free. Default 0.1 ([`DEFAULT_EXTERIOR_FREE_FRACTION`]).
+    #[serde(default = "default_exterior_free_fraction")]
     pub exterior_free_fraction: Real,
+}
+
+fn default_exterior_free_fraction() -> Real {
+    DEFAULT_EXTERIOR_FREE_FRACTION
+}
+
+impl Default for MeasureConfig {
+    fn default() -> Self {
+        Self {
+            contact_distance: None,
+            distance_contacts: false,
+            include_static: false,
+            exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION,
+        }
+    }
+}
+
+impl MeasureConfig {
+    /// The measurement of a tissue mesh with these settings.
+    pub fn settings(&self) -> MeasureSettings {
+        MeasureSettings {
+            contact_distance: self.contact_distance,
+            include_static: self.include_static,
+            exterior_free_fraction: self.exterior_free_fraction,
+            interface_labels: !self.distance_contacts,
+        }
+    }
+}
+
+/// The stage's options: its settings plus how the input is read, compared and named.
+#[derive(Clone, Debug, Default)]
+pub struct MeasureOptions {
+    pub config: MeasureConfig,
     /// How a tissue file is read (length unit, re-orientation).
     pub read: ReadOptions,
     /// Label-volume inputs only.
@@ -90,22 +134,6 @@ pub struct MeasureOptions {
     /// its mesh stage's tissue relative to the measure folder (`../mesh/tissue.vtp`), so that a run
     /// directory's files do not depend on where it lies.
     pub input_name: Option<String>,
-}
-
-impl Default for MeasureOptions {
-    fn default() -> Self {
-        Self {
-            contact_distance: None,
-            distance_contacts: false,
-            include_static: false,
-            exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION,
-            read: ReadOptions::default(),
-            labels: LabelInputOptions::default(),
-            compare: None,
-            compare_voxel_size: None,
-            input_name: None,
-        }
-    }
 }
 
 /// What [`run`] measured.
@@ -204,7 +232,7 @@ pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<Measure
                 input.display()
             )));
         }
-        Input::Labels(_) if options.contact_distance.is_some() => {
+        Input::Labels(_) if options.config.contact_distance.is_some() => {
             return Err(err(format!(
                 "{} is a label volume: contacts are voxel-face adjacency, --contact-distance applies to meshes",
                 input.display()
@@ -216,15 +244,9 @@ pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<Measure
     let start = Instant::now();
     let (mut morphology, label_route) = match &measured {
         Input::Tissue(tissue) => {
-            let settings = MeasureSettings {
-                contact_distance: options.contact_distance,
-                include_static: options.include_static,
-                exterior_free_fraction: options.exterior_free_fraction,
-                interface_labels: !options.distance_contacts,
-            };
-            let m =
-                measure_tissue(tissue, &settings).map_err(|e| err(format!("measuring {}: {e}", input.display())))?;
-            if m.summary.contact_rule == ContactRule::InterfaceLabels && options.contact_distance.is_some() {
+            let m = measure_tissue(tissue, &options.config.settings())
+                .map_err(|e| err(format!("measuring {}: {e}", input.display())))?;
+            if m.summary.contact_rule == ContactRule::InterfaceLabels && options.config.contact_distance.is_some() {
                 tracing::warn!(
                     "{}: contacts were read from the file's interface labels, so the contact distance only bounds \
                      the rim search; find contacts by distance (--distance-contacts) to use it",
@@ -236,8 +258,8 @@ pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<Measure
         Input::Labels(volume) => {
             let l = &options.labels;
             let settings = LabelMeasureSettings {
-                include_static: options.include_static,
-                exterior_free_fraction: options.exterior_free_fraction,
+                include_static: options.config.include_static,
+                exterior_free_fraction: options.config.exterior_free_fraction,
                 border: l.border,
                 lumen_labels: l.lumen_labels.clone(),
                 min_voxels: l.min_voxels,
