@@ -178,3 +178,18 @@ pub fn decode_checkpoint(bytes: &[u8], path: &Path) -> Result<(RunInfo, Simulati
     }
     postcard::from_bytes(payload).map_err(|e| CheckpointError::Decode { path: path(), message: e.to_string() })
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::mechanics::EnergyTerms;
+
+    /// A cell's energies are stored as a struct since format 5 stored them as `[f64; 5]`: postcard
+    /// encodes both as the same five numbers, so the format (and its version) did not change.
+    #[test]
+    fn energies_encode_as_the_array_of_format_5() {
+        let e = EnergyTerms { pressure: 1.5, area_elasticity: -2.0, tension: 3e-12, bending: 0.0, contact: 7.25 };
+        let as_array = postcard::to_stdvec(&e.values()).unwrap();
+        assert_eq!(postcard::to_stdvec(&e).unwrap(), as_array);
+        assert_eq!(postcard::from_bytes::<EnergyTerms>(&as_array).unwrap(), e);
+    }
+}

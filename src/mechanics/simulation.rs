@@ -115,8 +115,9 @@ pub struct CellState {
 pub struct CellForcesState {
     pub forces: Vec<Vec3>,
     pub pressure: Real,
-    /// Energies (J) in [`EnergyTerms::NAMES`] order.
-    pub energy: [Real; 5],
+    /// Energies (J); encoded as the five numbers in [`EnergyTerms::NAMES`] order, as the array of
+    /// format 5 was.
+    pub energy: EnergyTerms,
 }
 
 /// Where in its loop the driver was saved.
@@ -538,7 +539,7 @@ impl<'p> Simulation<'p> {
             .forces
             .cells
             .iter()
-            .map(|w| CellForcesState { forces: w.forces.clone(), pressure: w.pressure, energy: w.energy.values() })
+            .map(|w| CellForcesState { forces: w.forces.clone(), pressure: w.pressure, energy: w.energy })
             .collect();
         SimulationState {
             cells,
@@ -589,8 +590,7 @@ impl<'p> Simulation<'p> {
             work.geometry.update(cell.mesh());
             work.forces = fs.forces;
             work.pressure = fs.pressure;
-            let [pressure, area_elasticity, tension, bending, contact] = fs.energy;
-            work.energy = EnergyTerms { pressure, area_elasticity, tension, bending, contact };
+            work.energy = fs.energy;
             forces.cells.push(work);
             cells.push(cell);
         }
