@@ -90,8 +90,8 @@ pub struct MeshingConfig {
     #[serde(default = "default_min_voxels")]
     pub min_voxels: u64,
     /// Labels touching the image border: "keep" (default), "static" or "drop".
-    #[serde(default = "default_border")]
-    pub border: String,
+    #[serde(default)]
+    pub border: BorderPolicy,
     /// Labels meshed as lumen cells. Default none.
     #[serde(default)]
     pub lumen_labels: Vec<u32>,
@@ -114,9 +114,6 @@ fn default_target_nodes() -> usize {
 fn default_min_voxels() -> u64 {
     crate::meshing::DEFAULT_MIN_VOXELS
 }
-fn default_border() -> String {
-    "keep".to_string()
-}
 
 impl Default for MeshingConfig {
     fn default() -> Self {
@@ -124,7 +121,7 @@ impl Default for MeshingConfig {
             l_min: None,
             target_nodes: default_target_nodes(),
             min_voxels: default_min_voxels(),
-            border: default_border(),
+            border: BorderPolicy::Keep,
             lumen_labels: Vec::new(),
             seed: 0,
             max_refinements: default_max_refinements(),
@@ -133,19 +130,17 @@ impl Default for MeshingConfig {
 }
 
 impl MeshingConfig {
-    /// The meshing options, or an error naming the bad key.
-    pub fn options(&self) -> Result<LabelMeshingOptions, InferenceError> {
-        let border: BorderPolicy =
-            self.border.parse().map_err(|e: String| InferenceError::Config(format!("observed.meshing.border: {e}")))?;
-        Ok(LabelMeshingOptions {
+    /// The meshing options.
+    pub fn options(&self) -> LabelMeshingOptions {
+        LabelMeshingOptions {
             l_min: self.l_min,
             target_nodes: self.target_nodes,
             min_voxels: self.min_voxels,
-            border,
+            border: self.border,
             lumen_labels: self.lumen_labels.clone(),
             seed: self.seed,
             max_refinements: self.max_refinements,
-        })
+        }
     }
 }
 

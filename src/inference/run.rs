@@ -55,7 +55,7 @@ pub fn load_observation(config: &FitConfig) -> Result<Observation, InferenceErro
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }
-    let mut options = obs.meshing.options()?;
+    let mut options = obs.meshing.options();
     let meshed = mesh_labels(&read.volume, &options)
         .map_err(|e| InferenceError::Observed(format!("meshing {}: {e}", path.display())))?;
     for r in meshed.report.iter().filter(|r| r.reason.is_some()) {

@@ -46,7 +46,7 @@ pub const MASK_MARGIN: usize = 2;
 pub const DEFAULT_MIN_VOXELS: u64 = 100;
 
 /// What to do with labels that touch the image border.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum BorderPolicy {
     /// Do not mesh them.

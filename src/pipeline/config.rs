@@ -9,7 +9,7 @@ use crate::geometry::Real;
 use crate::inference::{FitConfig, MeshingConfig, ObservedConfig};
 use crate::io::LengthScale;
 use crate::mechanics::{ExplicitNumerics, Parameters};
-use crate::meshing::{BorderPolicy, TissueKind, TissueSpec};
+use crate::meshing::{TissueKind, TissueSpec};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -285,7 +285,6 @@ impl PipelineConfig {
     /// Consistency checks beyond the schema; the message names the key.
     fn check(&self) -> Result<(), String> {
         self.input.check()?;
-        self.mesh.border.parse::<BorderPolicy>().map_err(|e| format!("mesh.border: {e}"))?;
         if self.mesh.target_nodes < 4 {
             return Err(format!("mesh.target_nodes: need at least 4; got {}", self.mesh.target_nodes));
         }

@@ -30,14 +30,14 @@ impl From<StageError> for PipelineError {
 }
 
 /// The mesh stage's options from `[input]` and `[mesh]`.
-pub fn mesh_options(input: &InputSection, mesh: &MeshingConfig) -> Result<MeshOptions, PipelineError> {
-    Ok(MeshOptions {
-        meshing: mesh.options().map_err(|e| stage_err("mesh")(e.to_string()))?,
+pub fn mesh_options(input: &InputSection, mesh: &MeshingConfig) -> MeshOptions {
+    MeshOptions {
+        meshing: mesh.options(),
         voxel_size: input.voxel_size,
         zarr_level: input.zarr_level,
         nuclei: input.nuclei.clone(),
         length_unit: None,
-    })
+    }
 }
 
 /// Labels → `tissue.vtp` + `report.json` ([`stages::mesh::run`], as `tissuefit mesh`), a mesh input
@@ -64,7 +64,7 @@ pub fn run_mesh(
             return Ok(stages::mesh::generate(&spec, out)?);
         }
     };
-    let options = mesh_options(input, mesh)?;
+    let options = mesh_options(input, mesh);
     let outcome =
         stages::mesh::run(path, &options, &out.join(MESH_TISSUE), &out.join(stages::mesh::REPORT_FILE), progress)?;
     let m = &outcome.meshing;
@@ -246,7 +246,7 @@ pub fn run_fit_stage(
         Some(path) => {
             let read = read_labels(path, &input.read_options())
                 .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
-            let mut options = mesh.options().map_err(|e| err(e.to_string()))?;
+            let mut options = mesh.options();
             // Simulations are measured like the data: the meshing's options with the l_min it used.
             options.l_min = l_min;
             Observation::new(tissue, Some(read.volume), Some(options))
