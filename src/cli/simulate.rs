@@ -122,9 +122,7 @@ fn watch_interrupts() {
 }
 
 pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
-    if args.stop_at_step == Some(0) {
-        bail!("--stop-at-step 0: a run stops at the end of a step, and step 0 is the start; give K ≥ 1");
-    }
+    // `--stop-at-step 0` is refused by the stage (a new run), or as before the checkpoint (a resume).
     let checkpoints = CheckpointOptions {
         every_steps: args.checkpoint_every_steps,
         every_seconds: args.checkpoint_every_seconds,
