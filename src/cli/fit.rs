@@ -1,7 +1,7 @@
 //! `tissuefit fit --config FIT.toml --out DIR`: fit surface tension and adhesion to observed morphology.
 
 use super::Outcome;
-use crate::inference::{FitConfig, FitOptions, InferenceError, run_fit};
+use crate::inference::{FitConfig, FitOptions};
 use crate::io::OutputPolicy;
 use crate::pipeline::PipelineConfig;
 use anyhow::Context;
@@ -48,11 +48,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         .input("--config", &args.config)
         .input_opt("observed.tissue", observed.and_then(|o| o.tissue.as_deref()))
         .input_opt("observed.labels", observed.and_then(|o| o.labels.as_deref()))
-        .folder(
-            "--out",
-            &args.out,
-            &["trace.csv", "result.json", "objective.png", "landscape.png", "fit.toml", "model.toml"],
-        )?;
+        .folder("--out", &args.out, crate::stages::fit::OUTPUT_FILES)?;
     if let Some(n) = args.max_evaluations {
         anyhow::ensure!(n > 0, "--max-evaluations must be at least 1");
         config.optimizer.max_evaluations = n;
@@ -61,17 +57,8 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         config.optimizer.seed = s;
     }
     let options = FitOptions { resume: args.resume, progress: true, plots: true };
-    let result = match run_fit(&config, &args.out, &options) {
-        Ok(r) => r,
-        Err(e @ InferenceError::Failed(_)) => {
-            return Err(anyhow::anyhow!(
-                "{e} (every evaluation and its reason: {}; no result.json was written)",
-                args.out.join("trace.csv").display()
-            ))
-            .with_context(|| format!("fitting {}", args.config.display()));
-        }
-        Err(e) => return Err(e).with_context(|| format!("fitting {}", args.config.display())),
-    };
+    let result = crate::stages::fit::run(&config, crate::stages::fit::Observed::Config, &args.out, &options)
+        .with_context(|| format!("fitting {}", args.config.display()))?;
     eprintln!(
         "{}: {}; {:.1} s; outputs in {}",
         args.config.display(),

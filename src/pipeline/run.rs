@@ -5,7 +5,7 @@ use super::PipelineError;
 use super::config::PipelineConfig;
 use super::lock::DirLock;
 use super::manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file, hash_named, hash_outputs, list_files};
-use super::stages::{MESH_TISSUE, run_fit_stage, run_measure, run_mesh, run_simulate};
+use super::stages::{MESH_TISSUE, run_measure, run_mesh, run_simulate};
 use crate::geometry::Real;
 use crate::io::write_bytes_atomically;
 use serde::Serialize;
@@ -277,17 +277,19 @@ fn run_locked(
         let key = stage_key("fit", &text, &[&input_hash, &tissue_hash, &fit_model_hash]);
         let mesh_dir = out.join("mesh");
         runner.stage("fit", key, Some(Resumable::Trace), |dir, resume| {
-            let r = run_fit_stage(&config.input, &config.mesh, section, &mesh_dir, dir, resume, options.progress)?;
+            let config = super::fit_config(section, &config.input, &config.mesh);
+            let options = crate::inference::FitOptions { resume, progress: options.progress, plots: true };
+            let r =
+                crate::stages::fit::run(&config, crate::stages::fit::Observed::MeshStage(&mesh_dir), dir, &options)?;
             let line = r.summary_line();
             Ok((line, r.converged))
         })?;
-        let result = read_json(&out.join("fit").join("result.json"))?;
-        fit_converged = Some(result["converged"].as_bool().unwrap_or(false));
-        fit_poor = Some(result["poor_fit"].as_bool().unwrap_or(false));
+        let result = crate::stages::fit::read_result(&out.join("fit"))?;
+        fit_converged = Some(result.converged);
+        fit_poor = Some(result.poor_fit);
         if let Some(d) = &config.demo {
             for (name, &truth) in &d.truth {
-                let fitted =
-                    result["parameters"][name]["si"].as_f64().or_else(|| result["ratios"][name]["value"].as_f64());
+                let fitted = result.value(name);
                 let relative_error = fitted.map(|f| (f - truth) / truth);
                 demo.push(DemoCheck {
                     name: name.clone(),
@@ -318,11 +320,6 @@ struct MeshKey<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     generate: Option<&'a crate::meshing::TissueSpec>,
     mesh: &'a crate::inference::MeshingConfig,
-}
-
-fn read_json(path: &Path) -> Result<serde_json::Value, PipelineError> {
-    let text = std::fs::read_to_string(path).map_err(io_err(path))?;
-    serde_json::from_str(&text).map_err(|e| PipelineError::Io { path: path.to_path_buf(), message: e.to_string() })
 }
 
 struct Runner<'a, 'o> {

@@ -3,13 +3,10 @@
 //! reruns are byte-identical elsewhere; the manifest has every stage's wall time.
 
 use super::PipelineError;
-use super::config::{InputSection, MeasureSection, SimulateSection, fit_config};
+use super::config::{InputSection, MeasureSection, SimulateSection};
 use crate::geometry::Real;
-use crate::imaging::read_labels;
-use crate::inference::{FitConfig, FitOptions, FitResult, MeshingConfig, Observation, run_fit_observed};
-use crate::io::{LengthScale, ReadOptions, read_tissue};
+use crate::inference::MeshingConfig;
 use crate::mechanics::{Parameters, SimulationMode};
-use crate::mesh::Tissue;
 use crate::meshing::LabelStatus;
 use crate::morphology::Morphology;
 use crate::stages::simulate::{Model, SimulateOptions, SimulateOutcome};
@@ -77,12 +74,6 @@ pub fn run_mesh(
         m.tissue.node_count(),
         m.l_min.unwrap_or(Real::NAN) * 1e6
     ))
-}
-
-fn read_meshed(path: &Path, stage: &'static str) -> Result<Tissue, PipelineError> {
-    let options = ReadOptions { length_scale: LengthScale::default(), orient: false };
-    let read = read_tissue(path, &options).map_err(|e| stage_err(stage)(format!("reading {}: {e}", path.display())))?;
-    Ok(read.tissue)
 }
 
 /// `2 cells, ⟨Ψ⟩ = …, ⟨φ⟩ = …, ⟨z⟩ = …`: the one-line summary of a measurement.
@@ -224,44 +215,12 @@ fn describe_simulation(report: &stages::simulate::SimulateReport) -> String {
     )
 }
 
-/// The fit of `tissuefit fit` with observed = the input labels meshed like `[mesh]`. The meshed
-/// tissue is the mesh stage's `tissue.vtp` (and its `report.json`'s l_min) in `mesh_dir`, read back
-/// bit for bit instead of meshing the labels again; the labels are still read, to measure the
-/// simulations like the data. `resume`: go on from `out/trace.csv` (an interrupted fit's).
-pub fn run_fit_stage(
-    input: &InputSection,
-    mesh: &MeshingConfig,
-    fit: &FitConfig,
-    mesh_dir: &Path,
-    out: &Path,
-    resume: bool,
-    progress: bool,
-) -> Result<FitResult, PipelineError> {
-    let err = stage_err("fit");
-    let config = fit_config(fit, input, mesh);
-    let tissue = read_meshed(&mesh_dir.join(MESH_TISSUE), "fit")?;
-    let l_min =
-        stages::mesh::read_report_l_min(&mesh_dir.join(stages::mesh::REPORT_FILE)).map_err(|e| err(e.message))?;
-    let observation = match &input.labels {
-        Some(path) => {
-            let read = read_labels(path, &input.read_options())
-                .map_err(|e| err(format!("reading {}: {e}", path.display())))?;
-            let mut options = mesh.options();
-            // Simulations are measured like the data: the meshing's options with the l_min it used.
-            options.l_min = l_min;
-            Observation::new(tissue, Some(read.volume), Some(options))
-        }
-        // A mesh input: the observation is the tissue alone, as `tissuefit fit` with `observed.tissue`.
-        None => Observation::new(tissue, None, None),
-    }
-    .map_err(|e| err(e.to_string()))?;
-    run_fit_observed(&config, Some(observation), out, &FitOptions { resume, progress, plots: true })
-        .map_err(|e| err(e.to_string()))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::inference::FitConfig;
+    use crate::io::{LengthScale, ReadOptions, read_tissue};
+    use crate::stages::fit::{Observed, run as run_fit};
 
     fn demo_input() -> InputSection {
         let labels = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/doublet.tif");
@@ -275,14 +234,17 @@ mod tests {
         let input = demo_input();
         let mesh = MeshingConfig { target_nodes: 60, ..Default::default() };
         let fit: FitConfig = toml::from_str("[parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\n").unwrap();
+        let config = super::super::fit_config(&fit, &input, &mesh);
         // Without the mesh stage's outputs the fit stage has nothing to start from, and says which file.
-        let e = run_fit_stage(&input, &mesh, &fit, &mesh_dir, &tmp.path().join("fit"), false, false).unwrap_err();
+        let e =
+            run_fit(&config, Observed::MeshStage(&mesh_dir), &tmp.path().join("fit"), &Default::default()).unwrap_err();
         assert!(e.to_string().contains(&mesh_dir.join(MESH_TISSUE).display().to_string()), "{e}");
         // With them, its observation is that tissue: the fit's meshed labels are the mesh stage's.
         std::fs::create_dir_all(&mesh_dir).unwrap();
         run_mesh(&input, &mesh, &mesh_dir, false).unwrap();
-        let written = read_meshed(&mesh_dir.join(MESH_TISSUE), "test").unwrap();
-        let observed = crate::inference::load_observation(&fit_config(&fit, &input, &mesh)).unwrap();
+        let options = ReadOptions { length_scale: LengthScale::default(), orient: false };
+        let written = read_tissue(&mesh_dir.join(MESH_TISSUE), &options).unwrap().tissue;
+        let observed = crate::inference::load_observation(&config).unwrap();
         assert_eq!(written.node_count(), observed.tissue.node_count());
         for (a, b) in written.cells().iter().zip(observed.tissue.cells()) {
             assert_eq!(a.id(), b.id());

@@ -5,6 +5,7 @@
 //!
 //! Layering: `io ← {inference, render} ← stages ← pipeline ← cli`.
 
+pub mod fit;
 pub mod measure;
 pub mod mesh;
 pub mod simulate;

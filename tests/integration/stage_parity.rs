@@ -231,3 +231,43 @@ fn simulate_writes_the_same_files_from_the_cli_and_from_a_pipeline() {
     }
     assert!(a.keys().any(|k| k.starts_with("simulate/frames/frame_")), "{a:?}");
 }
+
+/// `tissuefit fit --config PIPELINE.toml` and `tissuefit run PIPELINE.toml` write the same fit
+/// files: the CLI meshes the labels itself, the pipeline reads back its mesh stage's tissue, and both
+/// fit it with the same resolved config (`fit.toml`), the same trace, result and plots (wall times
+/// aside).
+#[test]
+fn fit_writes_the_same_files_from_the_cli_and_from_a_pipeline() {
+    let tmp = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let model = repo().join("data/demo/doublet_truth.toml");
+    let pipeline = tmp.path().join("p.toml");
+    std::fs::write(
+        &pipeline,
+        format!(
+            "[input]\nlabels = {labels:?}\nseed = 5\n\n[mesh]\ntarget_nodes = 60\n\n[fit]\nmodel = {model:?}\n\
+             [fit.model_overrides.simulation]\nmax_steps = 150\n\
+             [fit.parameters.surface_tension]\nvalue = 1e-3\n\
+             [fit.parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\ninitial = 8e-4\n\
+             [fit.objective]\nsphericity = 1.0\ncontact_fraction = 0.0\ncoordination = 0.0\ncontact_angle = 0.0\n\
+             [fit.optimizer]\nmethod = \"nelder_mead\"\nmax_evaluations = 3\n\
+             [fit.forward]\naccept_residual = 1e9\n[fit.profile]\npoints = 1\nnoise_replicates = 1\n",
+            labels = labels.display().to_string(),
+            model = model.display().to_string()
+        ),
+    )
+    .unwrap();
+    // A short budget: neither may converge (exit code 1), but both must finish and write a result.
+    let run = tmp.path().join("run");
+    let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
+    let cli = tmp.path().join("fit");
+    let o = tissuefit(&["fit", "--config", pipeline.to_str().unwrap(), "--out", cli.to_str().unwrap()]);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let (a, b) = (stage_hashes(&run, &["fit"]), stage_hashes(tmp.path(), &["fit"]));
+    assert_eq!(a, b, "the pipeline's fit files differ from `tissuefit fit`'s");
+    for file in ["trace.csv", "result.json", "fit.toml", "model.toml", "objective.png"] {
+        assert!(a.contains_key(&format!("fit/{file}")), "{file} missing: {a:?}");
+    }
+}
