@@ -62,12 +62,12 @@ impl<'p> Simulation<'p> {
         let volumes: Vec<Real> = cells.par_iter().map(|c| c.mesh().signed_volume()).collect();
         let volume = |c: usize| volumes[c];
         let dividing: Vec<usize> = (0..cells.len())
-            .filter(|&c| !cells[c].kind().is_immobile() && volume(c) > self.division_volumes[c])
+            .filter(|&c| !cells[c].kind().is_immobile() && volume(c) > self.cell_data.division_volumes[c])
             .collect();
         let removing: Vec<usize> = (0..cells.len())
             .filter(|&c| {
                 let v_min = self.cell_params[c].min_volume;
-                v_min > 0.0 && volume(c) < v_min && volume(c) <= self.division_volumes[c]
+                v_min > 0.0 && volume(c) < v_min && volume(c) <= self.cell_data.division_volumes[c]
             })
             .collect();
         if dividing.is_empty() && removing.is_empty() {
@@ -84,10 +84,10 @@ impl<'p> Simulation<'p> {
             let (a, b) = match cut {
                 Ok(pair) => pair,
                 Err(e) => {
-                    self.topology.division_failures += 1;
+                    self.progress.topology.division_failures += 1;
                     tracing::debug!(
                         "step {}: cell {}: division postponed: {e}",
-                        self.step,
+                        self.progress.step,
                         self.tissue.cells()[c].id()
                     );
                     continue;
@@ -98,27 +98,27 @@ impl<'p> Simulation<'p> {
         }
         for &c in removing.iter().rev() {
             let cell = self.tissue.remove(c);
-            if self.last_good.len() == self.tissue.len() + 1 {
-                self.last_good.remove(c);
+            if self.cell_data.last_good.len() == self.tissue.len() + 1 {
+                self.cell_data.last_good.remove(c);
             } else {
-                self.last_good.clear();
+                self.cell_data.last_good.clear();
             }
-            self.events.push(TopologyEvent {
-                step: self.step,
-                time: self.time,
+            self.progress.events.push(TopologyEvent {
+                step: self.progress.step,
+                time: self.progress.time,
                 kind: TopologyEventKind::Removal,
                 cell: cell.id(),
                 daughters: None,
                 volume: volumes[c],
                 daughter_volumes: None,
             });
-            self.topology.removals += 1;
+            self.progress.topology.removals += 1;
             self.cell_params.remove(c);
-            self.momenta.remove(c);
-            self.growth_rates.remove(c);
-            self.division_volumes.remove(c);
-            self.remesh_idle.remove(c);
-            self.forces.cells.remove(c);
+            self.cell_data.momenta.remove(c);
+            self.cell_data.growth_rates.remove(c);
+            self.cell_data.division_volumes.remove(c);
+            self.cell_data.remesh_idle.remove(c);
+            self.work.forces.cells.remove(c);
             changed = true;
         }
         Ok(changed)
@@ -133,50 +133,57 @@ impl<'p> Simulation<'p> {
         let v0 = 0.5 * mother.target_volume();
         let volume = mother.mesh().signed_volume();
         let daughter_volumes = [a.mesh.signed_volume(), b.mesh.signed_volume()];
-        let momenta = [a.inherit(&self.momenta[c], Vec3::zeros()), b.inherit(&self.momenta[c], Vec3::zeros())];
+        let momenta = [
+            a.inherit(&self.cell_data.momenta[c], Vec3::zeros()),
+            b.inherit(&self.cell_data.momenta[c], Vec3::zeros()),
+        ];
         // Keep the saved positions aligned with the cells (the daughters' are their current ones).
-        if self.last_good.len() == self.tissue.len() {
-            self.last_good[c] = a.mesh.positions().to_vec();
-            self.last_good.push(b.mesh.positions().to_vec());
+        if self.cell_data.last_good.len() == self.tissue.len() {
+            self.cell_data.last_good[c] = a.mesh.positions().to_vec();
+            self.cell_data.last_good.push(b.mesh.positions().to_vec());
         } else {
-            self.last_good.clear();
+            self.cell_data.last_good.clear();
         }
         let ids = [self.tissue.allocate_id(), self.tissue.allocate_id()];
         let to_cell = |id: CellId, d: Daughter| {
             Cell::new(id, kind, cell_type, d.mesh)
                 .with_face_types(d.face_types)
                 .map(|cell| cell.with_target_volume(v0).with_parent(mother_id))
-                .map_err(|e| SimulationError::Topology { step: self.step, cell: mother_id, what: e.to_string() })
+                .map_err(|e| SimulationError::Topology {
+                    step: self.progress.step,
+                    cell: mother_id,
+                    what: e.to_string(),
+                })
         };
         let (cell_a, cell_b) = (to_cell(ids[0], a)?, to_cell(ids[1], b)?);
         let topology = |e: crate::mesh::TissueError| SimulationError::Topology {
-            step: self.step,
+            step: self.progress.step,
             cell: mother_id,
             what: e.to_string(),
         };
         self.tissue.replace(c, cell_a).map_err(topology)?;
         self.tissue.push(cell_b).map_err(topology)?;
         let [ma, mb] = momenta;
-        self.momenta[c] = ma;
-        self.momenta.push(mb);
-        self.growth_rates[c] = draw_growth_rate(p, seed, ids[0]);
-        self.growth_rates.push(draw_growth_rate(p, seed, ids[1]));
-        self.division_volumes[c] = draw_division_volume(p, seed, ids[0]);
-        self.division_volumes.push(draw_division_volume(p, seed, ids[1]));
-        self.remesh_idle[c] = 0;
-        self.remesh_idle.push(0);
+        self.cell_data.momenta[c] = ma;
+        self.cell_data.momenta.push(mb);
+        self.cell_data.growth_rates[c] = draw_growth_rate(p, seed, ids[0]);
+        self.cell_data.growth_rates.push(draw_growth_rate(p, seed, ids[1]));
+        self.cell_data.division_volumes[c] = draw_division_volume(p, seed, ids[0]);
+        self.cell_data.division_volumes.push(draw_division_volume(p, seed, ids[1]));
+        self.cell_data.remesh_idle[c] = 0;
+        self.cell_data.remesh_idle.push(0);
         self.cell_params.push(p);
-        self.forces.cells.push(CellForces::default());
-        self.events.push(TopologyEvent {
-            step: self.step,
-            time: self.time,
+        self.work.forces.cells.push(CellForces::default());
+        self.progress.events.push(TopologyEvent {
+            step: self.progress.step,
+            time: self.progress.time,
             kind: TopologyEventKind::Division,
             cell: mother_id,
             daughters: Some(ids),
             volume,
             daughter_volumes: Some(daughter_volumes),
         });
-        self.topology.divisions += 1;
+        self.progress.topology.divisions += 1;
         self.polarity_due = true;
         Ok(())
     }

@@ -22,10 +22,16 @@ impl<'p> Simulation<'p> {
     fn relaxed(&self, residual: Real, previous: Option<(Real, &[Real])>) -> bool {
         let s = &self.params.simulation;
         let Some((e_prev, v_prev)) = previous else { return false };
-        let energy = self.forces.energy().total();
-        let de = (energy - e_prev).abs() / self.energy_scale.max(Real::MIN_POSITIVE);
-        let dv =
-            self.forces.cells.iter().zip(v_prev).map(|(w, v)| ((w.geometry.volume - v) / v).abs()).fold(0.0, Real::max);
+        let energy = self.work.forces.energy().total();
+        let de = (energy - e_prev).abs() / self.progress.energy_scale.max(Real::MIN_POSITIVE);
+        let dv = self
+            .work
+            .forces
+            .cells
+            .iter()
+            .zip(v_prev)
+            .map(|(w, v)| ((w.geometry.volume - v) / v).abs())
+            .fold(0.0, Real::max);
         residual < s.force_tolerance && de < s.energy_tolerance && dv < s.volume_tolerance
     }
 
@@ -69,17 +75,17 @@ impl<'p> Simulation<'p> {
         // when max_steps ends it: from the stall on, the lowest-residual state is kept whatever
         // simulation.end_at_lowest_residual says (a restored run that integrates stalled before).
         let mut stalled = method == RelaxMethod::Fire && matches!(mover, Mover::Integrate);
-        while self.step < s.max_steps {
+        while self.progress.step < s.max_steps {
             if self.relaxed(residual, previous.as_ref().map(|(e, v)| (*e, v.as_slice()))) {
                 self.sample(observer, residual)?;
                 return Ok(self.summary(true, residual));
             }
-            previous = Some((self.forces.energy().total(), self.volumes()));
+            previous = Some((self.work.forces.energy().total(), self.volumes()));
             if mover.step(self)? == Moved::Stalled {
                 // Typically slivers that only remeshing would remove.
                 tracing::warn!(
                     "FIRE stalled (too many uphill steps in a row) at step {}; continuing with {:?} integration",
-                    self.step,
+                    self.progress.step,
                     self.params.numerics.dynamics
                 );
                 mover = Mover::Integrate;
@@ -87,16 +93,17 @@ impl<'p> Simulation<'p> {
                 // The state FIRE stalled in competes too (the integration may only make it worse).
                 best = Some(Box::new(BestState {
                     residual,
-                    energy: self.forces.energy().total(),
-                    step: self.step,
+                    energy: self.work.forces.energy().total(),
+                    step: self.progress.step,
                     cells: self.cell_states(),
                 }));
                 continue;
             }
             // The last settle_steps run on a fixed mesh (see SimulationSettings::settle_steps).
             // (settle_steps = 0 keeps the remeshing at the last step when it falls due.)
-            let settling = s.settle_steps > 0 && self.step.saturating_add(s.settle_steps) >= s.max_steps;
-            let scheduled = s.remesh_every_steps > 0 && !settling && self.step.is_multiple_of(s.remesh_every_steps);
+            let settling = s.settle_steps > 0 && self.progress.step.saturating_add(s.settle_steps) >= s.max_steps;
+            let scheduled =
+                s.remesh_every_steps > 0 && !settling && self.progress.step.is_multiple_of(s.remesh_every_steps);
             let remeshed = if scheduled { self.remesh()? } else { self.repair_out_of_turn()? };
             if remeshed {
                 // New nodes: the minimiser starts afresh on the new layout (carrying FIRE's Δt, α
@@ -117,13 +124,13 @@ impl<'p> Simulation<'p> {
             {
                 best = Some(Box::new(BestState {
                     residual,
-                    energy: self.forces.energy().total(),
-                    step: self.step,
+                    energy: self.work.forces.energy().total(),
+                    step: self.progress.step,
                     cells: self.cell_states(),
                 }));
             }
-            observer.progress(self.step, residual);
-            if self.step.is_multiple_of(s.sample_every_steps) {
+            observer.progress(self.progress.step, residual);
+            if self.progress.step.is_multiple_of(s.sample_every_steps) {
                 self.sample(observer, residual)?;
             }
             self.maybe_checkpoint(observer, || Phase::Relax {
@@ -149,8 +156,8 @@ impl<'p> Simulation<'p> {
             }
             if let Some(b) = best
                 && b.residual < residual
-                && b.energy <= self.forces.energy().total() + BEST_ENERGY_SLACK * self.energy_scale
-                && b.step != self.step
+                && b.energy <= self.work.forces.energy().total() + BEST_ENERGY_SLACK * self.progress.energy_scale
+                && b.step != self.progress.step
             {
                 self.restore_cells(b.cells)?;
                 residual = self.residual();

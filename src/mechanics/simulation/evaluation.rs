@@ -14,14 +14,14 @@ impl<'p> Simulation<'p> {
     /// Largest nodal force of a moving cell, over γ̄·l_min.
     pub(super) fn residual(&self) -> Real {
         let mut max: Real = 0.0;
-        for (cell, work) in self.tissue.cells().iter().zip(&self.forces.cells) {
+        for (cell, work) in self.tissue.cells().iter().zip(&self.work.forces.cells) {
             if !cell.kind().is_immobile() {
                 for f in &work.forces {
                     max = max.max(f.norm_squared());
                 }
             }
         }
-        max.sqrt() / self.force_scale
+        max.sqrt() / self.progress.force_scale
     }
 
     /// Forces at the current positions: node coupling (which snaps tied pairs together), internal
@@ -30,17 +30,22 @@ impl<'p> Simulation<'p> {
         let numerics = &self.params.numerics;
         let coupling = numerics.contact_model == ContactModel::Coupling;
         if coupling {
-            self.coupling.couple(
+            self.work.coupling.couple(
                 &mut self.tissue,
                 &self.cell_params,
                 numerics.contact_cutoff,
                 numerics.coupling_junctions,
             );
         }
-        self.forces.compute(&self.tissue, &self.cell_params, TermSet::ALL);
-        self.contacts.add_contacts(&self.tissue, &self.cell_params, numerics.contact_cutoff, &mut self.forces.cells);
+        self.work.forces.compute(&self.tissue, &self.cell_params, TermSet::ALL);
+        self.work.contacts.add_contacts(
+            &self.tissue,
+            &self.cell_params,
+            numerics.contact_cutoff,
+            &mut self.work.forces.cells,
+        );
         if coupling {
-            self.coupling.average_forces(&self.tissue, &mut self.forces.cells);
+            self.work.coupling.average_forces(&self.tissue, &mut self.work.forces.cells);
         }
     }
 
@@ -50,7 +55,8 @@ impl<'p> Simulation<'p> {
         let numerics = &self.params.numerics;
         // Step 0 is a multiple of every interval: a fresh run polarises at its first evaluation.
         let due = self.polarity_due
-            || (self.step.is_multiple_of(numerics.polarity_interval.max(1)) && self.polarized_at != Some(self.step));
+            || (self.progress.step.is_multiple_of(numerics.polarity_interval.max(1))
+                && self.polarized_at != Some(self.progress.step));
         if !due {
             return;
         }
@@ -66,16 +72,16 @@ impl<'p> Simulation<'p> {
                 }
                 tracing::debug!(
                     "step {}: ray-casting polarity: {} faces changed (apical, lateral, basal: {:?})",
-                    self.step,
+                    self.progress.step,
                     report.changed,
                     report.faces
                 );
                 self.polarizations += 1;
             }
             // Only non-finite positions stop it; the health check below names the cell.
-            Err(e) => tracing::debug!("step {}: polarity skipped: {e}", self.step),
+            Err(e) => tracing::debug!("step {}: polarity skipped: {e}", self.progress.step),
         }
-        self.polarized_at = Some(self.step);
+        self.polarized_at = Some(self.progress.step);
         self.polarity_due = false;
     }
 
@@ -87,18 +93,18 @@ impl<'p> Simulation<'p> {
         }
         self.compute_forces();
         if self.params.numerics.polarity == Polarity::Contacts
-            && polarize_from_contacts(&mut self.tissue, &self.contacts) > 0
+            && polarize_from_contacts(&mut self.tissue, &self.work.contacts) > 0
         {
             // Tensions changed with the face types: the forces must match the new types.
             self.compute_forces();
         }
-        self.force_evaluations += 1;
-        self.node_evaluations += self.tissue.node_count() as u64;
+        self.progress.force_evaluations += 1;
+        self.progress.node_evaluations += self.tissue.node_count() as u64;
         if self.normal_only {
             self.project_to_normals();
             if self.params.numerics.contact_model == ContactModel::Coupling {
                 // Tied nodes share one force again: the mean of the two projections.
-                self.coupling.average_forces(&self.tissue, &mut self.forces.cells);
+                self.work.coupling.average_forces(&self.tissue, &mut self.work.forces.cells);
             }
         }
         self.check_health()
@@ -117,19 +123,23 @@ impl<'p> Simulation<'p> {
     fn project_to_normals(&mut self) {
         let cells = self.tissue.cells();
         let dynamic = self.params.numerics.dynamics == Dynamics::Dynamic;
-        self.forces.cells.par_iter_mut().zip(cells.par_iter()).zip(self.momenta.par_iter_mut()).for_each(
-            |((work, cell), momenta)| {
+        self.work
+            .forces
+            .cells
+            .par_iter_mut()
+            .zip(cells.par_iter())
+            .zip(self.cell_data.momenta.par_iter_mut())
+            .for_each(|((work, cell), momenta)| {
                 let normals = node_normals(cell, &work.geometry.area_vectors);
                 project_onto(&normals, &mut work.forces);
                 if dynamic {
                     project_onto(&normals, momenta);
                 }
-            },
-        );
+            });
     }
 
     pub(super) fn volumes(&self) -> Vec<Real> {
-        self.forces.cells.iter().map(|w| w.geometry.volume).collect()
+        self.work.forces.cells.iter().map(|w| w.geometry.volume).collect()
     }
 }
 

@@ -30,7 +30,7 @@ impl<'p> Simulation<'p> {
     /// The health check after an evaluation: the first cell with a non-finite position, a volume
     /// that is not positive or a non-finite force stops the run.
     pub(super) fn check_health(&self) -> Result<(), SimulationError> {
-        for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.forces.cells).enumerate() {
+        for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.work.forces.cells).enumerate() {
             let problem = if let Some(n) = cell.mesh().positions().iter().position(|p| !p.iter().all(|v| v.is_finite()))
             {
                 Some(format!("node {n} has a non-finite position (the update diverged)"))
@@ -96,13 +96,13 @@ impl<'p> Simulation<'p> {
         let mut last_good = self.tissue.clone();
         // The saved positions follow divisions and removals; cells whose mesh changed since the save
         // (remeshed) keep their current positions.
-        for (cell, saved) in last_good.cells_mut().iter_mut().zip(&self.last_good) {
+        for (cell, saved) in last_good.cells_mut().iter_mut().zip(&self.cell_data.last_good) {
             if cell.mesh().node_count() == saved.len() {
                 cell.positions_mut().copy_from_slice(saved);
             }
         }
         SimulationError::Unhealthy {
-            step: self.step,
+            step: self.progress.step,
             cell: self.tissue.cells()[c].id(),
             what,
             hint: self.hint(c),
@@ -111,8 +111,8 @@ impl<'p> Simulation<'p> {
     }
 
     pub(super) fn save_good(&mut self) {
-        self.last_good.resize_with(self.tissue.len(), Vec::new);
-        for (saved, cell) in self.last_good.iter_mut().zip(self.tissue.cells()) {
+        self.cell_data.last_good.resize_with(self.tissue.len(), Vec::new);
+        for (saved, cell) in self.cell_data.last_good.iter_mut().zip(self.tissue.cells()) {
             saved.clear();
             saved.extend_from_slice(cell.mesh().positions());
         }

@@ -23,11 +23,11 @@ impl<'p> Simulation<'p> {
                 residual
             }
         };
-        while self.step < steps {
+        while self.progress.step < steps {
             self.time_step()?;
             residual = self.residual();
-            observer.progress(self.step, residual);
-            if self.step.is_multiple_of(sample_every) || self.step == steps {
+            observer.progress(self.progress.step, residual);
+            if self.progress.step.is_multiple_of(sample_every) || self.progress.step == steps {
                 self.sample(observer, residual)?;
             }
             self.maybe_checkpoint(observer, || Phase::Time { residual })?;
@@ -49,7 +49,7 @@ impl<'p> Simulation<'p> {
         self.move_nodes(true);
         self.divide_and_remove()?;
         let every = self.params.simulation.remesh_every_steps;
-        if every > 0 && self.step.is_multiple_of(every) {
+        if every > 0 && self.progress.step.is_multiple_of(every) {
             self.remesh_cells(None)?;
         } else if let Some(cells) = self.cells_needing_repair() {
             self.repair_meshes(cells)?;
@@ -68,18 +68,18 @@ impl<'p> Simulation<'p> {
     /// volumes when `grow`, and advances the clock; forces are not re-evaluated.
     fn move_nodes(&mut self, grow: bool) {
         // Tied pairs share one momentum (forces are already averaged).
-        self.coupling.average_momenta(&self.tissue, &mut self.momenta);
+        self.work.coupling.average_momenta(&self.tissue, &mut self.cell_data.momenta);
         integrate_step(
             &mut self.tissue,
-            &self.forces.cells,
+            &self.work.forces.cells,
             &self.cell_params,
-            &mut self.momenta,
+            &mut self.cell_data.momenta,
             &self.params.numerics,
         );
         let dt = self.params.numerics.time_step;
         if grow {
             for (cell, (g, p)) in
-                self.tissue.cells_mut().iter_mut().zip(self.growth_rates.iter().zip(&self.cell_params))
+                self.tissue.cells_mut().iter_mut().zip(self.cell_data.growth_rates.iter().zip(&self.cell_params))
             {
                 if *g != 0.0 {
                     // V0 never drops below the removal volume (as the reference clamps it).
@@ -88,7 +88,7 @@ impl<'p> Simulation<'p> {
                 }
             }
         }
-        self.time += dt;
-        self.step += 1;
+        self.progress.time += dt;
+        self.progress.step += 1;
     }
 }

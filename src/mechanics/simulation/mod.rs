@@ -30,6 +30,7 @@
 //!
 //! Layout: the [`Simulation`] struct, its construction and public API are here; `observer` (what a
 //! run shows its caller), `state` (the serialisable state: checkpoints and restoring them),
+//! `workspace` (the force evaluation's buffers and caches, rebuilt from the state),
 //! `events` (divisions and removals), `evaluation` (force evaluation, polarity, the normal
 //! projection), `health` (the checks after each evaluation and the last good state), `laplace`
 //! (Laplace target volumes), `equilibrium` (the relaxation loop) and `mover` (FIRE or integration
@@ -51,6 +52,7 @@ mod remesh;
 mod state;
 #[cfg(test)]
 mod tests;
+mod workspace;
 
 pub use equilibrium::BEST_ENERGY_SLACK;
 pub use events::{TopologyEvent, TopologyEventKind, TopologyStats};
@@ -59,16 +61,17 @@ pub use observer::{CheckpointRequest, NoObserver, Observer, Sample};
 pub use overlap::{
     OVERLAP_WARNING, REPULSION_MARGIN, REPULSION_PER_ADHESION, REPULSION_PER_PRESSURE, derived_repulsion,
 };
-pub use state::{BestState, CellForcesState, CellState, Phase, SimulationState};
+pub use state::{BestState, CellData, CellForcesState, CellState, Phase, RunProgress, SimulationState};
 
 use super::forces::{TissueForces, UnknownCellType, apply_configured_kinds, cell_parameters};
 use super::growth::{draw_division_volumes, draw_growth_rates};
-use super::{CellTypeParams, ContactWorkspace, CouplingWorkspace, EnergyTerms, Parameters, SimulationMode};
+use super::{CellTypeParams, ContactWorkspace, EnergyTerms, Parameters, SimulationMode};
 use crate::geometry::{Real, Vec3};
 use crate::mesh::remesh::RemeshError;
 use crate::mesh::{CellId, FaceType, Tissue};
 use laplace::set_laplace_target_volumes;
 use serde::Serialize;
+use workspace::Workspace;
 
 /// How a run ended.
 #[derive(Clone, Debug, Serialize)]
@@ -165,39 +168,30 @@ fn tension_scale(tissue: &Tissue, cell_params: &[&CellTypeParams]) -> Real {
     if max > 0.0 { max } else { 1e-3 }
 }
 
-/// A running simulation.
+/// A running simulation: the tissue and the simulation's own state (saved whole by a checkpoint,
+/// [`SimulationState`]), the workspace of the force evaluation (rebuilt, see `workspace.rs`), and
+/// per-session settings.
 pub struct Simulation<'p> {
     tissue: Tissue,
     params: &'p Parameters,
+    /// The parameters of every cell's type, in tissue order (derived from the tissue and `params`).
     cell_params: Vec<&'p CellTypeParams>,
-    forces: TissueForces,
-    contacts: ContactWorkspace,
-    coupling: CouplingWorkspace,
-    momenta: Vec<Vec<Vec3>>,
-    growth_rates: Vec<Real>,
-    /// V_max of every cell (m³; inf: never divides).
-    division_volumes: Vec<Real>,
-    /// Remeshing passes each cell skips before its next one: a pass that could make no operation
-    /// (every out-of-range edge or poor face refused) backs the cell off for [`REMESH_BACKOFF`](remesh::REMESH_BACKOFF) passes
-    /// instead of rebuilding its working copy every step for nothing.
-    remesh_idle: Vec<u32>,
+    /// Per-cell data beside the meshes (momenta, growth rates, division volumes, remeshing back-off,
+    /// the last good positions).
+    cell_data: CellData,
+    /// Clock, counters and topology history.
+    progress: RunProgress,
+    /// Force buffers, contact and coupling stages.
+    work: Workspace,
     /// A relaxation with `simulation.normal_relaxation`: forces are projected onto the node normals.
     normal_only: bool,
     /// Whether FIRE gives nodes in contact masses along their contact directions
     /// ([`Simulation::contact_masses`]): `None` decides from the parameters
     /// ([`Simulation::contact_masses_pay`]), `Some` is [`Simulation::set_fire_contact_masses`].
     fire_contact_masses: Option<bool>,
-    /// Replaces FIRE's N_P≤0^max ([`FireSettings::max_uphill`](super::FireSettings::max_uphill)); set by tests to make FIRE stall.
+    /// Replaces FIRE's N_P≤0^max ([`FireSettings::max_uphill`](super::FireSettings::max_uphill)); set
+    /// by tests to make FIRE stall.
     fire_max_uphill: Option<usize>,
-    last_good: Vec<Vec<Vec3>>,
-    events: Vec<TopologyEvent>,
-    topology: TopologyStats,
-    node_evaluations: u64,
-    force_scale: Real,
-    energy_scale: Real,
-    time: Real,
-    step: u64,
-    force_evaluations: u64,
     /// Loop state of a restored run, consumed by [`Self::run`].
     resume: Option<Phase>,
     /// Ray-casting polarity: the step of the last polarisation (a step evaluated twice, after
@@ -233,22 +227,14 @@ impl<'p> Simulation<'p> {
         let division_volumes = draw_division_volumes(&tissue, &cell_params, params.numerics.seed);
         let momenta = tissue.cells().iter().map(|c| vec![Vec3::zeros(); c.mesh().node_count()]).collect();
         let energy_scale = gamma * tissue.cells().iter().map(|c| c.mesh().area()).sum::<Real>();
-        let mut contacts = ContactWorkspace::default();
-        contacts.set_model(params.numerics.contact_model);
-        contacts.set_quadrature(params.numerics.contact_quadrature);
-        Ok(Self {
-            cell_params,
-            forces: TissueForces::default(),
-            contacts,
-            coupling: CouplingWorkspace::default(),
+        let cell_data = CellData {
             momenta,
             growth_rates,
             remesh_idle: vec![0; division_volumes.len()],
-            normal_only: false,
-            fire_max_uphill: None,
-            fire_contact_masses: None,
             division_volumes,
             last_good: Vec::new(),
+        };
+        let progress = RunProgress {
             events: Vec::new(),
             topology: TopologyStats::default(),
             node_evaluations: 0,
@@ -257,6 +243,15 @@ impl<'p> Simulation<'p> {
             time: 0.0,
             step: 0,
             force_evaluations: 0,
+        };
+        Ok(Self {
+            cell_params,
+            cell_data,
+            progress,
+            work: Workspace::new(&params.numerics),
+            normal_only: false,
+            fire_max_uphill: None,
+            fire_contact_masses: None,
             resume: None,
             polarized_at: None,
             polarity_due: false,
@@ -278,7 +273,7 @@ impl<'p> Simulation<'p> {
 
     /// The forces of the last evaluation.
     pub fn forces(&self) -> &TissueForces {
-        &self.forces
+        &self.work.forces
     }
 
     /// Whether FIRE makes nodes in contact heavier along their contact directions (see
@@ -290,48 +285,48 @@ impl<'p> Simulation<'p> {
 
     /// The typical tension force γ̄·l_min (N) that residuals are measured in.
     pub fn force_scale(&self) -> Real {
-        self.force_scale
+        self.progress.force_scale
     }
 
     /// Divisions and removals so far, in the order they happened.
     pub fn events(&self) -> &[TopologyEvent] {
-        &self.events
+        &self.progress.events
     }
 
     /// Counts of divisions, removals and remeshing so far.
     pub fn topology_stats(&self) -> TopologyStats {
-        self.topology
+        self.progress.topology
     }
 
     /// Growth rate of every cell (m³/s), in tissue order.
     pub fn growth_rates(&self) -> &[Real] {
-        &self.growth_rates
+        &self.cell_data.growth_rates
     }
 
     /// Division volume V_max of every cell (m³), in tissue order.
     pub fn division_volumes(&self) -> &[Real] {
-        &self.division_volumes
+        &self.cell_data.division_volumes
     }
 
     /// Current simulated time (s) and step.
     pub fn time_and_step(&self) -> (Real, u64) {
-        (self.time, self.step)
+        (self.progress.time, self.progress.step)
     }
 
     /// The contact stage of the last evaluation (which nodes touch which cell, at what distance).
     pub fn contacts(&self) -> &ContactWorkspace {
-        &self.contacts
+        &self.work.contacts
     }
 
     /// The node pairs tied by the coupling contact model at the last evaluation (empty with springs).
     pub fn coupled_pairs(&self) -> &[super::CoupledPair] {
-        self.coupling.pairs()
+        self.work.coupling.pairs()
     }
 
     /// The groups of nodes tied by the coupling contact model at the last evaluation, each a list of
     /// (cell, node) (pairs, and three or four nodes at junctions; empty with springs).
     pub fn coupled_groups(&self) -> impl Iterator<Item = &[(u32, u32)]> + '_ {
-        self.coupling.groups()
+        self.work.coupling.groups()
     }
 
     /// Ray-casting polarisations run so far in this session (0 unless `numerics.polarity` is
@@ -356,7 +351,7 @@ impl<'p> Simulation<'p> {
         let max_overlap_fraction = overlaps
             .iter()
             .zip(self.tissue.cells())
-            .zip(&self.forces.cells)
+            .zip(&self.work.forces.cells)
             .filter(|((_, cell), _)| !cell.kind().is_immobile())
             .map(|((v, _), w)| v / w.geometry.volume)
             .fold(0.0, Real::max);
@@ -365,14 +360,14 @@ impl<'p> Simulation<'p> {
             max_overlap_fraction,
             stop_reason: None,
             ended_at_step: None,
-            steps: self.step,
-            force_evaluations: self.force_evaluations,
-            node_evaluations: self.node_evaluations,
-            topology: self.topology,
+            steps: self.progress.step,
+            force_evaluations: self.progress.force_evaluations,
+            node_evaluations: self.progress.node_evaluations,
+            topology: self.progress.topology,
             converged,
             residual,
-            time: self.time,
-            energy: self.forces.energy(),
+            time: self.progress.time,
+            energy: self.work.forces.energy(),
         }
     }
 }

@@ -42,7 +42,7 @@ pub(super) enum Mover {
 impl Mover {
     pub(super) fn fire(sim: &Simulation<'_>) -> Self {
         let total = sim.tissue.node_count();
-        let mut settings = FireSettings::for_scales(sim.params.numerics.min_edge_length, sim.force_scale);
+        let mut settings = FireSettings::for_scales(sim.params.numerics.min_edge_length, sim.progress.force_scale);
         if let Some(n) = sim.fire_max_uphill {
             settings.max_uphill = n;
         }
@@ -85,10 +85,10 @@ impl Mover {
                     return Ok(Moved::Stalled);
                 }
                 sim.unpack(offsets, x);
-                sim.step += 1;
+                sim.progress.step += 1;
                 sim.evaluate()?;
                 // Tied pairs move as one: new pairs take their mean velocity.
-                sim.coupling.average_packed(&sim.tissue, offsets, fire.velocities_mut());
+                sim.work.coupling.average_packed(&sim.tissue, offsets, fire.velocities_mut());
             }
             Mover::Integrate => sim.advance(false)?,
         }
@@ -128,7 +128,7 @@ impl<'p> Simulation<'p> {
     }
 
     fn pack(&self, offsets: &[usize], x: &mut [Vec3], f: &mut [Vec3]) {
-        for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.forces.cells).enumerate() {
+        for (c, (cell, work)) in self.tissue.cells().iter().zip(&self.work.forces.cells).enumerate() {
             x[offsets[c]..offsets[c + 1]].copy_from_slice(cell.mesh().positions());
             f[offsets[c]..offsets[c + 1]].copy_from_slice(&work.forces);
         }
@@ -152,7 +152,7 @@ impl<'p> Simulation<'p> {
         let mut heavy = false;
         let mut extra: Vec<(Vec3, Real)> = Vec::new();
         for (c, cell) in self.tissue.cells().iter().enumerate() {
-            let areas = &self.forces.cells[c].geometry.areas;
+            let areas = &self.work.forces.cells[c].geometry.areas;
             let mut flush = |node: Option<u32>, extra: &mut Vec<(Vec3, Real)>| {
                 if let (Some(node), false) = (node, extra.is_empty()) {
                     let mass = if self.normal_only {
@@ -168,7 +168,7 @@ impl<'p> Simulation<'p> {
                 extra.clear();
             };
             let mut current = None;
-            for (node, direction, k) in self.contacts.pair_stiffnesses(c, cell, self.cell_params[c], areas) {
+            for (node, direction, k) in self.work.contacts.pair_stiffnesses(c, cell, self.cell_params[c], areas) {
                 if current != Some(node) {
                     flush(current, &mut extra);
                     current = Some(node);

@@ -58,13 +58,13 @@ pub enum CheckpointRequest {
 impl<'p> Simulation<'p> {
     pub(super) fn sample(&self, observer: &mut dyn Observer, residual: Real) -> Result<(), SimulationError> {
         let sample = Sample {
-            step: self.step,
-            time: self.time,
+            step: self.progress.step,
+            time: self.progress.time,
             tissue: &self.tissue,
-            forces: &self.forces,
+            forces: &self.work.forces,
             residual,
-            growth_rates: &self.growth_rates,
+            growth_rates: &self.cell_data.growth_rates,
         };
-        observer.sample(&sample).map_err(|source| SimulationError::Observer { step: self.step, source })
+        observer.sample(&sample).map_err(|source| SimulationError::Observer { step: self.progress.step, source })
     }
 }

@@ -52,7 +52,7 @@ impl<'p> Simulation<'p> {
         let mut volumes = vec![0.0; self.tissue.len()];
         for (c, cell) in self.tissue.cells().iter().enumerate() {
             let mut areas = None;
-            for (node, other, d) in self.contacts.node_contacts(c) {
+            for (node, other, d) in self.work.contacts.node_contacts(c) {
                 if d < 0.0 {
                     let areas = areas.get_or_insert_with(|| node_areas(cell.mesh()));
                     let column = 0.5 * areas[node as usize] * -d;

@@ -61,8 +61,8 @@ impl<'p> Simulation<'p> {
     /// [`NEED_BACKOFF`] checks instead of being remeshed again at every step.
     pub(super) fn repair_meshes(&mut self, mut cells: Vec<bool>) -> Result<bool, SimulationError> {
         for (c, due) in cells.iter_mut().enumerate() {
-            if *due && self.remesh_idle[c] > 0 {
-                self.remesh_idle[c] -= 1;
+            if *due && self.cell_data.remesh_idle[c] > 0 {
+                self.cell_data.remesh_idle[c] -= 1;
                 *due = false;
             }
         }
@@ -74,15 +74,15 @@ impl<'p> Simulation<'p> {
                 (0..cells.len()).filter(|&c| cells[c]).map(|c| self.tissue.cells()[c].id().to_string()).collect();
             tracing::debug!(
                 "step {}: repairing cell(s) {} out of turn (edges below remesh_below_edge_fraction·l_min, slivers)",
-                self.step,
+                self.progress.step,
                 ids.join(", ")
             );
         }
-        self.topology.need_passes += 1;
+        self.progress.topology.need_passes += 1;
         let changed = self.remesh_cells(Some(&cells))?;
         if let Some(still) = self.cells_needing_repair() {
             for (c, _) in cells.iter().zip(&still).enumerate().filter(|(_, (due, still))| **due && **still) {
-                self.remesh_idle[c] = NEED_BACKOFF;
+                self.cell_data.remesh_idle[c] = NEED_BACKOFF;
             }
         }
         Ok(changed)
@@ -113,8 +113,8 @@ impl<'p> Simulation<'p> {
             .tissue
             .cells_mut()
             .par_iter_mut()
-            .zip(self.momenta.par_iter_mut())
-            .zip(self.remesh_idle.par_iter_mut())
+            .zip(self.cell_data.momenta.par_iter_mut())
+            .zip(self.cell_data.remesh_idle.par_iter_mut())
             .enumerate()
             .map(|(c, ((cell, momenta), idle))| {
                 if cell.kind().is_immobile() {
@@ -139,9 +139,9 @@ impl<'p> Simulation<'p> {
             match result {
                 Ok(report) => {
                     if report.rounds > 0 {
-                        self.topology.add_remesh(&report);
+                        self.progress.topology.add_remesh(&report);
                         if report.operations() == 0 {
-                            self.remesh_idle[c] = REMESH_BACKOFF;
+                            self.cell_data.remesh_idle[c] = REMESH_BACKOFF;
                         }
                     }
                     changed |= self.tissue.cells()[c].mesh().topology_generation() != before;
@@ -159,12 +159,15 @@ impl<'p> Simulation<'p> {
                         | RemeshError::InvalidInput {
                             defect: MeshDefect::DegenerateFace { .. } | MeshDefect::NonPositiveVolume { .. },
                         } => {
-                            self.topology.rejected_passes += 1;
-                            tracing::debug!("step {}: cell {cell}: remeshing pass discarded: {inner}", self.step);
+                            self.progress.topology.rejected_passes += 1;
+                            tracing::debug!(
+                                "step {}: cell {cell}: remeshing pass discarded: {inner}",
+                                self.progress.step
+                            );
                         }
                         other => {
                             return Err(SimulationError::Remesh {
-                                step: self.step,
+                                step: self.progress.step,
                                 source: Box::new(RemeshError::Cell { cell, source: Box::new(other) }),
                             });
                         }

@@ -2,10 +2,11 @@
 //! and the round trip: building it from a simulation, and restoring a simulation from it so that the
 //! run continues bitwise as if it had never stopped.
 
+use super::workspace::Workspace;
 use super::{CheckpointRequest, Observer, Simulation, SimulationError, TopologyEvent, TopologyStats};
 use crate::geometry::{Real, Vec3};
 use crate::mechanics::forces::cell_parameters;
-use crate::mechanics::{CellForces, ContactWorkspace, CouplingWorkspace, EnergyTerms, Fire, Parameters, TissueForces};
+use crate::mechanics::{EnergyTerms, Fire, Parameters};
 use crate::mesh::{Cell, CellId, FaceType, Tissue};
 use serde::{Deserialize, Serialize};
 
@@ -59,28 +60,60 @@ pub struct BestState {
 /// Everything a running simulation holds that influences its results: restoring it with
 /// [`Simulation::restore`] continues the run bitwise as if it had never stopped (same seed and
 /// threads). Caches that only affect speed (contact grid, hinges) are rebuilt.
+///
+/// The nested [`CellData`] and [`RunProgress`] are the simulation's own structs, saved whole; postcard
+/// writes a nested struct as its fields in order, so the file holds the same fields in the same order
+/// as when they were listed here one by one (checkpoint format 5 did not change).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SimulationState {
     pub cells: Vec<CellState>,
     /// The next fresh cell id (ids of dead cells are never reused).
     pub next_id: CellId,
-    pub momenta: Vec<Vec<Vec3>>,
-    pub growth_rates: Vec<Real>,
-    pub division_volumes: Vec<Real>,
-    pub remesh_idle: Vec<u32>,
-    pub last_good: Vec<Vec<Vec3>>,
+    pub cell_data: CellData,
     pub forces: Vec<CellForcesState>,
     /// Node pairs tied by the coupling model at the last evaluation: (cell, node) of each side.
     pub coupled: Vec<((u32, u32), (u32, u32))>,
+    pub progress: RunProgress,
+    pub phase: Phase,
+}
+
+/// What the driver keeps for every cell beside its mesh, in tissue order (divisions and removals keep
+/// the arrays aligned with the cells).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CellData {
+    /// Momenta of the nodes (kg·m/s; the dynamic model's, zero in the overdamped one).
+    pub momenta: Vec<Vec<Vec3>>,
+    /// Growth rate (m³/s).
+    pub growth_rates: Vec<Real>,
+    /// V_max (m³; inf: never divides).
+    pub division_volumes: Vec<Real>,
+    /// Remeshing passes each cell skips before its next one: a pass that could make no operation
+    /// (every out-of-range edge or poor face refused) backs the cell off for
+    /// [`REMESH_BACKOFF`](super::remesh::REMESH_BACKOFF) passes instead of rebuilding its working
+    /// copy every step for nothing.
+    pub remesh_idle: Vec<u32>,
+    /// Node positions of the last good state (before the step that is being taken), for
+    /// [`SimulationError::Unhealthy`]; empty before the first save and after a topology change it
+    /// could not follow.
+    pub last_good: Vec<Vec<Vec3>>,
+}
+
+/// The clock, counters and topology history of a run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunProgress {
+    /// Divisions and removals so far, in the order they happened.
     pub events: Vec<TopologyEvent>,
     pub topology: TopologyStats,
+    /// Sum over force evaluations of the number of nodes.
     pub node_evaluations: u64,
+    /// γ̄·l_min (N), what residuals are measured in; fixed at the start.
     pub force_scale: Real,
+    /// γ̄·A (J), what energy changes are measured against; fixed at the start.
     pub energy_scale: Real,
+    /// Simulated time (s).
     pub time: Real,
     pub step: u64,
     pub force_evaluations: u64,
-    pub phase: Phase,
 }
 
 /// The cell a [`CellState`] describes.
@@ -115,32 +148,16 @@ impl<'p> Simulation<'p> {
             .collect()
     }
 
+    /// The state to save: the tissue's cells, the simulation's own state structs whole, and what the
+    /// workspace keeps of the last evaluation.
     fn snapshot(&self, phase: Phase) -> SimulationState {
-        let cells = self.cell_states();
-        let forces = self
-            .forces
-            .cells
-            .iter()
-            .map(|w| CellForcesState { forces: w.forces.clone(), pressure: w.pressure, energy: w.energy })
-            .collect();
         SimulationState {
-            cells,
+            cells: self.cell_states(),
             next_id: self.tissue.next_id(),
-            momenta: self.momenta.clone(),
-            growth_rates: self.growth_rates.clone(),
-            division_volumes: self.division_volumes.clone(),
-            remesh_idle: self.remesh_idle.clone(),
-            last_good: self.last_good.clone(),
-            forces,
-            coupled: self.coupling.pairs().iter().map(|p| (p.a, p.b)).collect(),
-            events: self.events.clone(),
-            topology: self.topology,
-            node_evaluations: self.node_evaluations,
-            force_scale: self.force_scale,
-            energy_scale: self.energy_scale,
-            time: self.time,
-            step: self.step,
-            force_evaluations: self.force_evaluations,
+            cell_data: self.cell_data.clone(),
+            forces: self.work.saved_forces(),
+            coupled: self.work.saved_ties(),
+            progress: self.progress.clone(),
             phase,
         }
     }
@@ -150,41 +167,29 @@ impl<'p> Simulation<'p> {
     pub fn restore(state: SimulationState, params: &'p Parameters) -> Result<Self, SimulationError> {
         let bad = |what: String| SimulationError::BadState(what);
         let n = state.cells.len();
+        let data = &state.cell_data;
         let per_cell = [
-            ("momenta", state.momenta.len()),
-            ("growth rates", state.growth_rates.len()),
-            ("division volumes", state.division_volumes.len()),
-            ("remeshing counters", state.remesh_idle.len()),
+            ("momenta", data.momenta.len()),
+            ("growth rates", data.growth_rates.len()),
+            ("division volumes", data.division_volumes.len()),
+            ("remeshing counters", data.remesh_idle.len()),
             ("forces", state.forces.len()),
         ];
         if let Some((name, len)) = per_cell.iter().find(|(_, len)| *len != n) {
             return Err(bad(format!("{len} {name} for {n} cells")));
         }
         let mut cells = Vec::with_capacity(n);
-        let mut forces = TissueForces::default();
-        for (c, (cs, fs)) in state.cells.into_iter().zip(state.forces).enumerate() {
+        for (c, (cs, fs)) in state.cells.into_iter().zip(&state.forces).enumerate() {
             let nodes = cs.positions.len();
-            if state.momenta[c].len() != nodes || fs.forces.len() != nodes {
+            if data.momenta[c].len() != nodes || fs.forces.len() != nodes {
                 return Err(bad(format!("cell {}: momenta or forces do not match its {nodes} nodes", cs.id)));
             }
-            let cell = cell_from_state(cs).map_err(bad)?;
-            let mut work = CellForces::default();
-            work.geometry.update(cell.mesh());
-            work.forces = fs.forces;
-            work.pressure = fs.pressure;
-            work.energy = fs.energy;
-            forces.cells.push(work);
-            cells.push(cell);
+            cells.push(cell_from_state(cs).map_err(bad)?);
         }
         let mut tissue = Tissue::from_cells(cells).map_err(|e| bad(e.to_string()))?;
         tissue.reserve_ids_below(state.next_id);
         let cell_params = cell_parameters(&tissue, params)?;
-        let mut contacts = ContactWorkspace::default();
-        contacts.set_model(params.numerics.contact_model);
-        contacts.set_quadrature(params.numerics.contact_quadrature);
-        let mut coupling = CouplingWorkspace::default();
-        coupling
-            .restore_pairs(state.coupled.into_iter().map(|(a, b)| crate::mechanics::CoupledPair { a, b }).collect());
+        let work = Workspace::restore(&params.numerics, tissue.cells(), state.forces, state.coupled);
         if let Phase::Relax { fire: Some(fire), .. } = &state.phase
             && fire.velocities().len() != tissue.node_count()
         {
@@ -198,25 +203,12 @@ impl<'p> Simulation<'p> {
             tissue,
             params,
             cell_params,
-            forces,
-            contacts,
-            coupling,
-            momenta: state.momenta,
-            growth_rates: state.growth_rates,
-            division_volumes: state.division_volumes,
-            remesh_idle: state.remesh_idle,
+            work,
+            cell_data: state.cell_data,
+            progress: state.progress,
             normal_only: false,
             fire_max_uphill: None,
             fire_contact_masses: None,
-            last_good: state.last_good,
-            events: state.events,
-            topology: state.topology,
-            node_evaluations: state.node_evaluations,
-            force_scale: state.force_scale,
-            energy_scale: state.energy_scale,
-            time: state.time,
-            step: state.step,
-            force_evaluations: state.force_evaluations,
             resume: Some(state.phase),
             polarized_at: None,
             polarity_due: false,
@@ -230,15 +222,15 @@ impl<'p> Simulation<'p> {
         observer: &mut dyn Observer,
         phase: impl FnOnce() -> Phase,
     ) -> Result<(), SimulationError> {
-        let request = observer.checkpoint_due(self.step);
+        let request = observer.checkpoint_due(self.progress.step);
         if request == CheckpointRequest::No {
             return Ok(());
         }
         observer
             .checkpoint(&self.snapshot(phase()))
-            .map_err(|source| SimulationError::Observer { step: self.step, source })?;
+            .map_err(|source| SimulationError::Observer { step: self.progress.step, source })?;
         if request == CheckpointRequest::SaveAndStop {
-            return Err(SimulationError::Interrupted { step: self.step });
+            return Err(SimulationError::Interrupted { step: self.progress.step });
         }
         Ok(())
     }
@@ -253,7 +245,7 @@ impl<'p> Simulation<'p> {
         for (slot, cell) in self.tissue.cells_mut().iter_mut().zip(cells) {
             *slot = cell;
         }
-        for (m, cell) in self.momenta.iter_mut().zip(self.tissue.cells()) {
+        for (m, cell) in self.cell_data.momenta.iter_mut().zip(self.tissue.cells()) {
             m.clear();
             m.resize(cell.mesh().node_count(), Vec3::zeros());
         }

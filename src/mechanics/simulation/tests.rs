@@ -36,11 +36,11 @@ fn a_cell_above_its_division_volume_divides_into_two_recorded_daughters() {
         let lateral = c.face_types().iter().filter(|t| **t == FaceType::Lateral).count();
         assert!(lateral > 0 && lateral < c.face_types().len(), "{lateral} lateral faces");
     }
-    assert_eq!((sim.growth_rates().len(), sim.division_volumes().len(), sim.momenta.len()), (2, 2, 2));
-    assert!(sim.momenta.iter().zip(cells).all(|(m, c)| m.len() == c.mesh().node_count()));
+    assert_eq!((sim.growth_rates().len(), sim.division_volumes().len(), sim.cell_data.momenta.len()), (2, 2, 2));
+    assert!(sim.cell_data.momenta.iter().zip(cells).all(|(m, c)| m.len() == c.mesh().node_count()));
     // The saved last good state follows the division (daughters' positions at the cut).
-    assert!(sim.last_good.iter().zip(cells).all(|(x, c)| x.as_slice() == c.mesh().positions()));
-    assert_eq!(sim.last_good.len(), 2);
+    assert!(sim.cell_data.last_good.iter().zip(cells).all(|(x, c)| x.as_slice() == c.mesh().positions()));
+    assert_eq!(sim.cell_data.last_good.len(), 2);
     let e = &sim.events()[0];
     assert_eq!((e.kind, e.cell, e.daughters), (TopologyEventKind::Division, CellId(5), Some([CellId(6), CellId(7)])));
     let [va, vb] = e.daughter_volumes.unwrap();
@@ -242,7 +242,7 @@ fn a_cell_below_its_minimum_volume_is_removed() {
     let e = &sim.events()[0];
     assert_eq!((e.kind, e.cell, e.daughters), (TopologyEventKind::Removal, CellId(2), None));
     assert_eq!(sim.topology_stats().removals, 1);
-    assert_eq!((sim.growth_rates().len(), sim.forces().cells.len(), sim.last_good.len()), (1, 1, 1));
-    assert_eq!(sim.last_good[0].len(), sim.tissue().cells()[0].mesh().node_count());
+    assert_eq!((sim.growth_rates().len(), sim.forces().cells.len(), sim.cell_data.last_good.len()), (1, 1, 1));
+    assert_eq!(sim.cell_data.last_good[0].len(), sim.tissue().cells()[0].mesh().node_count());
     sim.time_step().unwrap();
 }
