@@ -181,7 +181,118 @@ pub fn decode_checkpoint(bytes: &[u8], path: &Path) -> Result<(RunInfo, Simulati
 
 #[cfg(test)]
 mod tests {
-    use crate::mechanics::EnergyTerms;
+    use crate::geometry::{Real, Vec3};
+    use crate::mechanics::{
+        CellData, CellForcesState, CellState, EnergyTerms, Phase, RunProgress, SimulationState, TopologyEvent,
+        TopologyEventKind, TopologyStats,
+    };
+    use crate::mesh::{CellId, CellKind, FaceType};
+    use serde::{Deserialize, Serialize};
+
+    /// [`SimulationState`] as format 5 first laid it out, every field at the top level.
+    #[derive(Serialize, Deserialize)]
+    struct FlatFormat5 {
+        cells: Vec<CellState>,
+        next_id: CellId,
+        momenta: Vec<Vec<Vec3>>,
+        growth_rates: Vec<Real>,
+        division_volumes: Vec<Real>,
+        remesh_idle: Vec<u32>,
+        last_good: Vec<Vec<Vec3>>,
+        forces: Vec<CellForcesState>,
+        coupled: Vec<((u32, u32), (u32, u32))>,
+        events: Vec<TopologyEvent>,
+        topology: TopologyStats,
+        node_evaluations: u64,
+        force_scale: Real,
+        energy_scale: Real,
+        time: Real,
+        step: u64,
+        force_evaluations: u64,
+        phase: Phase,
+    }
+
+    /// A state with a distinct value in every field.
+    fn state() -> SimulationState {
+        let x = |k: Real| Vec3::new(k, -2.0 * k, 0.5 + k);
+        let cell = CellState {
+            id: CellId(7),
+            kind: CellKind::Epithelial,
+            cell_type: 2,
+            parent: Some(CellId(3)),
+            target_volume: 1.25e-16,
+            positions: vec![x(1.0), x(2.0), x(3.0), x(4.0)],
+            triangles: vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]],
+            face_types: vec![FaceType::Apical, FaceType::Lateral, FaceType::Basal, FaceType::Lateral],
+        };
+        let energy = EnergyTerms { pressure: 1.5, area_elasticity: -2.0, tension: 3e-12, bending: 0.0, contact: 7.25 };
+        SimulationState {
+            cells: vec![cell],
+            next_id: CellId(11),
+            cell_data: CellData {
+                momenta: vec![vec![x(5.0), x(6.0), x(7.0), x(8.0)]],
+                growth_rates: vec![3e-18],
+                division_volumes: vec![Real::INFINITY],
+                remesh_idle: vec![4],
+                last_good: vec![vec![x(9.0); 4]],
+            },
+            forces: vec![CellForcesState { forces: vec![x(-1.0); 4], pressure: 812.5, energy }],
+            coupled: vec![((0, 1), (0, 2))],
+            progress: RunProgress {
+                events: vec![TopologyEvent {
+                    step: 40,
+                    time: 0.5,
+                    kind: TopologyEventKind::Division,
+                    cell: CellId(3),
+                    daughters: Some([CellId(7), CellId(8)]),
+                    volume: 2.5e-16,
+                    daughter_volumes: Some([1.2e-16, 1.3e-16]),
+                }],
+                topology: TopologyStats { divisions: 1, splits: 17, need_passes: 2, ..TopologyStats::default() },
+                node_evaluations: 123_456,
+                force_scale: 6e-10,
+                energy_scale: 4.5e-15,
+                time: 0.75,
+                step: 60,
+                force_evaluations: 61,
+            },
+            phase: Phase::Relax { fire: None, best: None, previous: Some((1e-15, vec![2e-16])), residual: 0.03 },
+        }
+    }
+
+    /// Issue 21 item 4 grouped the state's per-cell data and run progress into [`CellData`] and
+    /// [`RunProgress`]: postcard writes nested structs as their fields in order, so the bytes are those
+    /// of the flat layout of format 5, both ways.
+    #[test]
+    fn the_grouped_state_encodes_as_the_flat_layout_of_format_5() {
+        let s = state();
+        let flat = FlatFormat5 {
+            cells: s.cells.clone(),
+            next_id: s.next_id,
+            momenta: s.cell_data.momenta.clone(),
+            growth_rates: s.cell_data.growth_rates.clone(),
+            division_volumes: s.cell_data.division_volumes.clone(),
+            remesh_idle: s.cell_data.remesh_idle.clone(),
+            last_good: s.cell_data.last_good.clone(),
+            forces: s.forces.clone(),
+            coupled: s.coupled.clone(),
+            events: s.progress.events.clone(),
+            topology: s.progress.topology,
+            node_evaluations: s.progress.node_evaluations,
+            force_scale: s.progress.force_scale,
+            energy_scale: s.progress.energy_scale,
+            time: s.progress.time,
+            step: s.progress.step,
+            force_evaluations: s.progress.force_evaluations,
+            phase: s.phase.clone(),
+        };
+        let bytes = postcard::to_stdvec(&s).unwrap();
+        assert_eq!(bytes, postcard::to_stdvec(&flat).unwrap());
+        let back: SimulationState = postcard::from_bytes(&bytes).unwrap();
+        assert_eq!((back.cells, back.cell_data, back.progress), (s.cells, s.cell_data, s.progress));
+        let back: FlatFormat5 = postcard::from_bytes(&bytes).unwrap();
+        assert_eq!((back.step, back.last_good), (60, vec![vec![Vec3::new(9.0, -18.0, 9.5); 4]]));
+    }
 
     /// A cell's energies are stored as a struct since format 5 stored them as `[f64; 5]`: postcard
     /// encodes both as the same five numbers, so the format (and its version) did not change.

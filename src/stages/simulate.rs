@@ -368,7 +368,7 @@ fn nucleus_free(
 
 /// The step and the wall time (s, all sessions) of the checkpoint in `dir`, if it holds a readable one.
 pub fn checkpoint_progress(dir: &Path) -> Option<(u64, f64)> {
-    read_checkpoint(&dir.join(CHECKPOINT_FILE)).ok().map(|(info, state)| (state.step, info.wall_seconds))
+    read_checkpoint(&dir.join(CHECKPOINT_FILE)).ok().map(|(info, state)| (state.progress.step, info.wall_seconds))
 }
 
 /// Continues the run whose checkpoint is `dir/checkpoint.bin` with its saved model and outputs. The
@@ -399,7 +399,7 @@ pub fn resume(dir: &Path, options: &SimulateOptions, input: Option<&Path>) -> Re
     }
     let params = Parameters::from_toml_str(&info.parameters, &path.display().to_string())
         .map_err(|e| err(format!("reading the parameters saved in {}: {e}", path.display())))?;
-    let step = state.step;
+    let step = state.progress.step;
     resume_settings(&options.checkpoints, &mut info.settings, step)?;
     let mut sim = Simulation::restore(state, &params).map_err(|e| err(format!("resuming {}: {e}", path.display())))?;
     let recorder = SimulationRecorder::resume(dir, time_is_step(&params), &info.output)
@@ -494,10 +494,10 @@ impl Observer for RunObserver {
         c.info.wall_seconds = c.wall_before + c.session.elapsed().as_secs_f64();
         let bytes = write_checkpoint(&c.path, &c.info, state)?;
         c.last = Instant::now();
-        c.saved_step = Some(state.step);
+        c.saved_step = Some(state.progress.step);
         tracing::info!(
             "checkpoint at step {}: {} ({bytes} bytes) written in {:.3} s",
-            state.step,
+            state.progress.step,
             c.path.display(),
             started.elapsed().as_secs_f64()
         );
