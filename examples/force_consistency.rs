@@ -19,7 +19,7 @@ use tissuefit::mesh::remesh::triangle_quality;
 type Error = Box<dyn std::error::Error>;
 
 /// Forces per cell and node, and the energy terms.
-type State = (Vec<Vec<Vec3>>, [Real; 5]);
+type State = (Vec<Vec<Vec3>>, [Real; EnergyTerms::COUNT]);
 
 /// Forces and energy terms of `tissue`, evaluated as a relaxation starts.
 fn evaluate(tissue: Tissue, params: &Parameters) -> Result<State, Error> {

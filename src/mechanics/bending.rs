@@ -36,8 +36,10 @@
 //! whatever the order of a hinge's nodes. A face of zero area makes its hinges' forces non-finite
 //! (unless their k̄ is zero), which the caller reports as a degenerate mesh.
 
+use super::CellTypeParams;
+use super::cell_geometry::CellGeometry;
 use crate::geometry::{Real, Vec3};
-use crate::mesh::{Adjacency, CellMesh, FaceType};
+use crate::mesh::{Adjacency, Cell, CellMesh, FaceType};
 
 /// One interior edge and its two faces: nodes [i, j, k, l] with edge i–j, k the third node of face a, l of face b.
 ///
@@ -68,6 +70,49 @@ pub fn build_hinges(mesh: &CellMesh) -> Vec<Hinge> {
         hinges.push(Hinge { nodes: [i, j, k, l], faces: [fa, fb] });
     }
     hinges
+}
+
+/// The term's per-cell state and its own pass (bending does not act through the face areas, so it
+/// is not in the shared face pass of `forces.rs`): the hinges of the cell's current topology.
+#[derive(Clone, Debug, Default)]
+pub(super) struct BendingCache {
+    hinges: Vec<Hinge>,
+    /// The mesh's topology generation the hinges were built for.
+    generation: u64,
+}
+
+impl BendingCache {
+    /// Adds the bending forces of `cell` (whose `geometry` is current) to `forces` and returns the
+    /// bending energy (J). With k_b = 0 on every face type (as in the growth benchmark) bending
+    /// contributes exactly nothing: no hinges are built and nothing is added; the hinges are
+    /// rebuilt lazily once it acts and whenever the topology changed.
+    pub(super) fn add_forces(
+        &mut self,
+        cell: &Cell,
+        p: &CellTypeParams,
+        geometry: &CellGeometry,
+        forces: &mut [Vec3],
+    ) -> Real {
+        let kb = FaceType::ALL.map(|t| p.faces.get(t).bending_modulus);
+        if !kb.iter().any(|&k| k != 0.0) {
+            return 0.0;
+        }
+        let mesh = cell.mesh();
+        if self.generation != mesh.topology_generation() {
+            self.hinges = build_hinges(mesh);
+            self.generation = mesh.topology_generation();
+        }
+        add_bending_forces(
+            mesh.positions(),
+            mesh.triangles(),
+            &geometry.normals,
+            &geometry.areas,
+            cell.face_types(),
+            kb,
+            &self.hinges,
+            forces,
+        )
+    }
 }
 
 /// +1 when triangle `t` runs from `i` to `j`, −1 otherwise (it runs from `j` to `i`).

@@ -1,24 +1,34 @@
 //! Internal forces of every cell: pressure, area elasticity, surface tension and bending, each the
 //! exact negative gradient of its energy; parallel over cells, deterministic.
 //!
-//! Per cell, one pass over the faces assembles the three area-based terms (they share ∇A_f and the
-//! area vector): node i of face f gets (p/3)·A_f n̂_f − (γ_f + dU_area/dA)·∇_i A_f. Bending runs over
-//! the cached hinges, skipping those with zero stiffness (exactly zero energy and force). Energies are
-//! reported per term, per cell and for the tissue. Contact forces (inter-cell terms) are added on
-//! top of these per-cell buffers by the contact stage.
+//! Each term lives in its own file with its energy, its force and their formulas (`pressure.rs`,
+//! `area_elasticity.rs`, `tension.rs`, `bending.rs`); this file only orchestrates. [`CellTerm`]
+//! lists the terms, and [`CellForces::compute`] runs, per cell:
+//!
+//! 1. every acting term's per-cell preparation (one match on [`CellTerm`]), which returns its energy
+//!    and what it adds to the shared face pass ([`Prepared`]);
+//! 2. the shared pass over the faces. The terms that act through the face areas and the volume only
+//!    (pressure, area elasticity, tension) share it, for speed: their coefficients are summed per
+//!    cell (p = −Σ ∂U/∂V, c_f = Σ ∂U/∂A_f by face type) and node i of face f gets
+//!    (p/3)·A_f n̂_f − c_f ∇_i A_f, one area gradient per face whatever the number of terms;
+//! 3. the passes of the terms with a geometry of their own (bending, over the hinges), which add
+//!    their forces on top (a second match on [`CellTerm`]).
+//!
+//! Energies are reported per term, per cell and for the tissue. Contact forces (inter-cell terms)
+//! are added on top of these per-cell buffers by the contact stage. ARCHITECTURE.md, "Adding an
+//! energy term", says what a new term touches.
 
-use super::area_elasticity::{area_elasticity_energy, target_area};
-use super::bending::{Hinge, add_bending_forces, build_hinges};
+use super::bending::BendingCache;
 use super::cell_geometry::CellGeometry;
-use super::pressure::pressure_energy;
-use super::tension::tension_energy;
-use super::{CellTypeParams, Parameters};
-use crate::geometry::{Real, Vec3, triangle_area_gradients};
-use crate::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
+use super::{CellTypeParams, Parameters, area_elasticity, pressure, tension};
+use crate::geometry::{Real, Vec3};
+use crate::mesh::{Cell, CellId, CellKind, Tissue};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-/// Energy of each term (J).
+/// Energy of each term (J). The fields are the file formats' (checkpoints encode them in this
+/// order, `stats.csv` has a column per field): the per-cell terms in [`CellTerm::ALL`] order, then
+/// contact.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct EnergyTerms {
     pub pressure: Real,
@@ -30,64 +40,68 @@ pub struct EnergyTerms {
 }
 
 impl EnergyTerms {
-    /// Names of the terms, in field order.
-    pub const NAMES: [&'static str; 5] = [
-        CellTerm::Pressure.name(),
-        CellTerm::AreaElasticity.name(),
-        CellTerm::Tension.name(),
-        CellTerm::Bending.name(),
-        "contact",
-    ];
+    /// How many terms: every [`CellTerm`], and contact.
+    pub const COUNT: usize = CellTerm::ALL.len() + 1;
 
-    /// Sum of all terms.
+    /// Names of the terms, in field order: [`CellTerm::ALL`]'s, then `contact`.
+    pub const NAMES: [&'static str; Self::COUNT] = {
+        let mut names = ["contact"; Self::COUNT];
+        let mut i = 0;
+        while i < CellTerm::ALL.len() {
+            names[i] = CellTerm::ALL[i].name();
+            i += 1;
+        }
+        names
+    };
+
+    /// The energy of a per-cell term.
+    pub fn term(&self, term: CellTerm) -> Real {
+        match term {
+            CellTerm::Pressure => self.pressure,
+            CellTerm::AreaElasticity => self.area_elasticity,
+            CellTerm::Tension => self.tension,
+            CellTerm::Bending => self.bending,
+        }
+    }
+
+    /// The energy of a per-cell term, to set.
+    pub fn term_mut(&mut self, term: CellTerm) -> &mut Real {
+        match term {
+            CellTerm::Pressure => &mut self.pressure,
+            CellTerm::AreaElasticity => &mut self.area_elasticity,
+            CellTerm::Tension => &mut self.tension,
+            CellTerm::Bending => &mut self.bending,
+        }
+    }
+
+    /// Sum of all terms, added in [`EnergyTerms::NAMES`] order.
     pub fn total(&self) -> Real {
-        self.pressure + self.area_elasticity + self.tension + self.bending + self.contact
+        let [first, rest @ ..] = self.values();
+        rest.iter().fold(first, |sum, e| sum + e)
     }
 
     /// The terms as an array, in [`EnergyTerms::NAMES`] order.
-    pub fn values(&self) -> [Real; 5] {
-        [self.pressure, self.area_elasticity, self.tension, self.bending, self.contact]
+    pub fn values(&self) -> [Real; Self::COUNT] {
+        let mut values = [self.contact; Self::COUNT];
+        for (value, term) in values.iter_mut().zip(CellTerm::ALL) {
+            *value = self.term(term);
+        }
+        values
     }
 }
 
 impl std::ops::AddAssign for EnergyTerms {
     fn add_assign(&mut self, o: Self) {
-        self.pressure += o.pressure;
-        self.area_elasticity += o.area_elasticity;
-        self.tension += o.tension;
-        self.bending += o.bending;
+        for term in CellTerm::ALL {
+            *self.term_mut(term) += o.term(term);
+        }
         self.contact += o.contact;
     }
 }
 
-/// Which terms to include (all by default; single terms for gradient checks and diagnostics).
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub struct TermSet {
-    pub pressure: bool,
-    pub area_elasticity: bool,
-    pub tension: bool,
-    pub bending: bool,
-}
-
-impl TermSet {
-    pub const ALL: TermSet = TermSet { pressure: true, area_elasticity: true, tension: true, bending: true };
-    pub const NONE: TermSet = TermSet { pressure: false, area_elasticity: false, tension: false, bending: false };
-
-    /// Only `term`.
-    pub fn only(term: CellTerm) -> TermSet {
-        let mut t = TermSet::NONE;
-        match term {
-            CellTerm::Pressure => t.pressure = true,
-            CellTerm::AreaElasticity => t.area_elasticity = true,
-            CellTerm::Tension => t.tension = true,
-            CellTerm::Bending => t.bending = true,
-        }
-        t
-    }
-}
-
 /// An energy term computed per cell (all but contact, which needs the other cells): the choices of
-/// [`TermSet::only`], so a misspelt term cannot select nothing.
+/// [`TermSet::only`], so a misspelt term cannot select nothing. The one list of the terms: a new
+/// term is a variant here (and in [`CellTerm::ALL`]), and the matches on it say what else it needs.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CellTerm {
@@ -98,7 +112,8 @@ pub enum CellTerm {
 }
 
 impl CellTerm {
-    /// Every per-cell term, in [`EnergyTerms::NAMES`] order.
+    /// Every per-cell term, in declaration order (a term's position is its discriminant, which
+    /// [`TermSet`] uses as its bit), and in [`EnergyTerms::NAMES`] order.
     pub const ALL: [CellTerm; 4] = [CellTerm::Pressure, CellTerm::AreaElasticity, CellTerm::Tension, CellTerm::Bending];
 
     /// The term's name, as in [`EnergyTerms::NAMES`] and the `energy_*` columns.
@@ -110,11 +125,54 @@ impl CellTerm {
             CellTerm::Bending => "bending",
         }
     }
+
+    /// The term's bit in a [`TermSet`].
+    const fn bit(self) -> u32 {
+        1 << self as u32
+    }
 }
 
 impl std::fmt::Display for CellTerm {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+/// Which terms to include (all by default; single terms for gradient checks and diagnostics): a
+/// set of [`CellTerm`]s.
+#[derive(Copy, Clone, PartialEq, Eq)]
+pub struct TermSet(u32);
+
+impl TermSet {
+    pub const ALL: TermSet = {
+        let mut bits = 0;
+        let mut i = 0;
+        while i < CellTerm::ALL.len() {
+            bits |= CellTerm::ALL[i].bit();
+            i += 1;
+        }
+        TermSet(bits)
+    };
+    pub const NONE: TermSet = TermSet(0);
+
+    /// Only `term`.
+    pub const fn only(term: CellTerm) -> TermSet {
+        TermSet(term.bit())
+    }
+
+    /// This set and `term`.
+    pub const fn with(self, term: CellTerm) -> TermSet {
+        TermSet(self.0 | term.bit())
+    }
+
+    /// Whether `term` is in the set.
+    pub const fn contains(self, term: CellTerm) -> bool {
+        self.0 & term.bit() != 0
+    }
+
+    /// The terms in the set, in [`CellTerm::ALL`] order.
+    pub fn iter(self) -> impl Iterator<Item = CellTerm> {
+        CellTerm::ALL.into_iter().filter(move |&t| self.contains(t))
     }
 }
 
@@ -124,6 +182,31 @@ impl Default for TermSet {
     }
 }
 
+impl std::fmt::Debug for TermSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_set().entries(self.iter().map(CellTerm::name)).finish()
+    }
+}
+
+/// What one term contributes to a cell, from its per-cell preparation (before any force is
+/// added): its energy, and its coefficients in the shared pass over the faces. A term with a pass
+/// of its own leaves the coefficients zero ([`Prepared::NONE`]).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub(super) struct Prepared {
+    /// The term's energy U (J).
+    pub energy: Real,
+    /// −∂U/∂V (Pa): each face pushes its nodes by (p/3)·A_f n̂_f ([`pressure::face_force`]).
+    pub pressure: Real,
+    /// ∂U/∂A_f (N/m) by face-type code: each face pulls its nodes by −c ∇_i A_f
+    /// ([`tension::face_forces`]).
+    pub tension: [Real; 3],
+}
+
+impl Prepared {
+    /// Zero energy, nothing in the face pass.
+    pub const NONE: Prepared = Prepared { energy: 0.0, pressure: 0.0, tension: [0.0; 3] };
+}
+
 /// Reusable per-cell buffers and results of the last evaluation.
 #[derive(Clone, Debug, Default)]
 pub struct CellForces {
@@ -131,72 +214,63 @@ pub struct CellForces {
     pub forces: Vec<Vec3>,
     pub geometry: CellGeometry,
     pub energy: EnergyTerms,
-    /// Pressure p (Pa) at the current volume.
+    /// Pressure p (Pa) at the current volume (whichever terms act).
     pub pressure: Real,
-    hinges: Vec<Hinge>,
-    hinge_generation: u64,
+    bending: BendingCache,
 }
 
 impl CellForces {
     /// Computes the internal forces and energies of `cell` with parameters `p`.
     pub fn compute(&mut self, cell: &Cell, p: &CellTypeParams, terms: TermSet) {
         let mesh = cell.mesh();
-        let kb = FaceType::ALL.map(|t| p.faces.get(t).bending_modulus);
-        // Hinges are built only when bending acts (k_b = 0 everywhere, as in the growth benchmark,
-        // contributes exactly nothing); the cache is rebuilt lazily once it does.
-        let bending_on = terms.bending && kb.iter().any(|&k| k != 0.0);
-        if bending_on && self.hinge_generation != mesh.topology_generation() {
-            self.hinges = build_hinges(mesh);
-            self.hinge_generation = mesh.topology_generation();
-        }
         self.geometry.update(mesh);
         let g = &self.geometry;
         let face_types = cell.face_types();
-        let (pressure, u_pressure) = pressure_energy(g.volume, cell.target_volume(), p.bulk_modulus, p.max_pressure);
-        let a0 = target_area(p.target_isoperimetric_ratio, cell.target_volume());
-        let (u_area, du_da) = area_elasticity_energy(g.area, a0, p.area_elasticity);
-        let gamma = FaceType::ALL.map(|t| p.faces.get(t).surface_tension);
-
+        let (pressure, u_pressure) = pressure::cell_pressure(cell, p, g.volume);
         self.pressure = pressure;
-        self.energy = EnergyTerms {
-            pressure: if terms.pressure { u_pressure } else { 0.0 },
-            area_elasticity: if terms.area_elasticity { u_area } else { 0.0 },
-            tension: if terms.tension { tension_energy(&g.areas, face_types, gamma) } else { 0.0 },
-            bending: 0.0,
-            contact: 0.0,
-        };
 
+        // 1. Each acting term's energy and its coefficients in the face pass, summed over the terms.
+        self.energy = EnergyTerms::default();
+        let mut pass = Prepared::NONE;
+        for term in terms.iter() {
+            let prepared = match term {
+                CellTerm::Pressure => pressure::prepare(pressure, u_pressure),
+                CellTerm::AreaElasticity => area_elasticity::prepare(cell, p, g),
+                CellTerm::Tension => tension::prepare(p, g, face_types),
+                CellTerm::Bending => Prepared::NONE, // its own pass, below
+            };
+            *self.energy.term_mut(term) = prepared.energy;
+            pass.pressure += prepared.pressure;
+            for (c, t) in pass.tension.iter_mut().zip(prepared.tension) {
+                *c += t;
+            }
+        }
+
+        // 2. The face pass: f_i += (p/3)·A_f n̂_f − c_f ∇_i A_f.
         let positions = mesh.positions();
         self.forces.clear();
         self.forces.resize(positions.len(), Vec3::zeros());
-        // Area-based terms in one pass: f_i += (p/3)·A_f n̂_f − c_f ∇_i A_f, c_f = γ_f + dU_area/dA.
-        let p_third = if terms.pressure { pressure / 3.0 } else { 0.0 };
-        let tension_on = if terms.tension { 1.0 } else { 0.0 };
-        let extra = if terms.area_elasticity { du_da } else { 0.0 };
-        let coefficient = gamma.map(|gm| tension_on * gm + extra);
-        if p_third != 0.0 || coefficient.iter().any(|&c| c != 0.0) {
+        let p_third = pass.pressure / 3.0;
+        if p_third != 0.0 || pass.tension.iter().any(|&c| c != 0.0) {
             for (f, t) in mesh.triangles().iter().enumerate() {
                 let [i, j, k] = t.map(|n| n as usize);
-                let c = coefficient[face_types[f].code() as usize];
-                let push = p_third * g.area_vectors[f];
-                // c·∇A: the area gradients of the normal scaled by c.
-                let grad = triangle_area_gradients(&positions[i], &positions[j], &positions[k], &(c * g.normals[f]));
-                self.forces[i] += push - grad[0];
-                self.forces[j] += push - grad[1];
-                self.forces[k] += push - grad[2];
+                let push = pressure::face_force(p_third, &g.area_vectors[f]);
+                let c = pass.tension[face_types[f].code() as usize];
+                let pull = tension::face_forces(c, &positions[i], &positions[j], &positions[k], &g.normals[f]);
+                self.forces[i] += push + pull[0];
+                self.forces[j] += push + pull[1];
+                self.forces[k] += push + pull[2];
             }
         }
-        if bending_on {
-            self.energy.bending = add_bending_forces(
-                positions,
-                mesh.triangles(),
-                &g.normals,
-                &g.areas,
-                face_types,
-                kb,
-                &self.hinges,
-                &mut self.forces,
-            );
+
+        // 3. The terms with a pass of their own.
+        for term in terms.iter() {
+            match term {
+                CellTerm::Pressure | CellTerm::AreaElasticity | CellTerm::Tension => {} // in the face pass
+                CellTerm::Bending => {
+                    *self.energy.term_mut(term) = self.bending.add_forces(cell, p, &self.geometry, &mut self.forces);
+                }
+            }
         }
     }
 
@@ -294,5 +368,43 @@ impl TissueForces {
             e += c.energy;
         }
         e
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_terms_place_in_the_list_is_its_bit_its_name_and_its_energy_field() {
+        for (i, term) in CellTerm::ALL.into_iter().enumerate() {
+            assert_eq!(term as usize, i, "{term}: CellTerm::ALL must list the variants in declaration order");
+            assert_eq!(EnergyTerms::NAMES[i], term.name());
+            let mut e = EnergyTerms::default();
+            *e.term_mut(term) = 2.5;
+            assert_eq!(e.term(term), 2.5);
+            assert_eq!(e.values().iter().position(|&v| v == 2.5), Some(i), "{term}");
+            assert_eq!(e.total(), 2.5);
+            assert_eq!(TermSet::only(term).iter().collect::<Vec<_>>(), [term]);
+            assert!(TermSet::ALL.contains(term) && !TermSet::NONE.contains(term));
+        }
+        assert_eq!(EnergyTerms::NAMES.last(), Some(&"contact"));
+        assert_eq!(TermSet::ALL.iter().collect::<Vec<_>>(), CellTerm::ALL);
+        let two = TermSet::only(CellTerm::Tension).with(CellTerm::Pressure);
+        assert_eq!(two.iter().collect::<Vec<_>>(), [CellTerm::Pressure, CellTerm::Tension]);
+        assert_eq!(format!("{two:?}"), r#"{"pressure", "tension"}"#);
+    }
+
+    /// The fields (which the files encode, in field order) are the terms of `NAMES`, in its order.
+    #[test]
+    fn energy_fields_are_the_names_in_order() {
+        let e = EnergyTerms { pressure: 1.0, area_elasticity: 2.0, tension: 3.0, bending: 4.0, contact: 5.0 };
+        let json = serde_json::to_string(&e).unwrap();
+        let at: Vec<usize> = EnergyTerms::NAMES.iter().map(|n| json.find(&format!("\"{n}\":")).unwrap()).collect();
+        assert!(at.is_sorted(), "{json}");
+        let mut sum = e;
+        sum += e;
+        assert_eq!(sum.values(), e.values().map(|v| 2.0 * v));
+        assert_eq!(e.total(), 15.0);
     }
 }
