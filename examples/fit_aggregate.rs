@@ -16,7 +16,7 @@
 //! and optionally the cells (default 20), the nodes per cell (default 150), the evaluation budget
 //! (default 14) and an output folder (default: a temporary one). The model, the aggregate, the
 //! truth's relaxation (6,000 steps, the last 1,000 on a fixed mesh) and the fit config are
-//! `tests/integration/support/round_trip.rs`; `tests/integration/fit.rs` runs one spring round trip of this example in CI.
+//! `tests/integration/support/round_trip.rs`; `tests/slow/fit_round_trips.rs` runs one spring round trip of this example in CI.
 //!
 //! Options: `--shifts N` sets `forward.measure_shifts` (default 8: the like-data measurement averaged
 //! over 8 sub-voxel shifts); `--probe F1,F2,…` evaluates the forward model at truth × each factor

@@ -3,7 +3,7 @@
 # (validation/evolver/fixtures; remake them with validation/evolver/make_cluster.py, which needs Debian's
 # evolver-nox and python3 with numpy and scipy):
 #   docs/src/generated/evolver-relax.md  our relaxation of each Evolver equilibrium at its own tensions
-#                                        (tests/integration/evolver_clusters.rs, ~2 min)
+#                                        (tests/slow/evolver_clusters.rs, ~2 min)
 #   docs/src/generated/evolver-fits.md   `tissuefit run` fits of the label volumes (validation/evolver/
 #                                        run_fits.py; minutes to an hour: RESOLUTIONS, CLUSTERS narrow it)
 #   docs/src/generated/evolver-heldout.md the same for the held-out clusters (heldout_*; about 40 min)
@@ -16,7 +16,7 @@ if [ "$what" = relax ] || [ "$what" = all ]; then
     {
         echo "| cluster, γ_l/γ_a | far-field angle | rim angle | contact area (A/V^⅔) | sphericity | residual |"
         echo "|---|---|---|---|---|---|"
-        cargo test --release --test integration -- --nocapture --test-threads 1 evolver_clusters:: 2>/dev/null | grep -o '| .*|$'
+        cargo test --release --test slow -- --nocapture --test-threads 1 evolver_clusters:: 2>/dev/null | grep -o '| .*|$'
     } > "$out/evolver-relax.md"
 fi
 if [ "$what" = fits ] || [ "$what" = all ]; then

@@ -4,17 +4,19 @@
 # per-test times (`--report-time`, JSON output) are unstable options; RUSTC_BOOTSTRAP=1 lets the
 # stable test binary accept them (a development tool only: nothing in the build depends on it).
 # Times are wall times with the tests sharing the machine's test threads, as in `cargo test`.
-# Usage: docs/scripts/test-times.sh [test binary arguments: filters, --ignored, --test-threads N]
+# Usage: docs/scripts/test-times.sh [test binary arguments: filters, --ignored, --test-threads N];
+# TEST_BINARY=slow times the slow binary (tests/slow) instead of tests/integration.
 # About 18 minutes on 2 cores for the whole suite once it is built.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-binary=$(cargo test --release --locked --test integration --no-run --message-format json |
+target=${TEST_BINARY:-integration}
+binary=$(cargo test --release --locked --test "$target" --no-run --message-format json |
     python3 -c 'import json,sys
 for line in sys.stdin:
     m = json.loads(line)
-    if m.get("reason") == "compiler-artifact" and m["target"]["name"] == "integration" and m.get("executable"):
-        print(m["executable"])')
-[ -n "$binary" ] || { echo "test-times.sh: the integration test binary was not built" >&2; exit 1; }
+    if m.get("reason") == "compiler-artifact" and m["target"]["name"] == sys.argv[1] and m.get("executable"):
+        print(m["executable"])' "$target")
+[ -n "$binary" ] || { echo "test-times.sh: the $target test binary was not built" >&2; exit 1; }
 out=$(mktemp)
 trap 'rm -f "$out"' EXIT
 # A failing test still gets its time listed (the suite line says how many failed).

@@ -14,7 +14,7 @@
 //! faces pull it into its own cell with ≈ γ_l per unit length, nothing holds it, and a channel opens
 //! along every junction line. On a tetrahedral 4-cell Surface Evolver cluster relaxed at its own
 //! tensions this moved the rim contact angle by 31° and shrank the contacts by 19 %
-//! (`tests/integration/evolver_clusters.rs`; docs: validation, "Surface Evolver clusters"). So a node ties to at most one node *per other
+//! (`tests/slow/evolver_clusters.rs`; docs: validation, "Surface Evolver clusters"). So a node ties to at most one node *per other
 //! cell*: the ties form groups of up to one node per cell, every two members within c of each other
 //! (within [`JUNCTION_REACH`]·c for the third and fourth cell), and
 //! a group moves as one merged node with the summed force. Between two cells a group is the old

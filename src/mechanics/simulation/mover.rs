@@ -11,7 +11,7 @@ use crate::mesh::FaceType;
 /// spring doublets (docs: design note "Spring contacts and Young–Dupré"): at R = 10 µm, l_min = 1 µm,
 /// ξ = 1e12 Pa/m (ratio ≈ 435) the masses moved touching starts from 13.6–28.7° short of Young–Dupré
 /// to within 1.1–3.5° in 40,000 steps; at R = 1.9 µm, l_min = 0.19 µm (ratio ≈ 16) a fit's truth
-/// relaxation (`tests/integration/fit.rs`, spring round trip) stalled with them and ended +3.2° off
+/// relaxation (`tests/slow/fit_round_trips.rs`, spring round trip) stalled with them and ended +3.2° off
 /// Young–Dupré instead of +1.7°, so below the ratio they are off. With masses FIRE still
 /// restarts about every 20 steps on the R = 10 µm doublet, its Δt 30–100× below Δt_max: what else
 /// limits it is not known yet.

@@ -2,6 +2,7 @@
 
 pub mod analytic_doublet;
 pub mod cli;
+pub mod fit_doublet;
 pub mod generated;
 pub mod round_trip;
 pub mod run_dirs;

@@ -1,5 +1,5 @@
 //! Run directories in tests: their data files hashed with the wall times taken out, and a run killed
-//! with SIGKILL at chosen moments. Shared by `tests/integration/pipeline.rs` and `tests/integration/kill_resume.rs`.
+//! with SIGKILL at chosen moments. Shared by `tests/integration/pipeline.rs` and `tests/slow/kill_resume.rs`.
 
 // Each includer uses its own part.
 #![allow(dead_code)]

@@ -1,5 +1,5 @@
 //! Spring-contact doublets against Young–Dupré (issue 20), shared by `examples/spring_regime.rs`
-//! (the regime table of the docs) and `tests/integration/spring_young_dupre.rs`: two equal cells with surface
+//! (the regime table of the docs) and `tests/slow/spring_young_dupre.rs`: two equal cells with surface
 //! tension γ on every face and the spring adhesion ω, relaxed to equilibrium, and their far-field
 //! contact half-angle (a sphere fitted to each free cap, the interface plane through the midpoint
 //! of the two centres).
