@@ -519,7 +519,7 @@ fn merge_tables(base: &mut Table, over: &Table) {
 /// A parameter file's TOML table.
 fn read_table(path: &Path) -> Result<Table, ParamError> {
     let origin = path.display().to_string();
-    let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+    let text = crate::files::read_text_capped(path, crate::files::MAX_CONFIG_FILE)
         .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
     toml::from_str::<Table>(&text).map_err(|e| ParamError::Syntax { origin, message: e.to_string() })
 }
@@ -567,7 +567,7 @@ impl Parameters {
     /// [`Parameters::load`], also saying which mesh-dependent numerics the file sets itself.
     pub fn load_explicit(path: &Path) -> Result<(Self, ExplicitNumerics), ParamError> {
         let origin = path.display().to_string();
-        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+        let text = crate::files::read_text_capped(path, crate::files::MAX_CONFIG_FILE)
             .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
         let params = Self::from_toml_str(&text, &origin)?;
         // It parsed as TOML just now.
