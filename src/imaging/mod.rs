@@ -12,12 +12,15 @@
 //! - [`voxelize`]: closed cell surfaces → labels, by exact ray–triangle crossings along x.
 //! - [`label_overlap`]: per-label IoU and χ = 1 − IoU of two label volumes on one grid.
 //! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate).
+//! - [`BorderPolicy`], [`DEFAULT_MIN_VOXELS`]: which labels count as cells (debris, cut cells at
+//!   the border), the same for meshing a label volume and for measuring it (`label_filter.rs`).
 //! - [`check_voxel_memory`]: the one memory limit every dense voxel array is checked against before
 //!   it is allocated (`limits.rs`; `TISSUEFIT_MEMORY_LIMIT`).
 
 mod error;
 mod generate;
 mod h5_read;
+mod label_filter;
 mod labels;
 mod limits;
 mod metadata;
@@ -32,6 +35,7 @@ mod zarr_read;
 pub use error::ImagingError;
 pub use generate::{GeneratedLabels, LabelPattern, LabelSpec, generate_labels, generate_nuclei};
 pub use h5_read::{read_label_h5, split_hdf5_path};
+pub use label_filter::{BorderPolicy, DEFAULT_MIN_VOXELS};
 pub use labels::{
     LabelFormat, SUPPORTED_FORMATS, detect_label_format, is_label_volume, label_format_from_extension, read_labels,
 };

@@ -6,8 +6,8 @@
 
 use super::metadata::imagej_description;
 use super::{ImagingError, LabelVolume};
+use crate::files::{FileError, write_atomically};
 use crate::geometry::Real;
-use crate::io::{IoError, write_atomically};
 use ndarray::Axis;
 use std::io::{Seek, Write};
 use std::path::Path;
@@ -120,7 +120,7 @@ pub fn write_label_tiff(
     });
     match result {
         Ok(()) => Ok(dtype),
-        Err(IoError::Write { path, source }) => Err(ImagingError::Write { path, message: source.to_string() }),
+        Err(FileError::Write { path, source }) => Err(ImagingError::Write { path, message: source.to_string() }),
         Err(other) => Err(ImagingError::Write { path: path.to_path_buf(), message: other.to_string() }),
     }
 }

@@ -17,7 +17,7 @@
 //! corrupted files before decoding. The file is written atomically (temporary name + rename), so a
 //! crash while saving leaves the previous checkpoint intact.
 
-use super::atomic::write_atomically;
+use crate::files::write_atomically;
 use crate::mechanics::SimulationState;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -127,7 +127,7 @@ pub fn write_checkpoint(path: &Path, info: &RunInfo, state: &SimulationState) ->
         .map_err(|e| CheckpointError::Encode { path: path.to_path_buf(), message: e.to_string() })?;
     let bytes = frame_checkpoint(&payload);
     write_atomically(path, |w| w.write_all(&bytes))
-        .map_err(|e| CheckpointError::Write { path: path.to_path_buf(), source: Box::new(e) })?;
+        .map_err(|e| CheckpointError::Write { path: path.to_path_buf(), source: Box::new(e.into()) })?;
     Ok(bytes.len() as u64)
 }
 

@@ -77,4 +77,5 @@ pub fn write_simucell3d(path: &Path, tissue: &Tissue, extra: &[CellField<'_>]) -
         }
         Ok(())
     })
+    .map_err(IoError::from)
 }

@@ -4,14 +4,11 @@
 //! Lengths inside tissuefit are metres. Files from image tools are in voxels or µm; a
 //! [`LengthScale`] converts them on reading.
 
-mod atomic;
-mod bounded;
 mod checkpoint;
 mod error;
 mod legacy_parse;
 mod legacy_tissue;
 mod legacy_write;
-mod output;
 mod progress;
 mod pvd;
 mod read;
@@ -19,8 +16,6 @@ mod simulation_output;
 mod units;
 mod vtp;
 
-pub use atomic::{remove_stale_temporaries, remove_stale_temporaries_of, write_atomically, write_bytes_atomically};
-pub use bounded::{MAX_CONFIG_FILE, MAX_TISSUE_FILE, UNSIZED_CAP, read_capped, read_text_capped};
 pub use checkpoint::{
     CHECKPOINT_FILE, CHECKPOINT_VERSION, CheckpointError, OutputState, RunInfo, RunSettings, checksum,
     decode_checkpoint, frame_checkpoint, is_checkpoint, read_checkpoint, write_checkpoint,
@@ -28,12 +23,18 @@ pub use checkpoint::{
 pub use error::IoError;
 pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;
-pub use output::{Format, OutputError, OutputGroup, OutputPolicy, check_target, replace_with};
 pub use progress::{DEFAULT_LINE_SECONDS, LINE_SECONDS_VARIABLE, Progress, line_interval, set_quiet};
 pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue};
 pub use simulation_output::{SimulationRecorder, write_events};
-pub use units::{
-    LengthScale, PLAUSIBLE_LENGTH, PLAUSIBLE_TENSION, implausible_length, implausible_tension, parse_lengths,
-};
+pub use units::{LengthScale, parse_lengths};
 pub use vtp::{CellField, read_vtp, vtp_bytes, write_vtp};
+
+// The file primitives live a layer down (`crate::files`), where `imaging` and `mechanics` can use
+// them too; the commands and stages above `io` keep reaching them here.
+pub use crate::files::{
+    FileError, Format, MAX_CONFIG_FILE, MAX_TISSUE_FILE, OutputError, OutputGroup, OutputPolicy, PLAUSIBLE_LENGTH,
+    PLAUSIBLE_TENSION, UNSIZED_CAP, check_target, implausible_length, implausible_tension, read_capped,
+    read_text_capped, remove_stale_temporaries, remove_stale_temporaries_of, replace_with, write_atomically,
+    write_bytes_atomically,
+};

@@ -50,7 +50,7 @@ pub fn write_pvd(path: &Path, entries: &[PvdEntry]) -> Result<(), IoError> {
         );
     }
     s.push_str("  </Collection>\n</VTKFile>\n");
-    write_atomically(path, |w| w.write_all(s.as_bytes()))
+    write_atomically(path, |w| w.write_all(s.as_bytes())).map_err(IoError::from)
 }
 
 #[cfg(test)]

@@ -173,5 +173,5 @@ pub fn write_events(path: &Path, events: &[crate::mechanics::TopologyEvent]) -> 
         };
         let _ = writeln!(text, "{},{:e},{kind},{},{a},{b},{:e}", e.step, e.time, e.cell, e.volume);
     }
-    super::write_bytes_atomically(path, text.as_bytes())
+    super::write_bytes_atomically(path, text.as_bytes()).map_err(IoError::from)
 }

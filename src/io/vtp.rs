@@ -49,7 +49,7 @@ const RESAVE_HINT: &str = "re-save it from ParaView (File > Save Data, .vtp) wit
 /// face; `time` (s), when given, is stored as the dataset's `TimeValue`.
 pub fn write_vtp(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Option<Real>) -> Result<(), IoError> {
     let header = vtp_header(path, tissue, extra, time)?;
-    write_atomically(path, |w| write_vtp_body(w, &header, tissue, extra))
+    write_atomically(path, |w| write_vtp_body(w, &header, tissue, extra)).map_err(IoError::from)
 }
 
 /// The bytes of the `.vtp` file [`write_vtp`] would write to `path` (named in errors), for writers that

@@ -8,7 +8,7 @@ use std::fmt;
 
 /// What a closed surface represents. The numeric codes are SimuCell3D's `global_cell_id`s, used in
 /// its files and in ours.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum CellKind {
     /// A free, deformable cell.

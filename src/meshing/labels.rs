@@ -31,60 +31,14 @@
 
 use super::{DEFAULT_TARGET_NODES, MeshedCell, MeshingError, MeshingSettings, default_l_min, mesh_mask};
 use crate::geometry::Real;
-use crate::imaging::{LabelInfo, LabelVolume};
+use crate::imaging::{BorderPolicy, DEFAULT_MIN_VOXELS, LabelInfo, LabelVolume};
 use crate::mesh::{Cell, CellId, CellKind, Tissue, TissueError};
 use ndarray::Axis;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
-use std::fmt;
-use std::str::FromStr;
 
 /// Background voxels around each label's bounding box in the mask given to the mesher.
 pub const MASK_MARGIN: usize = 2;
-
-/// Default of [`LabelMeshingOptions::min_voxels`].
-pub const DEFAULT_MIN_VOXELS: u64 = 100;
-
-/// What to do with labels that touch the image border.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum BorderPolicy {
-    /// Do not mesh them.
-    Drop,
-    /// Mesh them as static cells (never moved by the simulation).
-    Static,
-    /// Mesh them like any other cell (default).
-    #[default]
-    Keep,
-}
-
-impl BorderPolicy {
-    pub const ALL: [BorderPolicy; 3] = [BorderPolicy::Drop, BorderPolicy::Static, BorderPolicy::Keep];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            BorderPolicy::Drop => "drop",
-            BorderPolicy::Static => "static",
-            BorderPolicy::Keep => "keep",
-        }
-    }
-}
-
-impl fmt::Display for BorderPolicy {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for BorderPolicy {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|p| p.name() == s)
-            .ok_or_else(|| format!("unknown border policy `{s}`; one of drop, static, keep"))
-    }
-}
 
 /// How to mesh a label volume.
 #[derive(Clone, Debug, PartialEq)]
@@ -591,13 +545,5 @@ mod tests {
         assert_ne!(a, label_seed(0, 2));
         assert_ne!(a, label_seed(1, 1));
         assert_eq!(a, label_seed(0, 1));
-    }
-
-    #[test]
-    fn border_policies_parse_by_name() {
-        for p in BorderPolicy::ALL {
-            assert_eq!(p.name().parse::<BorderPolicy>(), Ok(p));
-        }
-        assert!("fixed".parse::<BorderPolicy>().is_err());
     }
 }

@@ -62,9 +62,12 @@ pub use generate::{
     TissueGeometry, TissueKind, TissueSpec, generate_tissue, max_penetration,
 };
 pub use labels::{
-    BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, LabelMeshing, LabelMeshingError, LabelMeshingOptions,
-    LabelReport, LabelStatus, MASK_MARGIN, label_seed, mesh_cells_and_nuclei, mesh_labels, mesh_labels_with_progress,
+    DEFAULT_MAX_REFINEMENTS, LabelMeshing, LabelMeshingError, LabelMeshingOptions, LabelReport, LabelStatus,
+    MASK_MARGIN, label_seed, mesh_cells_and_nuclei, mesh_labels, mesh_labels_with_progress,
 };
+// Which labels count as cells is `imaging`'s (measuring a label volume applies the same rules);
+// re-exported here next to the meshing options that use it.
+pub use crate::imaging::{BorderPolicy, DEFAULT_MIN_VOXELS};
 pub use poisson::SurfaceSamples;
 pub use retriangulate::{RetriangulateError, Retriangulation, VOXELS_PER_L_MIN, retriangulate};
 

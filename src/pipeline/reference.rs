@@ -3,7 +3,8 @@
 //! generated from the schemas themselves so that it cannot drift: the pipeline file's sections (and
 //! with them `tissuefit fit`'s config) from the JSON schema that `schemars` derives from the serde
 //! structs and their doc comments, and the model parameters from their commented defaults
-//! ([`Parameters::default_toml_commented`]). A test compares the committed file with this output.
+//! ([`Parameters::default_toml_commented`], whose comments come from the parameter structs' doc
+//! comments through their schema too). A test compares the committed file with this output.
 
 use super::PipelineConfig;
 use crate::mechanics::Parameters;

@@ -343,7 +343,7 @@ fn compare_inputs(input: &Input, other: &Input, options: &MeasureOptions) -> Res
 
 /// The three files all or nothing ([`OutputGroup`]): a full disk leaves none of them, never two.
 fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> Result<(), StageError> {
-    let io = |e: crate::io::IoError| err(format!("writing the outputs into {}: {e}", dir.display()));
+    let io = |e: crate::io::FileError| err(format!("writing the outputs into {}: {e}", dir.display()));
     if m.cells.is_empty() {
         return Err(err(format!("{}: no cell was measured", summary.file)));
     }
@@ -355,7 +355,7 @@ fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> Resul
 }
 
 /// `DIR/cells.csv` and `DIR/contacts.csv` into `group`, each with its header even without rows.
-pub fn write_tables(group: &mut OutputGroup, dir: &Path, m: &Morphology) -> Result<(), crate::io::IoError> {
+pub fn write_tables(group: &mut OutputGroup, dir: &Path, m: &Morphology) -> Result<(), crate::io::FileError> {
     let cell_example = m.cells.first().cloned().unwrap_or_else(CellMorphology::example);
     write_csv(group, &dir.join("cells.csv"), &m.cells, &cell_example)?;
     let example = ContactMorphology {

@@ -36,7 +36,7 @@ pub fn write_csv<T: Serialize>(
     path: &Path,
     rows: &[T],
     example: &T,
-) -> Result<(), crate::io::IoError> {
+) -> Result<(), crate::io::FileError> {
     group.write(path, |w| {
         let mut header = csv::Writer::from_writer(Vec::new());
         header.serialize(example).map_err(std::io::Error::other)?;
@@ -53,7 +53,7 @@ pub fn write_csv<T: Serialize>(
 }
 
 /// Writes `value` as pretty JSON with a final newline.
-pub fn write_json<T: Serialize>(group: &mut OutputGroup, path: &Path, value: &T) -> Result<(), crate::io::IoError> {
+pub fn write_json<T: Serialize>(group: &mut OutputGroup, path: &Path, value: &T) -> Result<(), crate::io::FileError> {
     group.write(path, |w| {
         serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
         std::io::Write::write_all(w, b"\n")

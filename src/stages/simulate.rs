@@ -608,7 +608,10 @@ fn drive(
     }
     let frames = observer.recorder.frames();
     observer.recorder.finish().map_err(|e| err(e.to_string()))?;
-    let io = |e: crate::io::IoError| err(e.to_string());
+    // Tissue writers fail with an `IoError`, the output group with a `FileError`.
+    fn io(e: impl std::fmt::Display) -> StageError {
+        err(e.to_string())
+    }
     write_events(&out.join("events.csv"), sim.events()).map_err(io)?;
     let pressure: Vec<f64> = sim.forces().cells.iter().map(|w| w.pressure).collect();
     let fields = [CellField { name: "pressure", values: &pressure }];

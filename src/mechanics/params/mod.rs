@@ -16,6 +16,14 @@
 //! deserialising: one code path, so an unknown key is rejected wherever it sits, and its full path
 //! (`cell_types[0].faces.apical`) is named.
 //!
+//! # Documentation
+//! The doc comment of each field is its documentation in the commented config reference
+//! (`tissuefit config defaults`): the first paragraph, in the words of the TOML file, ends with
+//! `Unit: <unit>.` where the value has one (`Unit: dimensionless.` for a pure number); later
+//! paragraphs (defaults as the code sets them, links) are for the code only. `writing.rs` reads the
+//! docs from the `schemars` schema of [`Parameters`], in declaration order, so the order of the
+//! fields here is the order of the written file.
+//!
 //! # Validation
 //! [`Parameters::validate`] collects every problem at once, each naming its TOML path, the unit and
 //! a fix. It includes a time-step stability estimate ([`Parameters::time_step_limits`]), because an
@@ -47,21 +55,27 @@ use writing::write_toml;
 pub const SPHERE_ISOPERIMETRIC_RATIO: Real = 36.0 * PI;
 
 /// Everything a simulation needs besides the geometry.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Parameters {
-    /// Numerical parameters shared by all cells. Defaults: [`Numerics::default`].
+    /// Numerical parameters shared by all cells (paper Table 2, numerical parameters).
+    ///
+    /// Defaults: [`Numerics::default`].
     pub numerics: Numerics,
-    /// One parameter set per cell type; a cell's `cell_type` (SimuCell3D's `cell_type_id`) indexes
-    /// this list. Default: one entry per [`CellKind`], in code order (epithelial, ecm, lumen,
-    /// nucleus, static), each with [`CellTypeParams::default_for`] its kind.
+    /// One parameter set per cell type; a cell's cell_type (SimuCell3D's cell_type_id) indexes this
+    /// list.
+    ///
+    /// Default: one entry per [`CellKind`], in code order (epithelial, ecm, lumen, nucleus,
+    /// static), each with [`CellTypeParams::default_for`] its kind.
     pub cell_types: Vec<CellTypeParams>,
-    /// What `tissuefit simulate` runs and when it stops. Defaults: [`SimulationSettings::default`].
+    /// What `tissuefit simulate` runs, with which method, when it stops and how often it saves.
+    ///
+    /// Defaults: [`SimulationSettings::default`].
     pub simulation: SimulationSettings,
 }
 
 /// How nodes move.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Dynamics {
     /// Newtonian with viscous damping: p ← p + Δt·(f − (ζ/m)·p), r ← r + Δt·p/m (semi-implicit Euler).
@@ -77,7 +91,7 @@ impl Dynamics {
 }
 
 /// How contacts between cells are modelled (DESIGN.md §3).
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ContactModel {
     /// Paper Eq. 2: node–face springs with adhesion ω and repulsion ξ within the cutoff c.
@@ -95,7 +109,7 @@ impl ContactModel {
 }
 
 /// How the spring contact energy Σ a·Φ(d) is integrated over a cell's surface.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ContactQuadrature {
     /// At the nodes: Σ_p a_p·Φ(d_p), a_p a third of the node's faces' areas (the paper's sampling).
@@ -112,7 +126,7 @@ impl ContactQuadrature {
 }
 
 /// How face types (apical/lateral/basal) are assigned during a simulation.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Polarity {
     /// Face types stay as read from the input file.
@@ -137,7 +151,7 @@ impl Polarity {
 
 /// How the division plane of a cell is oriented (paper Methods, "Cell division"). The plane always
 /// passes through the cell's volume centroid.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum DivisionPlaneRule {
     /// Hertwig's rule: perpendicular to the cell's longest principal axis.
@@ -153,52 +167,98 @@ impl DivisionPlaneRule {
 }
 
 /// Numerical parameters (paper Table 2, "Numerical parameters").
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Numerics {
-    /// Minimum edge length l_min [m]: remeshing collapses shorter edges and splits edges longer than
-    /// l_max = `max_edge_ratio`·l_min ([`Numerics::max_edge_length`]). Default 2e-7 m.
+    /// Minimum edge length l_min: remeshing collapses shorter edges and splits edges longer than
+    /// l_max = max_edge_ratio·l_min. Unit: m.
+    ///
+    /// Default 2e-7 m. l_max: [`Numerics::max_edge_length`].
     pub min_edge_length: Real,
-    /// l_max/l_min of the simulation's remeshing, at least 2. Default 3 (the paper's). Larger values
-    /// leave more slack between a collapse and the next split: on a planar Surface Evolver triplet
-    /// relaxed at its own tensions 3.5 made 4 splits in 3,000 steps where 3 made 824 (both keep its
-    /// contacts within 1 % now that junction groups reach 2c; see `contact::coupling`).
+    /// l_max/l_min of the simulation's remeshing, at least 2; 3 as in the paper. Larger values
+    /// leave more slack between a collapse and the next split (fewer remeshing operations).
+    ///
+    /// Default 3. On a planar Surface Evolver triplet relaxed at its own tensions 3.5 made 4 splits
+    /// in 3,000 steps where 3 made 824 (both keep its contacts within 1 % now that junction groups
+    /// reach 2c; see `contact::coupling`).
     #[serde(default = "default_max_edge_ratio")]
     pub max_edge_ratio: Real,
-    /// Contact cutoff distance c [m]: faces of different cells farther apart do not interact; must
-    /// not exceed 3·l_min. Default 2e-7 m.
+    /// Contact cutoff distance c: faces of different cells farther apart do not interact. At most
+    /// 3·l_min. Unit: m.
+    ///
+    /// Default 2e-7 m.
     pub contact_cutoff: Real,
-    /// Viscous damping coefficient ζ [kg/s], per node. Default 2.5e-10 kg/s (the paper's dynamic
-    /// default); the paper's overdamped default is 3e-9 kg/s, which a config file with
-    /// `dynamics = "overdamped"` and no `damping` gets.
+    /// Viscous damping coefficient ζ per node. The paper's overdamped default is 3e-9 kg/s, which a
+    /// file with dynamics = "overdamped" and no damping gets. Unit: kg/s.
+    ///
+    /// Default 2.5e-10 kg/s (the paper's dynamic default); overdamped:
+    /// [`Numerics::PAPER_OVERDAMPED_DAMPING`].
     pub damping: Real,
-    /// Time step Δt [s]. Default 1e-7 s.
+    /// Time step Δt. Validation estimates its stability limit per cell type. Unit: s.
+    ///
+    /// Default 1e-7 s.
     pub time_step: Real,
-    /// Equation of motion. Default [`Dynamics::Dynamic`].
+    /// Equation of motion: "dynamic" (node mass ρV/N, damping ζ, semi-implicit Euler) or
+    /// "overdamped" (r += Δt·f/ζ).
+    ///
+    /// Default [`Dynamics::Dynamic`].
     pub dynamics: Dynamics,
-    /// Contact model. Default [`ContactModel::Spring`].
+    /// Contact model: "spring" (paper Eq. 2: nodes within the cutoff c of another cell's surface
+    /// adhere with ω and are repelled with ξ) or "coupling" (node pairs of two epithelial or static
+    /// cells closer than c, both with mean curvature below max_coupling_curvature, are tied
+    /// together; the other nodes are repelled with ξ; ECM, lumen and nuclei use springs).
+    ///
+    /// Default [`ContactModel::Spring`].
     pub contact_model: ContactModel,
-    /// How spring contacts integrate their energy over the surface. Default
-    /// [`ContactQuadrature::Vertices`].
+    /// Spring contacts only: how the energy density Φ(d) is integrated over a cell's surface.
+    /// "vertices" (the paper's sampling: each node's area times Φ at the node) or "faces" (each
+    /// face's exact mean of Φ with d linear between its corners; nodes are searched out to c plus
+    /// the longest edge). With vertices the energy changes when nodes slide along an unchanged
+    /// surface, which pushes the contact line of adhering cells off Young–Dupré (see the docs book:
+    /// Design notes, Spring contacts and Young–Dupré).
+    ///
+    /// Default [`ContactQuadrature::Vertices`].
     #[serde(default)]
     pub contact_quadrature: ContactQuadrature,
-    /// Coupling contacts tie the nodes of three or four cells where they meet (junction lines,
-    /// quadruple points) into one group, not only pairs; false: one partner per node, as in the paper
-    /// (see `contact::coupling`). Default true.
+    /// Coupling contacts only: where three or four cells meet (junction lines, quadruple points),
+    /// tie one node of each into one group that moves as one node, so the interface tensions
+    /// balance at a shared point as in a foam. false: at most one partner per node, as in the
+    /// paper, which leaves the third cell's junction node free and opens a channel along every
+    /// junction (a tetrahedral Surface Evolver cluster lost 31° of rim angle and 19 % of its
+    /// contact area). The dynamic vesicle model keeps false (see the docs book).
+    ///
+    /// Default true (see `contact::coupling`).
     pub coupling_junctions: bool,
-    /// Face-type assignment during the simulation. Default [`Polarity::None`].
+    /// Face types during the simulation: "none" (as in the input file), "contacts" (paper mode 1,
+    /// every step: faces touching another cell lateral, the lumen apical, the ECM or the medium
+    /// basal) or "ray_casting" (paper mode 2: the domain is voxelised, the voxels off the surfaces
+    /// are clustered into cytoplasm, lumen, exterior and ECM, and a ray cast from each face along
+    /// its normal types it by the first region it meets: another cell lateral, lumen apical,
+    /// exterior or ECM basal; at the start, every polarity_interval steps and after every
+    /// division).
+    ///
+    /// Default [`Polarity::None`].
     pub polarity: Polarity,
-    /// Voxel edge h [m] of the ray-casting polarisation; 0 means 1.5·l_min (above the gaps between
-    /// cells in contact, fine against the cells; see `polarity::ray_casting`). Default 0.
+    /// Voxel edge of the ray-casting polarisation; 0 = 1.5·min_edge_length. It must exceed the gaps
+    /// between cells in contact (else they read as lumen pockets) and be small against the cells; a
+    /// grid above 2^24 voxels is coarsened with a warning. Unit: m.
+    ///
+    /// Default 0 (see `polarity::ray_casting`).
     pub polarity_voxel_size: Real,
-    /// Steps between two ray-casting polarisations (also at the start and after every division);
-    /// at least 1. Default 100.
+    /// Steps between two ray-casting polarisations (also at the start and after every division); at
+    /// least 1.
+    ///
+    /// Default 100.
     pub polarity_interval: u64,
-    /// An enclosed cavity that is no body counts as lumen in ray casting when it holds at least this
-    /// fraction of the mean cell volume; smaller ones (gaps where cells meet) are passed through by
-    /// the rays. Default 0.25.
+    /// Ray casting: an enclosed cavity that is no body is a lumen (its faces apical) when it holds
+    /// at least this fraction of the mean cell volume; smaller cavities (gaps where cells meet) are
+    /// passed through by the rays.
+    ///
+    /// Default 0.25.
     pub polarity_min_lumen_fraction: Real,
-    /// Seed of every random draw (growth rates, division volumes and planes). Default 1.
+    /// Seed of every random draw (growth rates, division volumes and planes).
+    ///
+    /// Default 1.
     pub seed: u64,
 }
 
@@ -247,52 +307,86 @@ impl Default for Numerics {
 
 /// The parameters of one cell type (paper Table 2, "Cell volume parameters" and "Cell surface
 /// parameters"). Defaults depend on the kind: [`CellTypeParams::default_for`].
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CellTypeParams {
-    /// Name, unique within the list; used in reports. Default: the kind's name.
+    /// Name of the cell type, unique within the list.
+    ///
+    /// Used in reports. Default: the kind's name.
     pub name: String,
-    /// What the cells of this type are. Default [`CellKind::Epithelial`].
+    /// What the cells are: "epithelial", "ecm", "lumen", "nucleus" or "static". Omitted fields of
+    /// the entry take the defaults of this kind.
+    ///
+    /// Default [`CellKind::Epithelial`].
     pub kind: CellKind,
-    /// Mass density ρ [kg/m³]; node mass m = ρV/N in the dynamic model. Default 1000 kg/m³.
+    /// Mass density ρ; node mass m = ρV/N in the dynamic model. Unit: kg/m³.
+    ///
+    /// Default 1000 kg/m³.
     pub mass_density: Real,
-    /// Bulk modulus K [Pa]: pressure p = −K ln(V/V0). Default 2500 Pa (ECM: 0).
+    /// Bulk modulus K: pressure p = −K ln(V/V0). Unit: Pa.
+    ///
+    /// Default 2500 Pa (ECM: 0).
     pub bulk_modulus: Real,
-    /// Largest internal pressure p_max [Pa]; `inf` for no cap. Default 2500 Pa.
+    /// Largest internal pressure p_max; inf for no cap. Unit: Pa.
+    ///
+    /// Default 2500 Pa.
     pub max_pressure: Real,
-    /// Volume V_min [m³] below which a cell is removed (apoptosis). Default 3.7e-16 m³ (other kinds
-    /// than epithelial: 0, never removed).
+    /// Volume V_min below which a cell is removed (apoptosis); 0 for never. Unit: m³.
+    ///
+    /// Default 3.7e-16 m³ (other kinds than epithelial: 0, never removed).
     pub min_volume: Real,
-    /// Mean volume V_max [m³] at which a cell divides; `inf` for never. Default 1.4e-15 m³ (other
-    /// kinds than epithelial: inf).
+    /// Mean volume V_max at which a cell divides; inf for never. Unit: m³.
+    ///
+    /// Default 1.4e-15 m³ (other kinds than epithelial: inf).
     pub division_volume: Real,
-    /// Standard deviation [m³] of the division volume drawn per cell. Default 0 m³.
+    /// Standard deviation of the division volume drawn per cell. Unit: m³.
+    ///
+    /// Default 0 m³.
     pub division_volume_std: Real,
-    /// Orientation of the division plane: `"longest_axis"` (Hertwig's rule, default) or `"random"`.
+    /// Orientation of the division plane, which passes through the volume centroid: "longest_axis"
+    /// (Hertwig's rule, perpendicular to the longest principal axis) or "random" (uniform, seeded
+    /// by numerics.seed and the cell id). Daughters get fresh cell ids, V0 = the mother's V0 / 2,
+    /// new draws of growth rate and division volume; the cut is closed by a lateral cap.
+    ///
+    /// Default [`DivisionPlaneRule::LongestAxis`].
     pub division_plane: DivisionPlaneRule,
-    /// Mean volumetric growth rate g = dV0/dt [m³/s]; negative shrinks. Default 1e-11 m³/s (other
-    /// kinds than epithelial: 0).
+    /// Mean volumetric growth rate g = dV0/dt; negative shrinks. Unit: m³/s.
+    ///
+    /// Default 1e-11 m³/s (other kinds than epithelial: 0).
     pub growth_rate: Real,
-    /// Standard deviation [m³/s] of the growth rate drawn per cell. Default 0 m³/s.
+    /// Standard deviation of the growth rate drawn per cell. Unit: m³/s.
+    ///
+    /// Default 0 m³/s.
     pub growth_rate_std: Real,
-    /// Target isoperimetric ratio Q0 = A³/V² [dimensionless], giving the target area
-    /// A0 = (Q0·V0²)^(1/3); at least 36π (a sphere's). Default 250.
+    /// Target isoperimetric ratio Q0 = A³/V², giving the target area A0 = (Q0·V0²)^(1/3); at least
+    /// 36π ≈ 113.1 (a sphere). Unit: dimensionless.
+    ///
+    /// Default 250; a sphere's is [`SPHERE_ISOPERIMETRIC_RATIO`].
     pub target_isoperimetric_ratio: Real,
-    /// Area elasticity modulus k_a [J] of the energy (k_a/2)(A/A0 − 1)². Default 1e-15 J.
+    /// Area elasticity modulus k_a of the energy (k_a/2)(A/A0 − 1)². Unit: J.
+    ///
+    /// Default 1e-15 J.
     pub area_elasticity: Real,
-    /// Largest mean curvature H_max [1/m] at which a node may be coupled to another cell (coupling
-    /// contact model). Default 5e6 1/m.
+    /// Largest mean curvature H_max at which a node may be coupled to another cell (paper Table 2;
+    /// used by the node-coupling contact model, numerics.contact_model = "coupling"). Unit: 1/m.
+    ///
+    /// Default 5e6 1/m.
     pub max_coupling_curvature: Real,
-    /// When true, a simulation starts each cell of this type with the target volume at which a free
-    /// sphere of its initial volume V is in pressure balance with its surface tension (Laplace):
-    /// V0 = V·exp(2γ̄/(K·R)), R = (3V/4π)^(1/3), γ̄ = the area-weighted mean surface tension of its
-    /// faces (area elasticity not included). The body then keeps its initial size instead of
-    /// shrinking under its own tension: at γ̃ = γ/(K·V^(1/3)) the free sphere's equilibrium volume is
-    /// V/V0 = x with ln(1/x) = 3.22·γ̃·x^(−1/3) whatever K is (x ≈ 0.31 at the paper's nuclear
-    /// γ̃_n = 0.24). Needs K > 0 and a max_pressure above 2γ̄/R. Default false.
+    /// When true, a simulation starts each cell of this type with V0 = V·exp(2γ̄/(K·R)) (R =
+    /// (3V/4π)^(1/3), γ̄ = its area-weighted mean surface tension): a free sphere of its initial
+    /// volume is then in pressure balance, so the body keeps its size instead of shrinking under
+    /// its tension (for nuclei: at γ̃_n = 0.24 a free nucleus would shrink to ≈ 31 % of its volume,
+    /// whatever K). Needs K > 0 and max_pressure above 2γ̄/R.
+    ///
+    /// The target volume is [`CellTypeParams::laplace_volume`]; γ̄ leaves area elasticity out. At
+    /// γ̃ = γ/(K·V^(1/3)) the free sphere's equilibrium volume is V/V0 = x with ln(1/x) =
+    /// 3.22·γ̃·x^(−1/3), whatever K is. Default false.
     pub laplace_target_volume: bool,
-    /// Membrane parameters per face type. Default: Table 2 on every face type (other kinds: the
-    /// reference's tension and repulsion, no adhesion).
+    /// Membrane parameters per face type (apical, lateral, basal); each face of a cell has one
+    /// type.
+    ///
+    /// Default: Table 2 on every face type (other kinds: the reference's tension and repulsion, no
+    /// adhesion).
     pub faces: FaceTypeParams,
 }
 
@@ -385,14 +479,20 @@ impl Default for CellTypeParams {
 }
 
 /// Membrane parameters of the three face types of a cell type.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FaceTypeParams {
-    /// Apical faces (facing a lumen; every face of an unpolarised cell). Default: Table 2.
+    /// Apical faces: facing a lumen (every face of an unpolarised cell).
+    ///
+    /// Default: Table 2.
     pub apical: FaceParams,
-    /// Lateral faces (facing another cell). Default: Table 2.
+    /// Lateral faces: facing another cell.
+    ///
+    /// Default: Table 2.
     pub lateral: FaceParams,
-    /// Basal faces (facing the exterior or the ECM). Default: Table 2.
+    /// Basal faces: facing the exterior or the ECM.
+    ///
+    /// Default: Table 2.
     pub basal: FaceParams,
 }
 
@@ -427,16 +527,29 @@ impl FaceTypeParams {
 }
 
 /// Membrane parameters of one face type (paper Table 2, "Cell surface parameters").
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FaceParams {
-    /// Surface tension γ [N/m]: energy γ·A per face. Default 1e-3 N/m.
+    /// Surface tension γ: energy γ·A per face. Unit: N/m.
+    ///
+    /// Default 1e-3 N/m.
     pub surface_tension: Real,
-    /// Bending modulus k_b [J] of the discrete hinge energy. Default 2e-18 J.
+    /// Bending modulus k_b of the discrete hinge energy. Unit: J.
+    ///
+    /// Default 2e-18 J.
     pub bending_modulus: Real,
-    /// Adhesion strength ω [Pa/m]: contact stress per unit separation. Default 1e9 Pa/m.
+    /// Adhesion strength ω: contact stress per unit separation. Unit: Pa/m.
+    ///
+    /// Default 1e9 Pa/m.
     pub adhesion: Real,
-    /// Repulsion strength ξ [Pa/m]: contact stress per unit penetration. Default 1e9 Pa/m.
+    /// Repulsion strength ξ: contact stress per unit penetration. With the spring contact model and
+    /// no `repulsion` anywhere in the config, `simulate` and the pipeline derive it per moving cell
+    /// type from the input tissue: ξ·c = 25 × the largest Laplace pressure 2γ̄/R of its cells
+    /// (contacts sink c/25), and at least 20 × its strongest adhesion ω. Unit: Pa/m.
+    ///
+    /// Default 1e9 Pa/m. The derived value: [`crate::mechanics::derived_repulsion`] (25 and 20 are
+    /// [`crate::mechanics::REPULSION_PER_PRESSURE`] and
+    /// [`crate::mechanics::REPULSION_PER_ADHESION`]).
     pub repulsion: Real,
 }
 
@@ -519,7 +632,7 @@ fn merge_tables(base: &mut Table, over: &Table) {
 /// A parameter file's TOML table.
 fn read_table(path: &Path) -> Result<Table, ParamError> {
     let origin = path.display().to_string();
-    let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+    let text = crate::files::read_text_capped(path, crate::files::MAX_CONFIG_FILE)
         .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
     toml::from_str::<Table>(&text).map_err(|e| ParamError::Syntax { origin, message: e.to_string() })
 }
@@ -567,7 +680,7 @@ impl Parameters {
     /// [`Parameters::load`], also saying which mesh-dependent numerics the file sets itself.
     pub fn load_explicit(path: &Path) -> Result<(Self, ExplicitNumerics), ParamError> {
         let origin = path.display().to_string();
-        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+        let text = crate::files::read_text_capped(path, crate::files::MAX_CONFIG_FILE)
             .map_err(|source| ParamError::Read { origin: origin.clone(), source })?;
         let params = Self::from_toml_str(&text, &origin)?;
         // It parsed as TOML just now.

@@ -1,5 +1,5 @@
 use super::reading::to_value;
-use super::writing::{FIELD_DOCS, fmt_real, is_section};
+use super::writing::{config_docs, fmt_real, is_section, unit_of};
 use super::*;
 use toml::Value;
 
@@ -97,11 +97,20 @@ fn every_default_field_is_documented() {
     let position = |needle: &str| text.find(needle).unwrap_or_else(|| panic!("{needle} missing"));
     assert!(position("min_edge_length =") < position("contact_cutoff ="));
     assert!(position("surface_tension =") < position("adhesion ="));
-    // Every documented path is used, so the table holds no stale entries.
-    for doc in FIELD_DOCS {
-        let key = doc.path.rsplit('.').next().unwrap_or(doc.path);
-        assert!(text.contains(&format!("{key} =")) || text.contains(&format!("{key}]")), "stale doc {}", doc.path);
+    // The docs come from the schema of the structs: every field there has a doc comment, written
+    // as reference text (no rustdoc links in its first paragraph), and is in the file.
+    let docs = &config_docs().fields;
+    for (path, doc) in docs {
+        assert!(!doc.text.is_empty(), "{path}: no doc comment");
+        assert!(!doc.text.contains("[`") && !doc.text.contains("Unit:"), "{path}: {:?}", doc.text);
+        let key = path.rsplit('.').next().unwrap_or(path);
+        assert!(text.contains(&format!("{key} =")) || text.contains(&format!("{key}]")), "{path} not written");
     }
+    // Units come from the `Unit: …` sentence of the doc comments.
+    assert_eq!(unit_of("numerics.min_edge_length"), "m");
+    assert_eq!(unit_of("cell_types[2].faces.lateral.surface_tension"), "N/m");
+    assert_eq!(unit_of("cell_types[0].target_isoperimetric_ratio"), "");
+    assert!(text.contains("[dimensionless]") && text.contains("[kg/m³]"), "{text}");
 }
 
 #[test]

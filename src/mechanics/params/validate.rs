@@ -75,7 +75,7 @@ impl Parameters {
             ("numerics.contact_cutoff", numerics.contact_cutoff),
         ] {
             if l > 0.0
-                && let Some(w) = crate::io::implausible_length(key, l)
+                && let Some(w) = crate::files::implausible_length(key, l)
             {
                 report.warnings.push(w);
             }
@@ -84,7 +84,7 @@ impl Parameters {
         for (index, cell_type) in self.cell_types.iter().enumerate().filter(|(_, t)| t.kind == CellKind::Epithelial) {
             for (face_type, face) in cell_type.faces.iter() {
                 let key = format!("cell_types[{index}].faces.{}.surface_tension", face_type.name());
-                if let Some(w) = crate::io::implausible_tension(&key, face.surface_tension) {
+                if let Some(w) = crate::files::implausible_tension(&key, face.surface_tension) {
                     report.warnings.push(w);
                 }
             }

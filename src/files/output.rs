@@ -21,6 +21,7 @@
 //! leaves the targets as they were. (A rename within one folder does not fail for lack of space, so
 //! a full disk cannot leave half a group.)
 
+use super::FileError;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -326,11 +327,11 @@ impl OutputGroup {
     }
 
     /// Writes `path`'s future content through `write` into its temporary, flushed to disk.
-    pub fn write<F>(&mut self, path: &Path, write: F) -> Result<(), super::IoError>
+    pub fn write<F>(&mut self, path: &Path, write: F) -> Result<(), FileError>
     where
         F: FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
     {
-        check_target("output", path).map_err(super::IoError::Output)?;
+        check_target("output", path).map_err(FileError::Output)?;
         let tmp = temporary_name(path);
         let result = (|| {
             let file = File::create(&tmp)?;
@@ -346,21 +347,21 @@ impl OutputGroup {
             }
             Err(source) => {
                 let _ = std::fs::remove_file(&tmp);
-                Err(super::IoError::Write { path: path.to_path_buf(), source })
+                Err(FileError::Write { path: path.to_path_buf(), source })
             }
         }
     }
 
     /// Writes `bytes` as `path`'s future content.
-    pub fn write_bytes(&mut self, path: &Path, bytes: &[u8]) -> Result<(), super::IoError> {
+    pub fn write_bytes(&mut self, path: &Path, bytes: &[u8]) -> Result<(), FileError> {
         self.write(path, |w| w.write_all(bytes))
     }
 
     /// Renames every temporary over its target (each target checked again first: nothing is renamed
     /// when one of them became something else than a regular file meanwhile).
-    pub fn commit(mut self) -> Result<(), super::IoError> {
+    pub fn commit(mut self) -> Result<(), FileError> {
         for (_, target) in &self.staged {
-            check_target("output", target).map_err(super::IoError::Output)?;
+            check_target("output", target).map_err(FileError::Output)?;
         }
         let staged = std::mem::take(&mut self.staged);
         let mut pending = staged.iter();
@@ -370,7 +371,7 @@ impl OutputGroup {
                 for (rest, _) in pending {
                     let _ = std::fs::remove_file(rest);
                 }
-                return Err(super::IoError::Write { path: target.clone(), source });
+                return Err(FileError::Write { path: target.clone(), source });
             }
         }
         Ok(())
@@ -427,7 +428,7 @@ mod tests {
             let e = policy.file("--report", &fifo, Format::Json).unwrap_err().to_string();
             assert!(e.contains("FIFO") && e.contains("never replaces"), "{e}");
             // The writer itself refuses too, and leaves the FIFO a FIFO.
-            let e = crate::io::write_bytes_atomically(&fifo, b"{}").unwrap_err().to_string();
+            let e = crate::files::write_bytes_atomically(&fifo, b"{}").unwrap_err().to_string();
             assert!(e.contains("FIFO"), "{e}");
             use std::os::unix::fs::FileTypeExt;
             assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());

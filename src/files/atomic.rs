@@ -1,7 +1,7 @@
 //! Crash-safe output: write to a temporary sibling, then rename over the target, so a crash or an
 //! error never leaves a half-written file that looks complete.
 
-use super::IoError;
+use super::FileError;
 use super::output::OutputGroup;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -11,7 +11,7 @@ use std::path::Path;
 /// into place only when `write` succeeded and the data is flushed. On error the temporary is removed.
 /// The output policy applies ([`super::output`]): a target that is a directory, a device, a FIFO or
 /// a socket is refused, never replaced.
-pub fn write_atomically<F>(path: &Path, write: F) -> Result<(), IoError>
+pub fn write_atomically<F>(path: &Path, write: F) -> Result<(), FileError>
 where
     F: FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 {
@@ -28,22 +28,22 @@ fn is_temporary(name: &str) -> bool {
 
 /// Removes the temporaries of [`write_atomically`] that a killed process left in `dir` (not its
 /// subfolders); returns how many. A missing `dir` has none.
-pub fn remove_stale_temporaries(dir: &Path) -> Result<usize, IoError> {
+pub fn remove_stale_temporaries(dir: &Path) -> Result<usize, FileError> {
     remove_temporaries_where(dir, |_| true)
 }
 
 /// [`remove_stale_temporaries`] for the files named `names` only (`manifest.json` →
 /// `manifest.json.tmp-<process id>`): for a folder that also holds the user's files.
-pub fn remove_stale_temporaries_of(dir: &Path, names: &[&str]) -> Result<usize, IoError> {
+pub fn remove_stale_temporaries_of(dir: &Path, names: &[&str]) -> Result<usize, FileError> {
     remove_temporaries_where(dir, |file| names.contains(&file))
 }
 
 /// Removes the temporaries in `dir` whose target file name passes `target`.
-fn remove_temporaries_where(dir: &Path, target: impl Fn(&str) -> bool) -> Result<usize, IoError> {
+fn remove_temporaries_where(dir: &Path, target: impl Fn(&str) -> bool) -> Result<usize, FileError> {
     let entries = match std::fs::read_dir(dir) {
         Ok(entries) => entries,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
-        Err(source) => return Err(IoError::Open { path: dir.to_path_buf(), source }),
+        Err(source) => return Err(FileError::Open { path: dir.to_path_buf(), source }),
     };
     let mut removed = 0;
     for entry in entries.flatten() {
@@ -52,7 +52,7 @@ fn remove_temporaries_where(dir: &Path, target: impl Fn(&str) -> bool) -> Result
         let ours =
             name.to_str().is_some_and(|n| is_temporary(n) && n.rsplit_once(".tmp-").is_some_and(|(f, _)| target(f)));
         if ours && path.is_file() {
-            std::fs::remove_file(&path).map_err(|source| IoError::Write { path: path.clone(), source })?;
+            std::fs::remove_file(&path).map_err(|source| FileError::Write { path: path.clone(), source })?;
             removed += 1;
         }
     }
@@ -60,7 +60,7 @@ fn remove_temporaries_where(dir: &Path, target: impl Fn(&str) -> bool) -> Result
 }
 
 /// Convenience for writers that produce the whole file in memory.
-pub fn write_bytes_atomically(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
+pub fn write_bytes_atomically(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     write_atomically(path, |w| w.write_all(bytes))
 }
 
