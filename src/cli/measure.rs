@@ -6,9 +6,9 @@
 use super::label_args::parse_voxel_size;
 use super::{InputArgs, Outcome};
 use crate::geometry::Real;
-use crate::io::{LengthScale, OutputPolicy};
+use crate::io::{OutputPolicy, parse_length};
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
-use crate::morphology::{ContactRule, DEFAULT_EXTERIOR_FREE_FRACTION, Morphology};
+use crate::morphology::{ContactRule, Morphology};
 use crate::pipeline::{PipelineConfig, describe_morphology as describe, measure_options};
 use crate::stages::{
     self,
@@ -41,24 +41,9 @@ pub struct MeasureArgs {
         ]
     )]
     pub config: Option<PathBuf>,
-    /// Contact distance δ: a face whose centroid lies within δ of another cell's surface is in contact
-    /// with it. A length with unit (0.1um, 1e-7). Default: 0.25 × the tissue's mean edge length. Not
-    /// used for the contacts of a multi-material mesh, whose faces name the cells on both sides
-    /// (see --distance-contacts).
-    #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
-    pub contact_distance: Option<Real>,
-    /// Find contacts by the contact distance δ even when the input's faces carry interface labels (a
-    /// multi-material mesh: label1/label2, or a .vtp with `interface_label`), whose contacts are
-    /// otherwise read from the labels: exact areas and rims.
-    #[arg(long)]
-    pub distance_contacts: bool,
-    /// Count static cells in the tissue statistics (they are left out by default).
-    #[arg(long)]
-    pub include_static: bool,
-    /// Without an ECM body, a cell faces the exterior (for the layer count) when at least this fraction
-    /// of its surface is free.
-    #[arg(long, value_name = "FRACTION", default_value_t = DEFAULT_EXTERIOR_FREE_FRACTION)]
-    pub exterior_free_fraction: Real,
+    /// How the tissue is measured (the pipeline's `[measure]`).
+    #[command(flatten)]
+    pub settings: MeasureConfig,
     #[command(flatten)]
     pub input: InputArgs,
     /// Label volume only: voxel size z,y,x (or one for all) overriding the file's metadata
@@ -92,15 +77,6 @@ pub struct MeasureArgs {
     /// mean edge length of the measured tissue.
     #[arg(long, value_name = "Z,Y,X", value_parser = parse_voxel_size, requires = "compare")]
     pub compare_voxel_size: Option<[Real; 3]>,
-}
-
-/// A single length: a number of metres or a number with a unit (m, mm, um, nm).
-pub(super) fn parse_length(s: &str) -> Result<Real, String> {
-    let v = s.parse::<LengthScale>()?.0;
-    if v.x != v.y || v.y != v.z {
-        return Err(format!("`{s}`: give one length, not three"));
-    }
-    Ok(v.x)
 }
 
 /// `measure TISSUE --config PIPELINE.toml --out DIR`: the pipeline's measure stage into DIR.
@@ -146,12 +122,7 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
         &OUTPUT_FILES,
     )?;
     let options = MeasureOptions {
-        config: MeasureConfig {
-            contact_distance: args.contact_distance,
-            distance_contacts: args.distance_contacts,
-            include_static: args.include_static,
-            exterior_free_fraction: args.exterior_free_fraction,
-        },
+        config: args.settings.clone(),
         read: args.input.read_options(),
         labels: LabelInputOptions {
             voxel_size: args.voxel_size,

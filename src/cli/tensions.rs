@@ -5,10 +5,10 @@
 //! written together (all or nothing). A label TIFF is meshed first as `tissuefit mesh` meshes it.
 
 use super::label_args::{describe_grid, parse_voxel_size};
-use super::measure::parse_length;
 use super::{InputArgs, Outcome};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_labels};
+use crate::io::parse_length;
 use crate::io::{CellField, OutputGroup, OutputPolicy, read_tissue, vtp_bytes};
 use crate::mesh::Tissue;
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, mesh_labels};

@@ -60,6 +60,18 @@ impl FromStr for LengthScale {
     }
 }
 
+/// One length as a command line gives it (`0.1um`, `100nm`, `1e-7`; a bare number is metres), refused
+/// outside the plausible range for cells (1 nm – 1 mm) as a unit slip, with a "did you mean" hint.
+pub fn parse_length(s: &str) -> Result<Real, String> {
+    match parse_lengths(s)?.as_slice() {
+        [l] => match crate::files::implausible_length("the length", *l) {
+            Some(bad) => Err(format!("`{s}`: {bad}")),
+            None => Ok(*l),
+        },
+        _ => Err(format!("`{s}`: give one length, e.g. 0.1um")),
+    }
+}
+
 /// Parses one length or a comma-separated list of lengths in metres. Each is a number with an
 /// optional unit (`m`, `mm`, `um`/`µm`/`micron`, `nm`); a unit written only after the last number
 /// applies to all of them, and a number without any unit is metres: `0.235um`, `235nm`, `2.35e-7`,
@@ -103,6 +115,18 @@ impl fmt::Display for LengthScale {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn one_length_with_its_unit_and_a_unit_slip_refused_with_a_hint() {
+        for (text, metres) in [("0.1um", 1e-7), ("100nm", 1e-7), ("1e-7", 1e-7), ("0.5 mm", 5e-4)] {
+            let l = parse_length(text).unwrap();
+            assert!((l - metres).abs() <= 1e-15 * metres, "{text}: {l}");
+        }
+        let slip = parse_length("0.1").unwrap_err();
+        assert!(slip.contains("`0.1`") && slip.contains("did you mean 0.1um?"), "{slip}");
+        assert!(parse_length("0.1,0.2um").unwrap_err().contains("give one length"));
+        assert!(parse_length("-1um").is_err());
+    }
 
     #[test]
     fn parses_units_numbers_and_voxel_sizes() {

@@ -71,23 +71,30 @@ impl LabelInputOptions {
 /// How a tissue is measured: the pipeline's `[measure]` as written (its fields' docs are the
 /// configuration reference's), the flags of `tissuefit measure`, and how the simulate stage
 /// measures its final tissue.
-#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, JsonSchema, clap::Args)]
 #[serde(deny_unknown_fields)]
 pub struct MeasureConfig {
-    /// Contact distance δ (m). Default: 0.25 × the tissue's mean edge length.
+    /// Contact distance δ: a face whose centroid lies within δ of another cell's surface is in contact
+    /// with it (m in a file; on the command line a length with unit, 0.1um). Default: 0.25 × the
+    /// tissue's mean edge length. Not used for the contacts of a multi-material mesh, whose faces
+    /// name the cells on both sides (see `distance_contacts`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[arg(long, value_name = "LENGTH", value_parser = crate::io::parse_length)]
     pub contact_distance: Option<Real>,
-    /// Find contacts by the contact distance even when the tissue's faces carry interface labels
-    /// (a multi-material mesh input), whose contacts are otherwise read from the labels. Default
-    /// false (as `tissuefit measure --distance-contacts`).
+    /// Find contacts by the contact distance δ even when the tissue's faces carry interface labels (a
+    /// multi-material mesh: label1/label2, or a .vtp with `interface_label`), whose contacts are
+    /// otherwise read from the labels: exact areas and rims.
     #[serde(default)]
+    #[arg(long)]
     pub distance_contacts: bool,
-    /// Count static cells in the tissue statistics. Default false.
+    /// Count static cells in the tissue statistics (they are left out by default).
     #[serde(default)]
+    #[arg(long)]
     pub include_static: bool,
-    /// Without an ECM body, a cell faces the exterior when at least this fraction of its surface is
-    /// free. Default 0.1 ([`DEFAULT_EXTERIOR_FREE_FRACTION`]).
+    /// Without an ECM body, a cell faces the exterior (for the layer count) when at least this
+    /// fraction of its surface is free.
     #[serde(default = "default_exterior_free_fraction")]
+    #[arg(long, value_name = "FRACTION", default_value_t = DEFAULT_EXTERIOR_FREE_FRACTION)]
     pub exterior_free_fraction: Real,
 }
 
