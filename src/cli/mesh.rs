@@ -11,7 +11,7 @@
 use super::Outcome;
 use super::label_args::parse_voxel_size;
 use crate::geometry::Real;
-use crate::io::{Format, LengthScale, OutputPolicy, parse_lengths};
+use crate::io::{Format, LengthScale, OutputPolicy};
 use crate::meshing::{
     BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, LabelStatus,
 };
@@ -95,13 +95,7 @@ pub struct MeshArgs {
 
 /// One length (l_min); outside 1 nm – 1 mm it is refused as a unit slip, with a hint.
 fn parse_length(s: &str) -> Result<Real, String> {
-    match parse_lengths(s)?.as_slice() {
-        [l] => match crate::io::implausible_length("l_min", *l) {
-            Some(bad) => Err(format!("`{s}`: {bad}")),
-            None => Ok(*l),
-        },
-        _ => Err(format!("`{s}`: give one length, e.g. 0.4um")),
-    }
+    crate::io::parse_named_length("l_min", s)
 }
 
 /// `mesh --config PIPELINE.toml --out DIR`: the pipeline's mesh stage into DIR.

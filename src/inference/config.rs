@@ -72,6 +72,17 @@ pub struct ObservedConfig {
     pub meshing: MeshingConfig,
 }
 
+impl ObservedConfig {
+    /// How `labels` is read: with `voxel_size` and `zarr_level` where given.
+    pub fn read_options(&self) -> crate::imaging::LabelReadOptions {
+        crate::imaging::LabelReadOptions {
+            voxel_size: self.voxel_size,
+            zarr_level: self.zarr_level,
+            ..Default::default()
+        }
+    }
+}
+
 fn default_length_unit() -> String {
     "m".to_string()
 }

@@ -9,7 +9,7 @@ use super::space::{FitParameter, ParameterSpace};
 use super::trace::{read_trace, write_trace};
 use super::{InferenceError, plot};
 use crate::geometry::Real;
-use crate::imaging::{LabelReadOptions, read_labels};
+use crate::imaging::read_labels;
 use crate::io::{LengthScale, Progress, ReadOptions, read_tissue, write_bytes_atomically};
 use crate::mechanics::{ContactModel, Polarity};
 use crate::mesh::{CellKind, FaceType};
@@ -49,8 +49,7 @@ pub fn load_observation(config: &FitConfig) -> Result<Observation, InferenceErro
         return Observation::new(read.tissue, None, None);
     }
     let path = obs.labels.as_ref().ok_or_else(|| InferenceError::Config("observed: no input".into()))?;
-    let options = LabelReadOptions { voxel_size: obs.voxel_size, zarr_level: obs.zarr_level, ..Default::default() };
-    let read = read_labels(path, &options)
+    let read = read_labels(path, &obs.read_options())
         .map_err(|e| InferenceError::Observed(format!("reading {}: {e}", path.display())))?;
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());

@@ -27,7 +27,7 @@ pub use progress::{DEFAULT_LINE_SECONDS, LINE_SECONDS_VARIABLE, Progress, line_i
 pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue};
 pub use simulation_output::{SimulationRecorder, write_events};
-pub use units::{LengthScale, parse_length, parse_lengths};
+pub use units::{LengthScale, parse_length, parse_lengths, parse_named_length};
 pub use vtp::{CellField, read_vtp, vtp_bytes, write_vtp};
 
 // The file primitives live a layer down (`crate::files`), where `imaging` and `mechanics` can use

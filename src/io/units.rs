@@ -63,12 +63,17 @@ impl FromStr for LengthScale {
 /// One length as a command line gives it (`0.1um`, `100nm`, `1e-7`; a bare number is metres), refused
 /// outside the plausible range for cells (1 nm – 1 mm) as a unit slip, with a "did you mean" hint.
 pub fn parse_length(s: &str) -> Result<Real, String> {
+    parse_named_length("the length", s)
+}
+
+/// [`parse_length`] for the setting `key`, which a refusal names (`l_min = 4e-1 m lies outside …`).
+pub fn parse_named_length(key: &str, s: &str) -> Result<Real, String> {
     match parse_lengths(s)?.as_slice() {
-        [l] => match crate::files::implausible_length("the length", *l) {
+        [l] => match crate::files::implausible_length(key, *l) {
             Some(bad) => Err(format!("`{s}`: {bad}")),
             None => Ok(*l),
         },
-        _ => Err(format!("`{s}`: give one length, e.g. 0.1um")),
+        _ => Err(format!("`{s}`: give one length, e.g. 0.4um")),
     }
 }
 

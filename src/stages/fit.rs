@@ -8,7 +8,7 @@
 
 use super::StageError;
 use crate::geometry::Real;
-use crate::imaging::{LabelReadOptions, read_labels};
+use crate::imaging::read_labels;
 use crate::inference::{FitConfig, FitOptions, FitResult, InferenceError, Observation, load_observation};
 use crate::io::{LengthScale, ReadOptions, read_tissue};
 use std::collections::BTreeMap;
@@ -51,10 +51,9 @@ fn observation(config: &FitConfig, observed: Observed) -> Result<Observation, St
     let observation = match &obs.labels {
         Some(labels) => {
             let l_min = super::mesh::read_report_l_min(&dir.join(super::mesh::REPORT_FILE))?;
-            let options =
-                LabelReadOptions { voxel_size: obs.voxel_size, zarr_level: obs.zarr_level, ..Default::default() };
-            let volume =
-                read_labels(labels, &options).map_err(|e| err(format!("reading {}: {e}", labels.display())))?.volume;
+            let volume = read_labels(labels, &obs.read_options())
+                .map_err(|e| err(format!("reading {}: {e}", labels.display())))?
+                .volume;
             let mut meshing = obs.meshing.options();
             // Simulations are measured like the data: the meshing's options with the l_min it used.
             meshing.l_min = l_min;
