@@ -5,7 +5,7 @@
 use super::InferenceError;
 use crate::geometry::Real;
 use crate::mechanics::Parameters;
-use crate::meshing::{BorderPolicy, DEFAULT_TARGET_NODES, LabelMeshingOptions};
+use crate::meshing::LabelMeshingOptions;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -60,16 +60,21 @@ pub struct ObservedConfig {
     /// Length unit of the tissue file's coordinates (as `--length-unit`). Default "m".
     #[serde(default = "default_length_unit")]
     pub length_unit: String,
-    /// Voxel size `[z, y, x]` (m) of the label volume instead of its metadata. Default: the metadata
-    /// (a .npy has none: give it here).
+    /// With `tissue`: re-triangulate every cell through a voxelisation (as `tissuefit mesh X.vtp`)
+    /// with `meshing`, `voxel_size` setting the grid (default l_min/2). Default false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub retriangulate: bool,
+    /// Voxel size `[z, y, x]` (m) of the label volume instead of its metadata (a .npy has none: give
+    /// it here); with `tissue` and `retriangulate`, of the voxelisation's grid. Default: the
+    /// metadata, or l_min/2.
     #[serde(default)]
     pub voxel_size: Option<[Real; 3]>,
     /// OME-Zarr `labels` only: the multiscales scale level to read (0 = full resolution). Default 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub zarr_level: Option<usize>,
-    /// How the label TIFF is meshed. Default: [`MeshingConfig::default`].
+    /// How the label volume is meshed (the options of `tissuefit mesh`).
     #[serde(default)]
-    pub meshing: MeshingConfig,
+    pub meshing: LabelMeshingOptions,
 }
 
 impl ObservedConfig {
@@ -85,74 +90,6 @@ impl ObservedConfig {
 
 fn default_length_unit() -> String {
     "m".to_string()
-}
-
-/// Meshing of an observed label volume (the options of `tissuefit mesh`).
-#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct MeshingConfig {
-    /// Minimum edge length l_min (m). Default: chosen from `target_nodes`.
-    #[serde(default)]
-    pub l_min: Option<Real>,
-    /// Nodes of a median-sized cell when l_min is chosen automatically. Default 400.
-    #[serde(default = "default_target_nodes")]
-    pub target_nodes: usize,
-    /// Labels with fewer voxels are dropped. Default 100.
-    #[serde(default = "default_min_voxels")]
-    pub min_voxels: u64,
-    /// Labels touching the image border: "keep" (default), "static" or "drop".
-    #[serde(default)]
-    pub border: BorderPolicy,
-    /// Labels meshed as lumen cells. Default none.
-    #[serde(default)]
-    pub lumen_labels: Vec<u32>,
-    /// Sampling seed. Default 0.
-    #[serde(default)]
-    pub seed: u64,
-    /// Retries, each at half the previous l_min, of a cell that cannot be made valid at the shared
-    /// l_min. Default 2.
-    #[serde(default = "default_max_refinements")]
-    pub max_refinements: u32,
-}
-
-fn default_max_refinements() -> u32 {
-    crate::meshing::DEFAULT_MAX_REFINEMENTS
-}
-
-fn default_target_nodes() -> usize {
-    DEFAULT_TARGET_NODES
-}
-fn default_min_voxels() -> u64 {
-    crate::meshing::DEFAULT_MIN_VOXELS
-}
-
-impl Default for MeshingConfig {
-    fn default() -> Self {
-        Self {
-            l_min: None,
-            target_nodes: default_target_nodes(),
-            min_voxels: default_min_voxels(),
-            border: BorderPolicy::Keep,
-            lumen_labels: Vec::new(),
-            seed: 0,
-            max_refinements: default_max_refinements(),
-        }
-    }
-}
-
-impl MeshingConfig {
-    /// The meshing options.
-    pub fn options(&self) -> LabelMeshingOptions {
-        LabelMeshingOptions {
-            l_min: self.l_min,
-            target_nodes: self.target_nodes,
-            min_voxels: self.min_voxels,
-            border: self.border,
-            lumen_labels: self.lumen_labels.clone(),
-            seed: self.seed,
-            max_refinements: self.max_refinements,
-        }
-    }
 }
 
 /// One parameter: fitted within `bounds` (SI units), or fixed at `value`.
@@ -500,6 +437,9 @@ impl FitConfig {
             (Some(_), Some(_)) => return Err("observed: give `tissue` or `labels`, not both".into()),
             (None, None) => return Err("observed: give `tissue` (a mesh file) or `labels` (a label TIFF)".into()),
             _ => {}
+        }
+        if observed.retriangulate && observed.tissue.is_none() {
+            return Err("observed.retriangulate: applies to a `tissue` input (labels are meshed anyway)".into());
         }
         if observed.zarr_level.is_some() && observed.labels.is_none() {
             return Err("observed.zarr_level: applies to an OME-Zarr `labels` input, not to a tissue".into());

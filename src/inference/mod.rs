@@ -26,8 +26,8 @@ mod space;
 mod trace;
 
 pub use config::{
-    FitConfig, ForwardConfig, MeshingConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod,
-    ParameterConfig, ProfileConfig,
+    FitConfig, ForwardConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod, ParameterConfig,
+    ProfileConfig,
 };
 pub use forward::{
     Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metric, Metrics, Observation, Status, shift_offset,

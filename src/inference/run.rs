@@ -13,7 +13,7 @@ use crate::imaging::read_labels;
 use crate::io::{LengthScale, Progress, ReadOptions, read_tissue, write_bytes_atomically};
 use crate::mechanics::{ContactModel, Polarity};
 use crate::mesh::{CellKind, FaceType};
-use crate::meshing::mesh_labels;
+use crate::meshing::{mesh_labels, retriangulate};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Mutex;
@@ -41,12 +41,18 @@ pub fn load_observation(config: &FitConfig) -> Result<Observation, InferenceErro
             .length_unit
             .parse()
             .map_err(|e: String| InferenceError::Config(format!("observed.length_unit: {e}")))?;
-        let read = read_tissue(path, &ReadOptions { length_scale: scale, orient: false })
+        // A tissue to re-triangulate is read as `tissuefit mesh X.vtp` reads it (cells oriented outwards).
+        let read = read_tissue(path, &ReadOptions { length_scale: scale, orient: obs.retriangulate })
             .map_err(|e| InferenceError::Observed(format!("reading {}: {e}", path.display())))?;
         for w in &read.warnings {
             tracing::warn!("{}: {w}", path.display());
         }
-        return Observation::new(read.tissue, None, None);
+        if !obs.retriangulate {
+            return Observation::new(read.tissue, None, None);
+        }
+        let r = retriangulate(&read.tissue, &obs.meshing, obs.voxel_size)
+            .map_err(|e| InferenceError::Observed(format!("re-triangulating {}: {e}", path.display())))?;
+        return Observation::new(r.meshing.tissue, None, None);
     }
     let path = obs.labels.as_ref().ok_or_else(|| InferenceError::Config("observed: no input".into()))?;
     let read = read_labels(path, &obs.read_options())
@@ -54,7 +60,7 @@ pub fn load_observation(config: &FitConfig) -> Result<Observation, InferenceErro
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }
-    let mut options = obs.meshing.options();
+    let mut options = obs.meshing.clone();
     let meshed = mesh_labels(&read.volume, &options)
         .map_err(|e| InferenceError::Observed(format!("meshing {}: {e}", path.display())))?;
     for r in meshed.report.iter().filter(|r| r.reason.is_some()) {

@@ -40,25 +40,28 @@ use std::collections::BTreeMap;
 /// Background voxels around each label's bounding box in the mask given to the mesher.
 pub const MASK_MARGIN: usize = 2;
 
-/// How to mesh a label volume.
-#[derive(Clone, Debug, PartialEq)]
+/// How to mesh a label volume: the options of `tissuefit mesh`, the pipeline's `[mesh]` and the
+/// fit's `[observed.meshing]` (one struct; its field docs are the configuration reference's text).
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize, schemars::JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct LabelMeshingOptions {
-    /// Minimum edge length (m) for every cell; `None` (default): [`default_l_min`] of the median
-    /// volume of the labels to mesh with [`Self::target_nodes`].
+    /// Minimum edge length l_min (m) of every cell. Default: chosen from `target_nodes` (the l_min
+    /// at which the median-sized cell gets that many nodes).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub l_min: Option<Real>,
-    /// Nodes of a median-sized cell when l_min is chosen automatically. Default
-    /// [`DEFAULT_TARGET_NODES`] (400).
+    /// Nodes of a median-sized cell when l_min is chosen automatically. Default 400.
     pub target_nodes: usize,
-    /// Labels with fewer voxels are dropped. Default [`DEFAULT_MIN_VOXELS`] (100).
+    /// Labels with fewer voxels are dropped. Default 100.
     pub min_voxels: u64,
-    /// Labels touching the image border. Default [`BorderPolicy::Keep`].
+    /// Labels touching the image border: "keep" (default), "static" or "drop".
     pub border: BorderPolicy,
     /// Labels meshed as lumen cells. Default none.
     pub lumen_labels: Vec<u32>,
-    /// Seed of the sampling; each label gets its own stream from (seed, label). Default 0.
+    /// Sampling seed; each label gets its own stream from (seed, label). Default 0 (in a pipeline:
+    /// `input.seed`).
     pub seed: u64,
-    /// How many times a cell that cannot be made valid at the shared l_min is retried, each time with
-    /// half the previous l_min. Default [`DEFAULT_MAX_REFINEMENTS`] (2, down to l_min/4).
+    /// Retries, each at half the previous l_min, of a cell that cannot be made valid at the shared
+    /// l_min. Default 2 (down to l_min/4).
     pub max_refinements: u32,
 }
 

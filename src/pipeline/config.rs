@@ -1,14 +1,15 @@
 //! The pipeline file (`tissuefit run PIPELINE.toml`): one section per stage, each reusing the schema of
-//! that stage's own config (the fit's [`FitConfig`] sections, the meshing's [`MeshingConfig`], the
+//! that stage's own config (the fit's [`FitConfig`] sections, the meshing's [`LabelMeshingOptions`], the
 //! model's [`Parameters`]). Every table rejects unknown keys; the error names the file, the line and the
 //! dotted key, and suggests the nearest valid key (Levenshtein distance). Relative paths resolve
 //! against the pipeline file's folder.
 
 use super::PipelineError;
 use crate::geometry::Real;
-use crate::inference::{FitConfig, MeshingConfig, ObservedConfig};
+use crate::inference::{FitConfig, ObservedConfig};
 use crate::io::LengthScale;
 use crate::mechanics::{ExplicitNumerics, Parameters};
+use crate::meshing::LabelMeshingOptions;
 use crate::meshing::{TissueKind, TissueSpec};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -22,9 +23,9 @@ use std::path::{Path, PathBuf};
 pub struct PipelineConfig {
     /// The segmented tissue.
     pub input: InputSection,
-    /// Meshing of the label volume (the options of `tissuefit mesh`). Default: [`MeshingConfig::default`].
+    /// Meshing of the label volume (the options of `tissuefit mesh`).
     #[serde(default)]
-    pub mesh: MeshingConfig,
+    pub mesh: LabelMeshingOptions,
     /// Morphology of the meshed tissue (the options of `tissuefit measure`). Default: [`MeasureSection::default`].
     #[serde(default)]
     pub measure: MeasureSection,
@@ -52,9 +53,16 @@ pub struct InputSection {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub labels: Option<PathBuf>,
     /// A tissue mesh (.vtp or .vtk) instead of labels: the mesh stage checks it and copies it into
-    /// `mesh/tissue.vtp` (SI units). Relative to the pipeline file.
+    /// `mesh/tissue.vtp` (SI units), or re-triangulates it (`retriangulate`). Relative to the
+    /// pipeline file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<PathBuf>,
+    /// With `mesh`: re-triangulate every cell through a voxelisation, as `tissuefit mesh X.vtp` does,
+    /// instead of checking and copying the mesh: for meshes from image tools, whose triangles are
+    /// too fine, too coarse or uneven for the simulation. `[mesh]` sets the meshing (l_min,
+    /// target_nodes, seed…) and `voxel_size` the intermediate grid (default l_min/2). Default false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub retriangulate: bool,
     /// A synthetic tissue made by the mesh stage (the options of `tissuefit generate mesh`), e.g.
     /// `generate = { kind = "vesicle", cells = 24, min_edge_length = 1.6e-6, aspect = 0.9, ecm_room = 2.0 }`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -64,7 +72,8 @@ pub struct InputSection {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub length_unit: Option<String>,
     /// Voxel size `[z, y, x]` (m) instead of the label file's metadata. Default: the metadata (a .npy
-    /// has none: give it here). Only with `labels`.
+    /// has none: give it here). With `labels`, or with `mesh` and `retriangulate` (the voxelisation's
+    /// grid).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub voxel_size: Option<[Real; 3]>,
     /// Nuclei label volume on the grid of `labels` (any label format): each nucleus becomes a nucleus
@@ -445,6 +454,9 @@ impl InputSection {
             1 => {}
             _ => return Err(format!("input: give one of {ONE_OF}, not several")),
         }
+        if self.retriangulate && self.mesh.is_none() {
+            return Err("input.retriangulate: applies to a `mesh` input (labels are meshed anyway)".into());
+        }
         if self.nuclei.is_some() && self.labels.is_none() {
             return Err("input.nuclei: applies to a `labels` input (the nuclei are meshed on its grid)".into());
         }
@@ -466,8 +478,10 @@ impl InputSection {
                 }
             }
             (None, Some(m)) => {
-                if self.voxel_size.is_some() {
-                    return Err("input.voxel_size: applies to a `labels` input, not to a mesh".into());
+                if self.voxel_size.is_some() && !self.retriangulate {
+                    return Err("input.voxel_size: applies to a `labels` input, or to a `mesh` with \
+                                `retriangulate = true` (the grid it is voxelised on)"
+                        .into());
                 }
                 if self.zarr_level.is_some() {
                     return Err("input.zarr_level: applies to an OME-Zarr `labels` input, not to a mesh".into());
@@ -485,12 +499,13 @@ impl InputSection {
 
 /// The `tissuefit fit` config of a pipeline's `[fit]`: observed = the input labels meshed like
 /// `[mesh]`, or the input mesh.
-pub fn fit_config(fit: &FitConfig, input: &InputSection, mesh: &MeshingConfig) -> FitConfig {
+pub fn fit_config(fit: &FitConfig, input: &InputSection, mesh: &LabelMeshingOptions) -> FitConfig {
     FitConfig {
         observed: Some(ObservedConfig {
             tissue: input.mesh.clone(),
             labels: input.labels.clone(),
             length_unit: input.length_unit.clone().unwrap_or_else(|| "m".to_string()),
+            retriangulate: input.retriangulate,
             voxel_size: input.voxel_size,
             zarr_level: input.zarr_level,
             meshing: mesh.clone(),

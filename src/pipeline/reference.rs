@@ -179,12 +179,15 @@ fn walk_table(
             subtables.push((format!("{full}.NAME"), item, description));
             continue;
         }
+        let kind = type_of(inner, defs)?;
         let default = match prop.get("default") {
+            // A plain bool left out of the schema's defaults (skipped when false): serde's default.
+            None if !optional && kind == "boolean" && !required.contains(&key.as_str()) => "`false`".to_string(),
             Some(Value::Null) | None if optional || !required.contains(&key.as_str()) => "none".to_string(),
             None => "required".to_string(),
             Some(v) => format!("`{}`", toml_literal(v)),
         };
-        table.rows.push(Row { key: key.clone(), kind: type_of(inner, defs)?, default, description });
+        table.rows.push(Row { key: key.clone(), kind, default, description });
     }
     tables[index] = table;
     for (full, inner, description) in subtables {

@@ -237,6 +237,7 @@ fn run_locked(
         voxel_size: config.input.voxel_size,
         zarr_level: config.input.zarr_level,
         mesh_input: config.input.mesh.is_some(),
+        retriangulate: config.input.retriangulate,
         length_unit: config.input.length_unit.as_deref(),
         generate: generate.as_ref(),
         mesh: &config.mesh,
@@ -314,12 +315,14 @@ struct MeshKey<'a> {
     zarr_level: Option<usize>,
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     mesh_input: bool,
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    retriangulate: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     length_unit: Option<&'a str>,
     /// The generator's specification of a generated input (defaults and seed filled in).
     #[serde(skip_serializing_if = "Option::is_none")]
     generate: Option<&'a crate::meshing::TissueSpec>,
-    mesh: &'a crate::inference::MeshingConfig,
+    mesh: &'a crate::meshing::LabelMeshingOptions,
 }
 
 struct Runner<'a, 'o> {

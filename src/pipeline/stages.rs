@@ -5,8 +5,8 @@
 use super::PipelineError;
 use super::config::{InputSection, MeasureSection, SimulateSection};
 use crate::geometry::Real;
-use crate::inference::MeshingConfig;
 use crate::mechanics::{Parameters, SimulationMode};
+use crate::meshing::LabelMeshingOptions;
 use crate::meshing::LabelStatus;
 use crate::morphology::Morphology;
 use crate::stages::simulate::{Model, SimulateOptions, SimulateOutcome};
@@ -26,28 +26,31 @@ impl From<StageError> for PipelineError {
     }
 }
 
-/// The mesh stage's options from `[input]` and `[mesh]`.
-pub fn mesh_options(input: &InputSection, mesh: &MeshingConfig) -> MeshOptions {
-    MeshOptions {
-        meshing: mesh.options(),
+/// The mesh stage's options from `[input]` and `[mesh]` (a mesh input's length unit only when it is
+/// re-triangulated; otherwise it is checked and copied, not meshed).
+pub fn mesh_options(input: &InputSection, mesh: &LabelMeshingOptions) -> Result<MeshOptions, String> {
+    let length_unit = if input.mesh.is_some() && input.retriangulate { Some(input.length_scale()?) } else { None };
+    Ok(MeshOptions {
+        meshing: mesh.clone(),
         voxel_size: input.voxel_size,
         zarr_level: input.zarr_level,
         nuclei: input.nuclei.clone(),
-        length_unit: None,
-    }
+        length_unit,
+    })
 }
 
-/// Labels → `tissue.vtp` + `report.json` ([`stages::mesh::run`], as `tissuefit mesh`), a mesh input
-/// checked and copied, or a generated tissue. Returns a one-line summary.
+/// Labels, or a mesh input to re-triangulate → `tissue.vtp` + `report.json` ([`stages::mesh::run`],
+/// as `tissuefit mesh`), another mesh input checked and copied, or a generated tissue. Returns a one-line summary.
 pub fn run_mesh(
     input: &InputSection,
-    mesh: &MeshingConfig,
+    mesh: &LabelMeshingOptions,
     out: &Path,
     progress: bool,
 ) -> Result<String, PipelineError> {
     let err = stage_err("mesh");
     let path = match (&input.labels, &input.mesh) {
         (Some(labels), _) => labels,
+        (None, Some(tissue)) if input.retriangulate => tissue,
         (None, Some(tissue)) => {
             let scale = input.length_scale().map_err(&err)?;
             let unit = input.length_unit.as_deref().unwrap_or("m");
@@ -61,7 +64,7 @@ pub fn run_mesh(
             return Ok(stages::mesh::generate(&spec, out)?);
         }
     };
-    let options = mesh_options(input, mesh);
+    let options = mesh_options(input, mesh).map_err(&err)?;
     let outcome =
         stages::mesh::run(path, &options, &out.join(MESH_TISSUE), &out.join(stages::mesh::REPORT_FILE), progress)?;
     let m = &outcome.meshing;
@@ -232,7 +235,7 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let mesh_dir = tmp.path().join("mesh");
         let input = demo_input();
-        let mesh = MeshingConfig { target_nodes: 60, ..Default::default() };
+        let mesh = LabelMeshingOptions { target_nodes: 60, ..Default::default() };
         let fit: FitConfig = toml::from_str("[parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\n").unwrap();
         let config = super::super::fit_config(&fit, &input, &mesh);
         // Without the mesh stage's outputs the fit stage has nothing to start from, and says which file.

@@ -54,7 +54,7 @@ fn observation(config: &FitConfig, observed: Observed) -> Result<Observation, St
             let volume = read_labels(labels, &obs.read_options())
                 .map_err(|e| err(format!("reading {}: {e}", labels.display())))?
                 .volume;
-            let mut meshing = obs.meshing.options();
+            let mut meshing = obs.meshing.clone();
             // Simulations are measured like the data: the meshing's options with the l_min it used.
             meshing.l_min = l_min;
             Observation::new(read.tissue, Some(volume), Some(meshing))

@@ -142,6 +142,126 @@ fn a_multimaterial_mesh_of_boxes_is_retriangulated_into_valid_cells_of_the_same_
     }
 }
 
+/// A pipeline's `[input] mesh` with `retriangulate = true` is meshed by the same stage as
+/// `tissuefit mesh X.vtk`: same tissue and report, byte for byte (wall times aside); without the key
+/// the mesh is copied as it is, and the keys that need it are refused by name.
+#[test]
+fn a_pipeline_retriangulates_its_input_mesh_as_tissuefit_mesh_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("boxes.vtk");
+    std::fs::write(&input, boxes_mm_vtk(&[(1, [0, 0, 0], [4, 3, 3]), (2, [4, 0, 0], [7, 3, 3])])).unwrap();
+    let write_pipeline = |name: &str, input_keys: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(
+            &path,
+            format!(
+                "[input]\nmesh = {:?}\nlength_unit = \"um\"\n{input_keys}\n[mesh]\nseed = 3\ntarget_nodes = 120\n",
+                input.display().to_string()
+            ),
+        )
+        .unwrap();
+        path
+    };
+    let pipeline = write_pipeline("p.toml", "retriangulate = true\nvoxel_size = [2.5e-7, 2.5e-7, 2.5e-7]\n");
+    let run = dir.path().join("run");
+    let o = run_cli(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
+    assert!(o.status.success(), "{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    let cli = dir.path().join("cli");
+    std::fs::create_dir_all(&cli).unwrap();
+    let o = run_cli(&[
+        "mesh",
+        input.to_str().unwrap(),
+        "--length-unit",
+        "um",
+        "--voxel-size",
+        "0.25um",
+        "--seed",
+        "3",
+        "--target-nodes",
+        "120",
+        "--out",
+        cli.join("tissue.vtp").to_str().unwrap(),
+        "--report",
+        cli.join("report.json").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for file in ["tissue.vtp", "report.json"] {
+        assert_eq!(
+            crate::support::run_dirs::normalised_hash(&run.join("mesh").join(file)),
+            crate::support::run_dirs::normalised_hash(&cli.join(file)),
+            "{file}: the pipeline's differs from tissuefit mesh's"
+        );
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("mesh/report.json")).unwrap()).unwrap();
+    assert_eq!(report["retriangulated"]["input_cells"], 2, "{report}");
+    assert_eq!(report["voxel_size"][0].as_f64().unwrap(), 2.5e-7);
+    let new = read_tissue(&run.join("mesh/tissue.vtp"), &ReadOptions::default()).unwrap().tissue;
+    let original =
+        read_tissue(&input, &ReadOptions { length_scale: "um".parse().unwrap(), orient: true }).unwrap().tissue;
+    // Re-triangulated at l_min: the input's nodes lie on the integer µm lattice, the new ones do not.
+    let on_lattice = |t: &Tissue| {
+        t.cells()
+            .iter()
+            .flat_map(|c| c.mesh().positions().iter())
+            .filter(|p| p.iter().all(|x| (x * 1e6 - (x * 1e6).round()).abs() < 1e-6))
+            .count()
+    };
+    assert_eq!(on_lattice(&original), original.node_count());
+    assert!(
+        on_lattice(&new) < new.node_count() / 4,
+        "{} of {} nodes on the input's lattice",
+        on_lattice(&new),
+        new.node_count()
+    );
+
+    // `tissuefit fit`'s `[observed] tissue` with `retriangulate` starts from that same tissue.
+    let fit = tissuefit::inference::FitConfig::from_toml_str(
+        &format!(
+            "[observed]\ntissue = {:?}\nlength_unit = \"um\"\nretriangulate = true\nvoxel_size = [2.5e-7, 2.5e-7, 2.5e-7]\n\
+             [observed.meshing]\nseed = 3\ntarget_nodes = 120\n\
+             [parameters.surface_tension]\nbounds = [1e-4, 1e-3]\n",
+            input.display().to_string()
+        ),
+        "fit.toml",
+    )
+    .unwrap();
+    let observed = tissuefit::inference::load_observation(&fit).unwrap().tissue;
+    assert_eq!(observed.len(), new.len());
+    for (a, b) in observed.cells().iter().zip(new.cells()) {
+        assert_eq!(a.mesh().positions(), b.mesh().positions(), "cell {}", a.id());
+    }
+
+    // Without the key the mesh is copied (its nodes as they are); the keys that need it are refused.
+    let copy = write_pipeline("copy.toml", "");
+    let copied = dir.path().join("copied");
+    let o = run_cli(&["run", copy.to_str().unwrap(), "--out", copied.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let kept = read_tissue(&copied.join("mesh/tissue.vtp"), &ReadOptions::default()).unwrap().tissue;
+    assert_eq!(on_lattice(&kept), original.node_count(), "copied as it is");
+    for (keys, expected) in [
+        (
+            "voxel_size = [2.5e-7, 2.5e-7, 2.5e-7]\n",
+            "input.voxel_size: applies to a `labels` input, or to a `mesh` with",
+        ),
+        ("retriangulate = false\nvoxel_size = [2.5e-7, 2.5e-7, 2.5e-7]\n", "input.voxel_size"),
+    ] {
+        let bad = write_pipeline("bad.toml", keys);
+        let o = run_cli(&["run", bad.to_str().unwrap(), "--out", dir.path().join("bad").to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{keys}");
+        assert!(String::from_utf8_lossy(&o.stderr).contains(expected), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let labels_too = dir.path().join("labels.toml");
+    std::fs::write(&labels_too, "[input]\ngenerate = { kind = \"sphere\" }\nretriangulate = true\n").unwrap();
+    let o = run_cli(&["run", labels_too.to_str().unwrap(), "--out", dir.path().join("bad").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("input.retriangulate: applies to a `mesh` input"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 #[test]
 fn mesh_refuses_unknown_inputs_and_nuclei_with_a_mesh() {
     let dir = tempfile::tempdir().unwrap();
