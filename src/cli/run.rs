@@ -29,8 +29,14 @@ fn default_out(pipeline: &Path) -> PathBuf {
 pub(super) fn watch_interrupts() {
     let installed = ctrlc::set_handler(|| {
         for (dir, stage) in crate::pipeline::interrupt_active_runs() {
+            // What the same command does with the stage next time (the stages' resume rules).
+            let next = match stage.as_str() {
+                "fit" => "to resume it: the evaluations already in its trace.csv are kept",
+                "simulate" => "to resume it from its last checkpoint (or from the start if it wrote none)",
+                _ => "to redo it",
+            };
             eprintln!(
-                "interrupted: stage {stage} is marked interrupted in {}; run the same command again to redo it",
+                "interrupted: stage {stage} is marked interrupted in {}; run the same command again {next}",
                 dir.join("manifest.json").display()
             );
         }

@@ -57,6 +57,7 @@ use super::config::{ForwardConfig, ObjectiveConfig};
 use super::space::ParameterSpace;
 use crate::geometry::{Real, Vec3};
 use crate::imaging::{LabelVolume, label_overlap, voxelize};
+use crate::io::Heartbeat;
 use crate::mechanics::{CellTypeParams, NoObserver, Observer, Parameters, Simulation, SimulationSummary};
 use crate::mesh::Tissue;
 use crate::meshing::{LabelMeshingOptions, mesh_labels};
@@ -317,6 +318,37 @@ pub struct ForwardModel {
     pub space: ParameterSpace,
     pub objective: ObjectiveConfig,
     pub forward: ForwardConfig,
+    /// Lines in a log while an evaluation's relaxation runs (none by default; the fit turns it on
+    /// with its progress, so that a log shows an evaluation of many minutes is alive).
+    pub heartbeat: Option<Heartbeat>,
+}
+
+/// The observer of an evaluation's relaxation: a [`Heartbeat`] line (the point, step, residual)
+/// when one is due; it looks at the clock every [`BEAT_STEPS`] steps only.
+struct EvaluationBeat<'a> {
+    heartbeat: &'a Heartbeat,
+    point: &'a str,
+    max_steps: u64,
+}
+
+/// Steps between two looks at the clock of [`EvaluationBeat`].
+const BEAT_STEPS: u64 = 256;
+
+impl Observer for EvaluationBeat<'_> {
+    fn sample(&mut self, _: &crate::mechanics::Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
+
+    fn progress(&mut self, step: u64, residual: Real) {
+        if step.is_multiple_of(BEAT_STEPS) {
+            self.heartbeat.beat(|| {
+                format!(
+                    "evaluation at {} running: step {step} of at most {} per pass, residual {residual:.3e}",
+                    self.point, self.max_steps
+                )
+            });
+        }
+    }
 }
 
 impl ForwardModel {
@@ -345,7 +377,7 @@ impl ForwardModel {
             base.numerics.contact_cutoff = l;
         }
         base.validate().map_err(|e| super::InferenceError::Config(format!("model: {e}")))?;
-        Ok(Self { observation, base, space, objective, forward })
+        Ok(Self { observation, base, space, objective, forward, heartbeat: None })
     }
 
     /// Scores simulated metrics against the observed ones (see the module doc).
@@ -402,7 +434,21 @@ impl ForwardModel {
         if let Err(e) = params.validate() {
             return (failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default()), None);
         }
-        let (tissue, summary) = match self.relax(&params, start, &mut NoObserver) {
+        let relaxed = match &self.heartbeat {
+            Some(heartbeat) if heartbeat.is_on() => {
+                // The fitted parameters (the fixed ones come first in the list).
+                let values = self.space.parameter_values(&x);
+                let point = values[values.len() - x.len()..]
+                    .iter()
+                    .map(|(p, v)| format!("{} = {v:.4e}", p.name()))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                let max_steps = params.simulation.max_steps;
+                self.relax(&params, start, &mut EvaluationBeat { heartbeat, point: &point, max_steps })
+            }
+            _ => self.relax(&params, start, &mut NoObserver),
+        };
+        let (tissue, summary) = match relaxed {
             Ok(r) => r,
             Err((reason, steps)) => return (failed(reason, steps, Real::NAN, Metrics::default()), None),
         };

@@ -10,7 +10,7 @@ use super::trace::{read_trace, write_trace};
 use super::{InferenceError, plot};
 use crate::geometry::Real;
 use crate::imaging::read_labels;
-use crate::io::{LengthScale, Progress, ReadOptions, read_tissue, write_bytes_atomically};
+use crate::io::{Heartbeat, LengthScale, Progress, ReadOptions, read_tissue, write_bytes_atomically};
 use crate::mechanics::{ContactModel, Polarity};
 use crate::mesh::{CellKind, FaceType};
 use crate::meshing::{mesh_labels, retriangulate};
@@ -122,7 +122,9 @@ pub fn run_fit_observed(
         Some(o) => o,
         None => load_observation(config)?,
     };
-    let model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())?;
+    let mut model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())?;
+    // A log (stderr not a terminal) also hears from inside an evaluation of many minutes.
+    model.heartbeat = Some(Heartbeat::new("fit", options.progress));
     check_fitted_parameters_act(&model)?;
     std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
     let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;

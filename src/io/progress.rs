@@ -5,11 +5,14 @@
 //! Lines come at a sane rate: [`Progress::update`] (called as often as a loop likes, e.g. every 16
 //! steps) writes a line at its first call and then at most one per [`line_interval`] (default
 //! [`DEFAULT_LINE_SECONDS`] s; the environment variable `TISSUEFIT_PROGRESS_SECONDS` sets another, 0
-//! for every update); [`Progress::line`] writes one at once (one per fit evaluation). `-q` turns the
-//! lines off ([`set_quiet`]).
+//! for every update); [`Progress::line`] writes one at once (one per fit evaluation). A
+//! [`Heartbeat`] writes such lines from inside work that reports no position of its own (a fit
+//! evaluation's relaxation, which may run for minutes), from any thread. `-q` turns the lines off
+//! ([`set_quiet`]).
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -141,5 +144,49 @@ impl Progress {
     /// Removes the bar (lines stay in the log).
     pub fn finish(&self) {
         self.bar.finish_and_clear();
+    }
+}
+
+/// Lines that say long work is still running, for logs (stderr not a terminal): [`Heartbeat::beat`]
+/// may be called as often as a loop likes, from any thread; it writes `LABEL: MESSAGE; T s` when
+/// [`line_interval`] has passed since the last line (or since the start: work shorter than that
+/// writes nothing). Off on a terminal (the caller's bar shows the progress), with `-q`, or when
+/// not enabled.
+pub struct Heartbeat {
+    label: String,
+    on: bool,
+    every: Duration,
+    started: Instant,
+    last: Mutex<Instant>,
+}
+
+impl Heartbeat {
+    pub fn new(label: impl Into<String>, enabled: bool) -> Self {
+        let now = Instant::now();
+        Self {
+            label: label.into(),
+            on: enabled && !std::io::stderr().is_terminal() && !QUIET.load(Ordering::SeqCst),
+            every: line_interval(),
+            started: now,
+            last: Mutex::new(now),
+        }
+    }
+
+    /// Whether lines are written at all.
+    pub fn is_on(&self) -> bool {
+        self.on
+    }
+
+    /// Writes a line with `message` (built only then) when one is due.
+    pub fn beat(&self, message: impl FnOnce() -> String) {
+        if !self.on {
+            return;
+        }
+        let Ok(mut last) = self.last.lock() else { return };
+        if last.elapsed() < self.every {
+            return;
+        }
+        eprintln!("{}: {}; {:.1} s", self.label, message(), self.started.elapsed().as_secs_f64());
+        *last = Instant::now();
     }
 }

@@ -78,6 +78,38 @@ fn a_fit_whose_every_evaluation_fails_exits_non_zero_with_the_reasons_and_never_
     assert!(matches!(e, InferenceError::Failed(_)), "{e}");
 }
 
+/// A log hears from inside a long evaluation too (issue 22, item 5: an evaluation of minutes left a
+/// cluster log empty): with lines due at once (`TISSUEFIT_PROGRESS_SECONDS=0`), the relaxation
+/// writes where it is, at which point; with the default 30 s this fast fit writes none.
+#[test]
+fn a_log_shows_a_running_evaluation_with_its_point_step_and_residual() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = write_fit_config(dir.path(), "");
+    let text = std::fs::read_to_string(&config).unwrap().replace("max_steps = 1\n", "max_steps = 600\n");
+    std::fs::write(&config, text).unwrap();
+    let out = dir.path().join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(["--threads", "2", "fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .env("TISSUEFIT_PROGRESS_SECONDS", "0")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let beats: Vec<&str> = stderr.lines().filter(|l| l.starts_with("fit: evaluation at ")).collect();
+    // Two evaluations of up to 600 steps, a line every 256 steps.
+    assert!(beats.len() >= 2, "{stderr}");
+    let re_line = beats.iter().find(|l| l.contains("step 256 ")).unwrap_or_else(|| panic!("{stderr}"));
+    assert!(re_line.starts_with("fit: evaluation at surface_tension_lateral = "), "{re_line}");
+    assert!(re_line.contains("running: step 256 of at most 600 per pass, residual "), "{re_line}");
+    assert!(re_line.ends_with(" s"), "{re_line}");
+    assert!(!re_line.contains("surface_tension ="), "the fixed parameter is not named: {re_line}");
+
+    let o =
+        tissuefit(&["fit", "--config", config.to_str().unwrap(), "--out", dir.path().join("quiet").to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!stderr.contains("fit: evaluation at "), "no line before 30 s: {stderr}");
+    assert!(stderr.contains("fit: evaluation 1/2"), "{stderr}");
+}
+
 #[test]
 fn a_pipeline_fit_stage_whose_every_evaluation_fails_is_marked_failed() {
     let dir = tempfile::tempdir().unwrap();

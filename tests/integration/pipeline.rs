@@ -466,7 +466,7 @@ fn start_until_simulating(p: &Path, run: &Path) -> std::process::Child {
     let mut child = Command::new(env!("CARGO_BIN_EXE_tissuefit"))
         .args(["run", p.to_str().unwrap(), "--out", run.to_str().unwrap()])
         .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
     let started = std::time::Instant::now();
@@ -506,6 +506,13 @@ fn a_second_run_into_a_busy_folder_fails_at_once_and_an_interrupted_stage_is_rec
     assert!(Command::new("kill").args(["-TERM", &first.id().to_string()]).status().unwrap().success());
     assert_eq!(first.wait().unwrap().code(), Some(130));
     assert_eq!(stage_status(&run, "simulate").as_deref(), Some("interrupted"));
+    let mut said = String::new();
+    std::io::Read::read_to_string(&mut first.stderr.take().unwrap(), &mut said).unwrap();
+    assert!(
+        said.contains("interrupted: stage simulate is marked interrupted in ")
+            && said.contains("run the same command again to resume it from its last checkpoint"),
+        "{said}"
+    );
 
     // kill -9 leaves `running`; the next run (a relaxation that ends) says it was interrupted.
     let mut second = start_until_simulating(&p, &run);
