@@ -13,7 +13,9 @@ pub struct FitArgs {
     /// `[input]` table; its `[fit]` on the labels of `[input]` meshed like `[mesh]`, as `tissuefit run`).
     #[arg(long, value_name = "TOML")]
     pub config: PathBuf,
-    /// Output folder: trace.csv, result.json, objective.png, landscape.png, fit.toml, model.toml.
+    /// Output folder: trace.csv, result.json, objective.png, landscape.png, fit.toml, model.toml, and at
+    /// the best point best.vtp (the relaxed tissue), best.toml (the model) and residuals.csv (observed
+    /// vs simulated per cell).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated);
@@ -66,6 +68,11 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         result.wall_seconds,
         args.out.display()
     );
-    // A poor fit completed but found a problem, like an unconverged one: exit code 1.
-    Ok(if result.converged && !result.poor_fit { Outcome::Success } else { Outcome::CheckFailed })
+    // A poor fit, or a best point whose relaxation failed, completed but found a problem, like an
+    // unconverged one: exit code 1.
+    Ok(if result.converged && !result.poor_fit && !result.best_relaxation.failed {
+        Outcome::Success
+    } else {
+        Outcome::CheckFailed
+    })
 }

@@ -7,7 +7,9 @@
 //! search the natural logs of the fitted parameters within bounds ([`optimise`]); an [`Evaluator`]
 //! caches evaluations by their exact point, runs independent ones in parallel and records the trace
 //! in request order (thread-independent). After the optimum, [`profile`] probes the objective along
-//! each parameter, the common scale and the key ratios to say what the data determine.
+//! each parameter, the common scale and the key ratios to say what the data determine. The best point
+//! is then relaxed once more for its files ([`write_best_outputs`]: `best.vtp`, `best.toml`,
+//! `residuals.csv`).
 //!
 //! What an equilibrium shape can determine: dimensionless combinations. For coupling contacts the
 //! contact angle follows Young–Dupré, cos(θ) = γ_lateral/γ_apical; for spring contacts the shape is set
@@ -15,6 +17,7 @@
 //! only through volume compression against the bulk modulus K. Results are reported in SI and
 //! dimensionless (γ̃ = γ/(K·l), ω̃ = ω·l/K, l = ⟨V⟩^(1/3) of the observed moving cells).
 
+mod best;
 mod config;
 mod forward;
 mod optimise;
@@ -25,6 +28,7 @@ mod run;
 mod space;
 mod trace;
 
+pub use best::{BEST_MODEL_FILE, BEST_TISSUE_FILE, BestRelaxation, RESIDUALS_FILE, write_best_outputs};
 pub use config::{
     FitConfig, ForwardConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod, ParameterConfig,
     ProfileConfig,

@@ -1,7 +1,10 @@
 //! PNG plots of a fit (plotters, bitmap backend, DejaVu Sans embedded — no system fonts):
-//! `objective.png` (log10 objective per evaluation, with the best so far) and `landscape.png` (every
-//! evaluated point over the two first fitted parameters, log10 axes, coloured by log10 objective;
-//! with one fitted parameter, the objective against it).
+//! `objective.png` (log10 objective per evaluation, numbered from 1 on integer ticks, with the best
+//! so far) and `landscape.png` (every evaluated point over the two first fitted parameters, log10
+//! axes, coloured by log10 objective, the search bounds dashed; with one fitted parameter, the
+//! objective against it). A failed (penalised) evaluation is a cross, never a point on the objective
+//! scale: its penalty would squash the usable objectives into a line; the scales span the usable
+//! evaluations.
 
 use super::InferenceError;
 use super::forward::Evaluation;
@@ -41,7 +44,17 @@ fn padded(lo: Real, hi: Real) -> (Real, Real) {
     (lo - pad, hi + pad)
 }
 
-/// Objective (log10) per evaluation, and the best so far.
+/// The y range of log10 objectives: the usable evaluations' (a failure penalty would squash them
+/// into a line), or the penalties' when none is usable.
+fn objective_range(trace: &[Evaluation]) -> (Real, Real) {
+    let usable: Vec<Real> = trace.iter().filter(|e| e.status.usable()).map(log10_objective).collect();
+    let ys = if usable.is_empty() { trace.iter().map(log10_objective).collect() } else { usable };
+    padded(ys.iter().copied().fold(Real::INFINITY, Real::min), ys.iter().copied().fold(Real::NEG_INFINITY, Real::max))
+}
+
+/// Objective (log10) per evaluation, numbered from 1 on an integer axis, and the best so far;
+/// failed evaluations (penalised: failed or unconverged) as red crosses along the top, not as
+/// points on the objective scale.
 pub fn plot_objective(path: &Path, trace: &[Evaluation]) -> Result<(), InferenceError> {
     ensure_font();
     if trace.is_empty() {
@@ -51,38 +64,61 @@ pub fn plot_objective(path: &Path, trace: &[Evaluation]) -> Result<(), Inference
     {
         let root = BitMapBackend::new(&tmp, (800, 500)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(path, e))?;
-        let ys: Vec<Real> = trace.iter().map(log10_objective).collect();
-        let (lo, hi) = padded(
-            ys.iter().copied().fold(Real::INFINITY, Real::min),
-            ys.iter().copied().fold(Real::NEG_INFINITY, Real::max),
-        );
+        let (lo, hi) = objective_range(trace);
+        let n = trace.len() as i64;
         let mut chart = ChartBuilder::on(&root)
             .caption("objective per evaluation", ("sans-serif", 22))
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d(0.0..(trace.len() as Real).max(1.0), lo..hi)
+            .build_cartesian_2d(0..n + 1, lo..hi)
             .map_err(|e| err(path, e))?;
-        chart.configure_mesh().x_desc("evaluation").y_desc("log10 objective").draw().map_err(|e| err(path, e))?;
         chart
-            .draw_series(ys.iter().enumerate().map(|(i, &y)| Circle::new((i as Real, y), 3, BLUE.filled())))
+            .configure_mesh()
+            .x_desc("evaluation")
+            .y_desc("log10 objective")
+            .x_labels((n + 2).min(12) as usize)
+            .x_label_formatter(&|i| format!("{i}"))
+            .draw()
+            .map_err(|e| err(path, e))?;
+        let numbered = || trace.iter().enumerate().map(|(i, e)| (i as i64 + 1, e));
+        chart
+            .draw_series(
+                numbered()
+                    .filter(|(_, e)| e.status.usable())
+                    .map(|(i, e)| Circle::new((i, log10_objective(e)), 3, BLUE.filled())),
+            )
             .map_err(|e| err(path, e))?
             .label("evaluation")
             .legend(|(x, y)| Circle::new((x, y), 3, BLUE.filled()));
+        if trace.iter().any(|e| !e.status.usable()) {
+            // Along the top, inside the plot: the penalty is off the usable scale.
+            let top = hi - 0.03 * (hi - lo);
+            chart
+                .draw_series(
+                    numbered()
+                        .filter(|(_, e)| !e.status.usable())
+                        .map(|(i, _)| Cross::new((i, top), 6, RED.stroke_width(2))),
+                )
+                .map_err(|e| err(path, e))?
+                .label("failed (penalty, off scale)")
+                .legend(|(x, y)| Cross::new((x, y), 5, RED.stroke_width(2)));
+        }
         let mut best = Real::INFINITY;
-        let running: Vec<(Real, Real)> = ys
-            .iter()
-            .enumerate()
-            .map(|(i, &y)| {
-                best = best.min(y);
-                (i as Real, best)
+        let running: Vec<(i64, Real)> = numbered()
+            .filter_map(|(i, e)| {
+                if e.status.usable() {
+                    best = best.min(log10_objective(e));
+                }
+                best.is_finite().then_some((i, best))
             })
             .collect();
+        let green = RGBColor(0, 140, 60);
         chart
-            .draw_series(LineSeries::new(running, RED.stroke_width(2)))
+            .draw_series(LineSeries::new(running, green.stroke_width(2)))
             .map_err(|e| err(path, e))?
             .label("best so far")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], green.stroke_width(2)));
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.8))
@@ -102,12 +138,15 @@ pub fn plot_landscape(path: &Path, space: &ParameterSpace, trace: &[Evaluation])
     }
     let ln10 = std::f64::consts::LN_10;
     let objs: Vec<Real> = trace.iter().map(log10_objective).collect();
+    // The colour ramp (and the 1-D y axis) spans the usable evaluations; failed ones are crosses.
+    let usable: Vec<Real> = trace.iter().filter(|e| e.status.usable()).map(log10_objective).collect();
+    let ramp = if usable.is_empty() { &objs } else { &usable };
     let (omin, omax) = (
-        objs.iter().copied().fold(Real::INFINITY, Real::min),
-        objs.iter().copied().fold(Real::NEG_INFINITY, Real::max),
+        ramp.iter().copied().fold(Real::INFINITY, Real::min),
+        ramp.iter().copied().fold(Real::NEG_INFINITY, Real::max),
     );
     let colour = |o: Real| {
-        let t = if omax > omin { (o - omin) / (omax - omin) } else { 0.0 };
+        let t = if omax > omin { ((o - omin) / (omax - omin)).clamp(0.0, 1.0) } else { 0.0 };
         // Low objective: dark blue; high: yellow (a viridis-like ramp through HSL).
         HSLColor(0.66 - 0.5 * t, 0.9, 0.3 + 0.35 * t)
     };
@@ -128,7 +167,11 @@ pub fn plot_landscape(path: &Path, space: &ParameterSpace, trace: &[Evaluation])
                 trace.iter().map(|e| e.x[1] / ln10).collect(),
             )
         } else {
-            ("log10 objective".to_string(), padded(omin, omax), objs.clone())
+            let yr = objective_range(trace);
+            // Failed evaluations along the top (their penalty is off the usable scale).
+            let top = yr.1 - 0.03 * (yr.1 - yr.0);
+            let ys = trace.iter().zip(&objs).map(|(e, &o)| if e.status.usable() { o } else { top }).collect();
+            ("log10 objective".to_string(), yr, ys)
         };
         let mut chart = ChartBuilder::on(&root)
             .caption(
@@ -146,15 +189,46 @@ pub fn plot_landscape(path: &Path, space: &ParameterSpace, trace: &[Evaluation])
             .y_desc(ylab)
             .draw()
             .map_err(|e| err(path, e))?;
+        // The search bounds: dashed lines at each fitted parameter's bounds.
+        let grey = RGBColor(90, 90, 90);
+        let mut bounds: Vec<Vec<(Real, Real)>> =
+            [a0, b0].iter().map(|&b| vec![(b / ln10, yr.0), (b / ln10, yr.1)]).collect();
+        if space.dim() >= 2 {
+            let [a1, b1] = space.fitted[1].log_bounds();
+            bounds.extend([a1, b1].iter().map(|&b| vec![(xr.0, b / ln10), (xr.1, b / ln10)]));
+        }
+        for (k, line) in bounds.into_iter().enumerate() {
+            let series =
+                chart.draw_series(DashedLineSeries::new(line, 6, 4, grey.stroke_width(2))).map_err(|e| err(path, e))?;
+            if k == 0 {
+                series
+                    .label("search bounds")
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2)));
+            }
+        }
         chart
             .draw_series(
                 trace
                     .iter()
                     .zip(&ys)
                     .zip(&objs)
+                    .filter(|((e, _), _)| e.status.usable())
                     .map(|((e, &y), &o)| Circle::new((e.x[0] / ln10, y), 5, colour(o).filled())),
             )
             .map_err(|e| err(path, e))?;
+        if trace.iter().any(|e| !e.status.usable()) {
+            chart
+                .draw_series(
+                    trace
+                        .iter()
+                        .zip(&ys)
+                        .filter(|(e, _)| !e.status.usable())
+                        .map(|(e, &y)| Cross::new((e.x[0] / ln10, y), 6, BLACK.stroke_width(2))),
+                )
+                .map_err(|e| err(path, e))?
+                .label("failed (penalty)")
+                .legend(|(x, y)| Cross::new((x, y), 5, BLACK.stroke_width(2)));
+        }
         let by = if space.dim() >= 2 { best.x[1] / ln10 } else { log10_objective(best) };
         chart
             .draw_series(std::iter::once(Cross::new((best.x[0] / ln10, by), 9, RED.stroke_width(3))))

@@ -95,6 +95,9 @@ pub struct FitResult {
     /// The best objective lies far above what the forward model's noise explains (see
     /// [`POOR_FIT_OBJECTIVE`]): the model does not describe the data.
     pub poor_fit: bool,
+    /// The relaxation at the best point that `best.vtp` and `residuals.csv` come from, and whether
+    /// it failed (then the summary line and a warning say so).
+    pub best_relaxation: super::best::BestRelaxation,
 }
 
 impl FitResult {
@@ -133,7 +136,8 @@ impl FitResult {
             )
         }));
         format!(
-            "{}objective {:.4e} after {} evaluations ({}); {}",
+            "{}{}objective {:.4e} after {} evaluations ({}); {}",
+            self.best_relaxation.failure().map_or(String::new(), |f| format!("BEST-POINT RELAXATION FAILED: {f}; ")),
             if self.poor_fit {
                 "POOR FIT (the objective lies far above the forward model's noise: the model does not describe \
                  these data; see result.json, identifiability): "

@@ -1,5 +1,6 @@
 //! The fit driver: observed data → optimiser → profile → `trace.csv`, `result.json`, plots.
 
+use super::best::{BestRelaxation, write_best_outputs};
 use super::config::FitConfig;
 use super::forward::{Evaluation, ForwardModel, Observation, Status};
 use super::optimise::{Evaluator, optimise};
@@ -193,6 +194,8 @@ pub fn run_fit_observed(
     if let Some(e) = write_error.lock().expect("lock").take() {
         return Err(e);
     }
+    // The best point relaxed once more for its tissue (best.vtp), with its model and residuals.
+    let best_relaxation = write_best_outputs(&model, &best, out)?;
     let result = assemble(
         &model,
         config,
@@ -204,6 +207,7 @@ pub fn run_fit_observed(
         &outcome,
         &evaluator,
         started,
+        best_relaxation,
     );
     let json = serde_json::to_string_pretty(&result).map_err(|e| InferenceError::Output(e.to_string()))?;
     write_bytes_atomically(&out.join("result.json"), json.as_bytes()).map_err(|e| output_err(out, &e))?;
@@ -373,6 +377,7 @@ fn assemble(
     outcome: &super::optimise::OptimiserOutcome,
     evaluator: &Evaluator<'_>,
     started: Instant,
+    best_relaxation: BestRelaxation,
 ) -> FitResult {
     let space = &model.space;
     let values = space.values(&best.x);
@@ -623,6 +628,9 @@ fn assemble(
             )
         });
     }
+    if let Some(failure) = best_relaxation.failure() {
+        statements.push(format!("BEST-POINT RELAXATION FAILED: {failure}"));
+    }
     if !best.status.usable() {
         statements.push(format!("no usable evaluation: the best run was {} ({})", best.status.name(), best.reason));
     }
@@ -669,6 +677,7 @@ fn assemble(
         profile: slices.to_vec(),
         noise: noise.cloned(),
         poor_fit,
+        best_relaxation,
     }
 }
 

@@ -1,5 +1,6 @@
 //! The fit stage: observed morphology → optimiser over relaxed simulations → `trace.csv`,
-//! `result.json`, `fit.toml`, `model.toml` and the plots (DESIGN.md §2).
+//! `result.json`, `fit.toml`, `model.toml`, the plots, and the best point's `best.vtp`, `best.toml`
+//! and `residuals.csv` (DESIGN.md §2).
 //!
 //! `tissuefit fit` and the pipeline's `[fit]` both call [`run`]; they differ only in where the
 //! observed tissue comes from ([`Observed`]): `tissuefit fit` reads `observed.tissue` or meshes
@@ -19,8 +20,17 @@ pub const TRACE_FILE: &str = "trace.csv";
 /// The fitted parameters, their ranges and what the data determine ([`FitResult`]).
 pub const RESULT_FILE: &str = "result.json";
 /// The files the stage writes into its folder.
-pub const OUTPUT_FILES: &[&str] =
-    &[TRACE_FILE, RESULT_FILE, "objective.png", "landscape.png", "fit.toml", "model.toml"];
+pub const OUTPUT_FILES: &[&str] = &[
+    TRACE_FILE,
+    RESULT_FILE,
+    "objective.png",
+    "landscape.png",
+    "fit.toml",
+    "model.toml",
+    crate::inference::BEST_TISSUE_FILE,
+    crate::inference::BEST_MODEL_FILE,
+    crate::inference::RESIDUALS_FILE,
+];
 
 fn err(message: impl Into<String>) -> StageError {
     StageError::new("fit", message)

@@ -175,7 +175,8 @@ fn cli_fit_writes_the_design_keys_and_refuses_to_overwrite_without_resume() {
     assert_eq!(p["range"].as_array().unwrap().len(), 2);
     assert_eq!(json["evaluations"].as_u64(), Some(3));
     assert_eq!(json["converged"].as_bool(), Some(false));
-    for f in ["trace.csv", "objective.png", "landscape.png", "fit.toml", "model.toml"] {
+    let best_files = ["best.vtp", "best.toml", "residuals.csv"];
+    for f in ["trace.csv", "objective.png", "landscape.png", "fit.toml", "model.toml"].iter().chain(&best_files) {
         assert!(out.join(f).exists(), "{f} missing");
     }
     let png = std::fs::read(out.join("objective.png")).unwrap();
@@ -184,8 +185,15 @@ fn cli_fit_writes_the_design_keys_and_refuses_to_overwrite_without_resume() {
     assert_eq!(again.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&again.stderr);
     assert!(stderr.contains("--resume"), "{stderr}");
-    // Resuming with a larger budget reuses the three evaluations.
+    // Resuming with a larger budget reuses the three evaluations, and writes the best point's files
+    // again (its best point may come from the earlier session's trace).
+    for f in best_files {
+        std::fs::remove_file(out.join(f)).unwrap();
+    }
     let resumed = run(&["--resume", "--max-evaluations", "4"]);
+    for f in best_files {
+        assert!(out.join(f).exists(), "{f} missing after --resume");
+    }
     assert!(resumed.status.code() == Some(0) || resumed.status.code() == Some(1));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("result.json")).unwrap()).unwrap();

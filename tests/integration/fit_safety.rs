@@ -199,12 +199,107 @@ fn cli_fit(config: &Path, out: &Path) -> (Option<i32>, String, serde_json::Value
     (o.status.code(), stderr, serde_json::from_str(&json).unwrap())
 }
 
+/// A CSV file as rows of column → field.
+fn read_csv_rows(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let headers = r.headers().unwrap().clone();
+    r.records()
+        .map(|row| headers.iter().zip(row.unwrap().iter()).map(|(h, v)| (h.to_string(), v.to_string())).collect())
+        .collect()
+}
+
+/// A finished fit's best-point files (issue 22, "Best-fit outputs"): `best.vtp` is the relaxed
+/// observed tissue (every cell, valid meshes), `best.toml` a model file that `tissuefit simulate`
+/// takes whose fitted values are `result.json`'s, `residuals.csv` one row per moving cell whose
+/// observed columns are what `tissuefit measure` reports for the observed tissue.
+fn assert_best_outputs(config: &Path, out: &Path, json: &serde_json::Value) {
+    use tissuefit::io::{ReadOptions, read_tissue, write_tissue};
+    use tissuefit::mesh::{CellKind, FaceType};
+    let fit = FitConfig::load(config).unwrap();
+    let observation = tissuefit::inference::load_observation(&fit).unwrap();
+    let relaxation = &json["best_relaxation"];
+    assert_eq!(relaxation["failed"].as_bool(), Some(false), "{json}");
+    assert_eq!(relaxation["tissue_written"].as_bool(), Some(true), "{json}");
+    // The deterministic forward model relaxes the best point to the best evaluation again.
+    assert_eq!(relaxation["objective"].as_f64(), json["objective"].as_f64(), "{json}");
+
+    let best = read_tissue(&out.join("best.vtp"), &ReadOptions::default()).unwrap().tissue;
+    assert_eq!(best.cells().len(), observation.tissue.cells().len());
+    for (cell, observed) in best.cells().iter().zip(observation.tissue.cells()) {
+        assert_eq!(cell.id(), observed.id());
+        cell.mesh().validate().unwrap_or_else(|e| panic!("cell {:?} of best.vtp: {e}", cell.id()));
+        assert!(cell.mesh().signed_volume() > 0.0);
+    }
+    assert_ne!(
+        best.cells()[0].mesh().positions(),
+        observation.tissue.cells()[0].mesh().positions(),
+        "best.vtp is the relaxed tissue, not the observed one"
+    );
+
+    let model = tissuefit::mechanics::Parameters::load(&out.join("best.toml")).unwrap();
+    let si = |name: &str| json["parameters"][name]["si"].as_f64().unwrap();
+    let epithelial: Vec<_> = model.cell_types.iter().filter(|t| t.kind == CellKind::Epithelial).collect();
+    assert!(!epithelial.is_empty());
+    for t in epithelial {
+        assert_eq!(t.faces.get(FaceType::Lateral).surface_tension, si("surface_tension_lateral"), "{json}");
+        assert_eq!(t.faces.get(FaceType::Apical).surface_tension, si("surface_tension"), "{json}");
+    }
+    let sim = out.join("simulate");
+    let o = tissuefit(&[
+        "simulate",
+        out.join("best.vtp").to_str().unwrap(),
+        "--config",
+        out.join("best.toml").to_str().unwrap(),
+        "--max-steps",
+        "5",
+        "--out",
+        sim.to_str().unwrap(),
+    ]);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
+
+    // The observed tissue measured by `tissuefit measure`, cell by cell.
+    let observed_file = out.join("observed.vtp");
+    write_tissue(&observed_file, &observation.tissue, &[]).unwrap();
+    let measured = out.join("measured");
+    let o = tissuefit(&["measure", observed_file.to_str().unwrap(), "--out", measured.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let cells = read_csv_rows(&measured.join("cells.csv"));
+    let residuals = read_csv_rows(&out.join("residuals.csv"));
+    assert_eq!(residuals.len(), observation.cell_labels.len(), "one row per moving cell");
+    let number = |row: &std::collections::HashMap<String, String>, key: &str| -> f64 {
+        row[key].parse().unwrap_or_else(|e| panic!("{key} = {:?}: {e}", row[key]))
+    };
+    for row in &residuals {
+        let cell = cells.iter().find(|c| c["cell"] == row["cell"]).unwrap_or_else(|| panic!("cell {}", row["cell"]));
+        for (column, measure) in [
+            ("volume_m3", "volume"),
+            ("area_m2", "area"),
+            ("sphericity", "sphericity"),
+            ("contact_fraction", "contact_fraction"),
+            ("free_area_m2", "free_area"),
+            ("neighbours", "neighbours"),
+            ("elongation", "elongation"),
+        ] {
+            let observed = number(row, &format!("{column}_observed"));
+            assert_eq!(observed, number(cell, measure), "cell {}: {column}", row["cell"]);
+            let simulated = number(row, &format!("{column}_simulated"));
+            let difference = number(row, &format!("{column}_difference"));
+            assert_eq!(difference, simulated - observed, "cell {}: {column}", row["cell"]);
+        }
+        // The µm columns are the SI ones converted.
+        let um3 = number(row, "volume_um3_observed");
+        assert!((um3 / (number(row, "volume_m3_observed") * 1e18) - 1.0).abs() < 1e-12, "{row:?}");
+    }
+}
+
 #[test]
 fn a_best_value_at_a_search_bound_is_never_determined_and_a_poor_fit_is_flagged() {
     let dir = tempfile::tempdir().unwrap();
     // The truth (0.5e-3) lies below the bounds: the search ends at the lower bound.
     let config = write_demo_fit(dir.path(), "[6e-4, 1e-3]", "");
     let (code, stderr, json) = cli_fit(&config, &dir.path().join("bound"));
+    // The same fit's best point as files (issue 22, "Best-fit outputs").
+    assert_best_outputs(&config, &dir.path().join("bound"), &json);
     let p = &json["parameters"]["surface_tension_lateral"];
     assert!((p["si"].as_f64().unwrap() / 6e-4 - 1.0).abs() < 1e-9, "{json}");
     assert_eq!(p["at_bound"].as_str(), Some("lower"), "{json}");

@@ -267,7 +267,16 @@ fn fit_writes_the_same_files_from_the_cli_and_from_a_pipeline() {
 
     let (a, b) = (stage_hashes(&run, &["fit"]), stage_hashes(tmp.path(), &["fit"]));
     assert_eq!(a, b, "the pipeline's fit files differ from `tissuefit fit`'s");
-    for file in ["trace.csv", "result.json", "fit.toml", "model.toml", "objective.png"] {
+    for file in [
+        "trace.csv",
+        "result.json",
+        "fit.toml",
+        "model.toml",
+        "objective.png",
+        "best.vtp",
+        "best.toml",
+        "residuals.csv",
+    ] {
         assert!(a.contains_key(&format!("fit/{file}")), "{file} missing: {a:?}");
     }
 }
