@@ -73,6 +73,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
         );
         ok = false;
     }
+    if let Some(reason) = &outcome.fit_best_failed {
+        println!(
+            "fit: BEST-POINT RELAXATION FAILED ({reason}): no {}/fit/best.vtp; the fitted values stand, the \
+             relaxed tissue and residuals.csv's simulated columns do not",
+            out.display()
+        );
+        ok = false;
+    }
     if outcome.simulate_converged == Some(false) {
         println!(
             "simulate: the run ended unconverged or with cells passed through each other (see {}/simulate/summary.json)",

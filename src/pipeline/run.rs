@@ -100,6 +100,9 @@ pub struct PipelineOutcome {
     pub fit_converged: Option<bool>,
     /// `Some(poor_fit)` when a fit stage is configured (result.json's `poor_fit`).
     pub fit_poor: Option<bool>,
+    /// The reason when the fit's relaxation at its best point failed (result.json's
+    /// `best_relaxation`): no `fit/best.vtp` then.
+    pub fit_best_failed: Option<String>,
     /// `Some(reached)` when a simulate stage is configured: the run reached its goal (a relaxation
     /// and its reference converged, no cell passed through another; see
     /// [`crate::stages::simulate::RunSummary::reached_goal`]).
@@ -271,6 +274,7 @@ fn run_locked(
     // fit
     let mut fit_converged = None;
     let mut fit_poor = None;
+    let mut fit_best_failed = None;
     let mut demo = Vec::new();
     if let Some(section) = &config.fit {
         let text = toml_of(section)? + &mesh_section;
@@ -288,6 +292,7 @@ fn run_locked(
         let result = crate::stages::fit::read_result(&out.join("fit"))?;
         fit_converged = Some(result.converged);
         fit_poor = Some(result.poor_fit);
+        fit_best_failed = result.best_relaxation.failed.then(|| result.best_relaxation.reason.clone());
         if let Some(d) = &config.demo {
             for (name, &truth) in &d.truth {
                 let fitted = result.value(name);
@@ -303,7 +308,7 @@ fn run_locked(
             }
         }
     }
-    Ok(PipelineOutcome { manifest, fit_converged, fit_poor, simulate_converged, demo })
+    Ok(PipelineOutcome { manifest, fit_converged, fit_poor, fit_best_failed, simulate_converged, demo })
 }
 
 /// What the mesh stage's key covers besides the input file's bytes: the input's kind and options

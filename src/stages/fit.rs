@@ -98,6 +98,16 @@ pub struct ResultHead {
     pub parameters: BTreeMap<String, ParameterHead>,
     #[serde(default)]
     pub ratios: BTreeMap<String, RatioHead>,
+    /// How the relaxation at the best point (`best.vtp`, `residuals.csv`) ended.
+    pub best_relaxation: BestRelaxationHead,
+}
+
+/// `best_relaxation` of [`ResultHead`].
+#[derive(Clone, Debug, serde::Deserialize)]
+pub struct BestRelaxationHead {
+    /// It failed or ended unusable: no `best.vtp`, see `reason`.
+    pub failed: bool,
+    pub reason: String,
 }
 
 /// A parameter of [`ResultHead`].
