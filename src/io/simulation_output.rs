@@ -225,3 +225,35 @@ pub fn write_events(path: &Path, events: &[crate::mechanics::TopologyEvent], uni
     }
     super::write_bytes_atomically(path, text.as_bytes()).map_err(IoError::from)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run's statistics header names its length unit; a resume keeps it, or refuses another one.
+    #[test]
+    fn a_resumed_recorder_keeps_the_runs_unit_and_refuses_another() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut recorder = SimulationRecorder::create(dir.path(), true, OutputUnit::Micrometre).unwrap();
+        let state = recorder.state().unwrap();
+        recorder.abandon();
+        let header = std::fs::read_to_string(dir.path().join("stats.csv.partial")).unwrap();
+        assert!(
+            header.starts_with("step,time,cell,kind,cell_type,nodes,volume_um3,target_volume_um3,area_um2,pressure,")
+        );
+        let resumed = SimulationRecorder::resume(dir.path(), true, &state, None).unwrap();
+        assert_eq!(resumed.unit(), OutputUnit::Micrometre);
+        resumed.abandon();
+        let same = SimulationRecorder::resume(dir.path(), true, &state, Some(OutputUnit::Micrometre)).unwrap();
+        same.abandon();
+        let Err(e) = SimulationRecorder::resume(dir.path(), true, &state, Some(OutputUnit::Metre)) else {
+            panic!("a resume in metres of a µm run was accepted")
+        };
+        assert!(e.to_string().contains("the run's outputs are in um, not m"), "{e}");
+        // In SI the header is the one it always was.
+        let si = tempfile::tempdir().unwrap();
+        SimulationRecorder::create(si.path(), true, OutputUnit::Metre).unwrap().abandon();
+        let header = std::fs::read_to_string(si.path().join("stats.csv.partial")).unwrap();
+        assert!(header.starts_with("step,time,cell,kind,cell_type,nodes,volume,target_volume,area,pressure,"));
+    }
+}
