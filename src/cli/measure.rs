@@ -6,7 +6,7 @@
 use super::label_args::parse_voxel_size;
 use super::{InputArgs, Outcome};
 use crate::geometry::Real;
-use crate::io::{OutputPolicy, parse_length};
+use crate::io::{OutputPolicy, OutputUnit, parse_length};
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
 use crate::morphology::{ContactRule, Morphology};
 use crate::pipeline::{PipelineConfig, describe_morphology as describe, measure_options};
@@ -37,7 +37,7 @@ pub struct MeasureArgs {
         conflicts_with_all = [
             "contact_distance", "distance_contacts", "include_static", "exterior_free_fraction", "length_unit", "orient", "voxel_size",
             "border", "lumen_labels", "min_voxels", "normal_smoothing", "compare", "compare_voxel_size",
-            "zarr_level",
+            "zarr_level", "output_unit",
         ]
     )]
     pub config: Option<PathBuf>,
@@ -77,6 +77,11 @@ pub struct MeasureArgs {
     /// mean edge length of the measured tissue.
     #[arg(long, value_name = "Z,Y,X", value_parser = parse_voxel_size, requires = "compare")]
     pub compare_voxel_size: Option<[Real; 3]>,
+    /// Length unit of the written files: m (SI, the default) or um (micrometres: ParaView's axes read
+    /// µm; CSV columns become volume_um3, area_um2, centroid_x_um, …). summary.json
+    /// then says length_unit = "um" and renames its dimensioned keys the same way.
+    #[arg(long, value_name = "UNIT", default_value_t = OutputUnit::Metre)]
+    pub output_unit: OutputUnit,
 }
 
 /// `measure TISSUE --config PIPELINE.toml --out DIR`: the pipeline's measure stage into DIR.
@@ -92,7 +97,7 @@ fn run_stage(tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outco
         );
     }
     let started = Instant::now();
-    let mut options = measure_options(&config.measure);
+    let mut options = measure_options(&config.measure, &config.output);
     // summary.json names the tissue as a run directory does (`../mesh/tissue.vtp`) only where it
     // lies there.
     let beside = out.parent().map(|run| run.join("mesh").join(crate::pipeline::MESH_TISSUE));
@@ -135,6 +140,7 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
         compare: args.compare.clone(),
         compare_voxel_size: args.compare_voxel_size,
         input_name: None,
+        output_unit: args.output_unit,
     };
     let report = stages::measure::run(&args.tissue, &options, &args.out)?;
     print_summary(&mut std::io::stdout().lock(), &args.tissue, &report.morphology, report.wall_seconds)?;

@@ -11,7 +11,7 @@
 use super::Outcome;
 use super::label_args::parse_voxel_size;
 use crate::geometry::Real;
-use crate::io::{Format, LengthScale, OutputPolicy};
+use crate::io::{Format, LengthScale, OutputPolicy, OutputUnit};
 use crate::meshing::{
     BorderPolicy, DEFAULT_MAX_REFINEMENTS, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, LabelStatus,
 };
@@ -41,7 +41,7 @@ pub struct MeshArgs {
         value_name = "PIPELINE.toml",
         conflicts_with_all = [
             "voxel_size", "l_min", "target_nodes", "min_voxels", "border", "lumen_labels", "nuclei",
-            "max_refinements", "length_unit", "seed", "report", "zarr_level",
+            "max_refinements", "length_unit", "seed", "report", "zarr_level", "output_unit",
         ]
     )]
     pub config: Option<PathBuf>,
@@ -91,6 +91,12 @@ pub struct MeshArgs {
     /// Per-label report (default: beside --out, named after its stem: TISSUE.report.json).
     #[arg(long, value_name = "PATH")]
     pub report: Option<PathBuf>,
+    /// Length unit of the written files: m (SI, the default) or um (micrometres: ParaView's axes read
+    /// µm; CSV columns become volume_um3, area_um2, centroid_x_um, …). A .vtp records its unit and
+    /// tissuefit reads it back in metres.
+    /// Only with a .vtp --out (a SimuCell3D .vtk is in metres); the report stays in metres.
+    #[arg(long, value_name = "UNIT", default_value_t = OutputUnit::Metre)]
+    pub output_unit: OutputUnit,
 }
 
 /// One length (l_min); outside 1 nm – 1 mm it is refused as a unit slip, with a hint.
@@ -105,10 +111,14 @@ fn run_stage(pipeline: &Path, out: &Path) -> anyhow::Result<Outcome> {
         .input("--config", pipeline)
         .input_opt("[input] labels", config.input.labels.as_deref())
         .input_opt("[input] mesh", config.input.mesh.as_deref())
-        .folder("--out", out, &[crate::pipeline::MESH_TISSUE, "report.json"])?;
+        .folder(
+            "--out",
+            out,
+            &[crate::pipeline::MESH_TISSUE, &stages::mesh::tissue_file_in(config.output.length_unit), "report.json"],
+        )?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let started = Instant::now();
-    let line = run_mesh(&config.input, &config.mesh, out, true)?;
+    let line = run_mesh(&config.input, &config.mesh, &config.output, out, true)?;
     println!(
         "mesh ({}): {line}; {:.2} s; outputs in {}",
         pipeline.display(),
@@ -141,6 +151,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
         zarr_level: args.zarr_level,
         nuclei: args.nuclei.clone(),
         length_unit: args.length_unit,
+        output_unit: args.output_unit,
     };
     let MeshOutcome { meshing, wall_seconds, threads } =
         stages::mesh::run(labels, &options, &args.out, &report_path, true)?;
@@ -163,8 +174,9 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
     let mut nodes: Vec<usize> =
         meshing.report.iter().filter(|r| r.status != LabelStatus::Dropped).map(|r| r.nodes).collect();
     nodes.sort_unstable();
+    let unit = if args.output_unit.is_si() { String::new() } else { format!(", lengths in {}", args.output_unit) };
     println!(
-        "wrote {} ({} cells, {} nodes) and {}",
+        "wrote {}{unit} ({} cells, {} nodes) and {}",
         args.out.display(),
         meshing.tissue.len(),
         meshing.tissue.node_count(),

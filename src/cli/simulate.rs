@@ -11,7 +11,7 @@
 //! the `--resume` command line gives them again (then with a note).
 
 use super::{InputArgs, Outcome};
-use crate::io::{CHECKPOINT_FILE, OutputPolicy, ReadOptions};
+use crate::io::{CHECKPOINT_FILE, OutputPolicy, OutputUnit, ReadOptions};
 use crate::mechanics::{Parameters, RelaxMethod, SimulationMode};
 use crate::pipeline::{PipelineConfig, is_pipeline_file, run_simulate};
 use crate::stages::simulate::{self, CheckpointOptions, Model, SimulateOptions, SimulateOutcome};
@@ -69,6 +69,13 @@ pub struct SimulateArgs {
     pub stop_at_step: Option<u64>,
     #[command(flatten)]
     pub input: InputArgs,
+    /// Length unit of the frames, final.vtp, stats.csv, events.csv, cells.csv, contacts.csv and
+    /// morphology.json: m (SI, the default) or um (ParaView's axes read µm; columns become volume_um3,
+    /// area_um2, …; each .vtp records its unit and tissuefit reads it back in metres). final.vtk
+    /// (SimuCell3D) and summary.json stay SI. With --resume: the run's own unit (default), which
+    /// cannot change.
+    #[arg(long, value_name = "UNIT")]
+    pub output_unit: Option<OutputUnit>,
 }
 
 /// The model: the config file (or the defaults) with the command-line overrides (CLI > config file
@@ -135,6 +142,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<Outcome> {
         progress: true,
         notes: true,
         interrupt: Some(&INTERRUPTED),
+        output_unit: args.output_unit,
         ..SimulateOptions::default()
     };
     if let Some(dir) = &args.resume {
@@ -204,12 +212,14 @@ fn run_stage(args: &SimulateArgs, tissue: &Path, pipeline: &Path, out: &Path) ->
         ("--stop-at-step", args.stop_at_step.is_some()),
         ("--length-unit", args.input.length_unit != crate::io::LengthScale::default()),
         ("--orient", args.input.orient),
+        ("--output-unit", args.output_unit.is_some()),
     ];
     let given: Vec<&str> = overrides.iter().filter(|(_, on)| *on).map(|(name, _)| *name).collect();
     if !given.is_empty() {
         bail!(
             "{} cannot be used with the pipeline file {}: its [simulate] section configures the stage (set e.g. \
-             simulation.max_steps in [simulate.model_overrides.simulation]), or give a parameter file to --config",
+             simulation.max_steps in [simulate.model_overrides.simulation]; the length unit in [output]), or give a \
+             parameter file to --config",
             given.join(", "),
             pipeline.display()
         );
@@ -219,7 +229,8 @@ fn run_stage(args: &SimulateArgs, tissue: &Path, pipeline: &Path, out: &Path) ->
         bail!("{}: the pipeline has no [simulate] section; add one to simulate", pipeline.display());
     };
     let started = Instant::now();
-    let (line, converged) = run_simulate(tissue, section, &config.measure, out, args.force, false, true)?;
+    let (line, converged) =
+        run_simulate(tissue, section, &config.measure, &config.output, out, args.force, false, true)?;
     println!(
         "simulate ({}): {line}; {:.2} s; outputs in {}",
         pipeline.display(),

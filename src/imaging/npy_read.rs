@@ -176,22 +176,51 @@ fn read_header(reader: &mut impl Read, path: &Path) -> Result<NpyHeader, Imaging
     let mut text = vec![0u8; header_len as usize];
     reader.read_exact(&mut text).map_err(|e| bad(format!("reading the {header_len}-byte header: {e} (truncated?)")))?;
     let text = String::from_utf8(text).map_err(|_| bad("the header is not text".into()))?;
+    if descr_of(&text).is_ok_and(|d| d.trim_start_matches(['<', '>', '|', '=']) == "O") {
+        return Err(bad(object_array_hint(path)));
+    }
     let mut header = parse_header_dict(&text).map_err(|m| bad(format!("header `{}`: {m}", text.trim())))?;
     header.data_offset = prefix + header_len;
     Ok(header)
 }
 
+/// What to say about a `.npy` holding pickled Python objects (dtype `|O`): most likely Cellpose's
+/// `_seg.npy`, a pickled dict whose `masks` entry is the label array; the one-line conversion names
+/// the file as given.
+fn object_array_hint(path: &Path) -> String {
+    let given = path.display().to_string();
+    let masks = match given.strip_suffix("_seg.npy") {
+        Some(stem) => format!("{stem}_masks.npy"),
+        None => format!("{}_masks.npy", given.strip_suffix(".npy").unwrap_or(&given)),
+    };
+    format!(
+        "it holds pickled Python objects (dtype `|O`), not a label array: this is how Cellpose saves its `_seg.npy` \
+         (a dict of masks, outlines, flows, …), which tissuefit does not unpickle. Save the masks as a label array \
+         with\n  python -c \"import numpy as np; d=np.load('{given}', allow_pickle=True).item(); \
+         np.save('{masks}', d['masks'])\"\nand give {masks}, or run Cellpose with --save_tif and give its \
+         _cp_masks.tif"
+    )
+}
+
+/// The value of `key` in the header dict text.
+fn value_after<'a>(text: &'a str, key: &str) -> Result<&'a str, String> {
+    let quoted = [format!("'{key}'"), format!("\"{key}\"")];
+    let at = quoted.iter().find_map(|q| text.find(q.as_str()).map(|i| i + q.len())).ok_or(format!("no `{key}`"))?;
+    let rest = text[at..].trim_start();
+    rest.strip_prefix(':').map(str::trim_start).ok_or(format!("no `:` after `{key}`"))
+}
+
+/// The `descr` string of the header dict (`<u2`, `|O`).
+fn descr_of(text: &str) -> Result<&str, String> {
+    let descr = value_after(text, "descr")?;
+    let quote = descr.chars().next().filter(|c| *c == '\'' || *c == '"').ok_or("`descr` is not a string")?;
+    Ok(&descr[1..descr[1..].find(quote).ok_or("`descr` is not a closed string")? + 1])
+}
+
 /// Parses `{'descr': '<u2', 'fortran_order': False, 'shape': (3, 4, 5), }`.
 pub(crate) fn parse_header_dict(text: &str) -> Result<NpyHeader, String> {
-    let value_after = |key: &str| -> Result<&str, String> {
-        let quoted = [format!("'{key}'"), format!("\"{key}\"")];
-        let at = quoted.iter().find_map(|q| text.find(q.as_str()).map(|i| i + q.len())).ok_or(format!("no `{key}`"))?;
-        let rest = text[at..].trim_start();
-        rest.strip_prefix(':').map(str::trim_start).ok_or(format!("no `:` after `{key}`"))
-    };
-    let descr = value_after("descr")?;
-    let quote = descr.chars().next().filter(|c| *c == '\'' || *c == '"').ok_or("`descr` is not a string")?;
-    let descr = &descr[1..descr[1..].find(quote).ok_or("`descr` is not a closed string")? + 1];
+    let value_after = |key: &str| value_after(text, key);
+    let descr = descr_of(text)?;
     let (order, kind) = match descr.chars().next() {
         Some(c @ ('<' | '>' | '|' | '=')) => (c, &descr[1..]),
         _ => ('|', descr),
@@ -253,6 +282,37 @@ mod tests {
         let e = parse_header_dict("{'descr': '<f4', 'fortran_order': False, 'shape': (3, 4, 5), }").unwrap_err();
         assert!(e.contains("floating point") && e.contains("astype"), "{e}");
         assert!(parse_header_dict("{'descr': '<u2', 'shape': (3, 4, 5), }").unwrap_err().contains("fortran_order"));
+    }
+
+    /// Cellpose's `_seg.npy` is a pickled dict: a 0-d object array. The error says what the file is
+    /// and gives the conversion with the file's own name.
+    #[test]
+    fn a_cellpose_seg_file_is_named_with_the_one_line_fix() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("embryo_seg.npy");
+        let dict = "{'descr': '|O', 'fortran_order': False, 'shape': (), }";
+        let mut header = format!("{dict:<117}\n").into_bytes();
+        assert_eq!((10 + header.len()) % 64, 0);
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+        bytes.append(&mut header);
+        bytes.extend_from_slice(b"\x80\x04\x95pickled dict follows");
+        std::fs::write(&path, &bytes).unwrap();
+        let e = read_label_npy(&path, &LabelReadOptions::default()).unwrap_err().to_string();
+        let shown = path.display().to_string();
+        let masks = shown.replace("_seg.npy", "_masks.npy");
+        assert!(e.contains("dtype `|O`") && e.contains("Cellpose"), "{e}");
+        assert!(
+            e.contains(&format!(
+                "python -c \"import numpy as np; d=np.load('{shown}', allow_pickle=True).item(); np.save('{masks}', \
+                 d['masks'])\""
+            )),
+            "{e}"
+        );
+        assert!(e.contains("--save_tif"), "{e}");
+        assert!(!e.contains("not a label type"), "{e}");
+        // Another object array is named the same way, its masks file after its stem.
+        assert!(object_array_hint(Path::new("cells.npy")).contains("np.save('cells_masks.npy'"));
     }
 
     #[test]

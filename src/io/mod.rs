@@ -25,10 +25,10 @@ pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;
 pub use progress::{DEFAULT_LINE_SECONDS, Heartbeat, LINE_SECONDS_VARIABLE, Progress, line_interval, set_quiet};
 pub use pvd::{PvdEntry, write_pvd};
-pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue};
+pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue, write_tissue_in};
 pub use simulation_output::{SimulationRecorder, write_events};
-pub use units::{LengthScale, parse_length, parse_lengths, parse_named_length};
-pub use vtp::{CellField, read_vtp, vtp_bytes, write_vtp};
+pub use units::{LengthScale, OutputUnit, parse_length, parse_lengths, parse_named_length};
+pub use vtp::{CellField, LENGTH_UNIT_FIELD, read_vtp, vtp_bytes, write_vtp, write_vtp_in};
 
 // The file primitives live a layer down (`crate::files`), where `imaging` and `mechanics` can use
 // them too; the commands and stages above `io` keep reaching them here.

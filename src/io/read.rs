@@ -3,8 +3,8 @@
 use super::legacy_parse::parse_legacy;
 use super::legacy_tissue::tissue_from_grid;
 use super::legacy_write::write_simucell3d;
-use super::{CellField, IoError, LengthScale, TissueFormat, write_vtp};
-use crate::geometry::bounding_box;
+use super::{CellField, IoError, LengthScale, OutputUnit, TissueFormat, write_vtp_in};
+use crate::geometry::{Vec3, bounding_box};
 use crate::mesh::Tissue;
 use std::path::Path;
 
@@ -12,6 +12,8 @@ use std::path::Path;
 #[derive(Clone, Debug, Default)]
 pub struct ReadOptions {
     /// Metres per file length unit. SimuCell3D files are in metres; image-tool meshes in voxels or µm.
+    /// A `.vtp` that records its unit (`length_unit`, as `--output-unit um` writes) is read in it
+    /// whatever this says; a different scale given for such a file is an error.
     pub length_scale: LengthScale,
     /// Re-orient every cell's faces consistently and outward (always done for multi-material meshes,
     /// whose winding is unreliable; optional for the others, whose winding is kept as written).
@@ -44,9 +46,12 @@ pub fn read_tissue_bytes(path: &Path, bytes: &[u8], options: &ReadOptions) -> Re
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let head = &bytes[..bytes.len().min(64)];
     let mut warnings = Vec::new();
+    let mut recorded_unit = None;
     let (mut tissue, format) =
         if ext.as_deref() == Some("vtp") || head.starts_with(b"<?xml") || head.starts_with(b"<VTKFile") {
-            (super::vtp::parse_vtp(path, bytes)?, TissueFormat::Vtp)
+            let (tissue, unit) = super::vtp::parse_vtp(path, bytes)?;
+            recorded_unit = unit;
+            (tissue, TissueFormat::Vtp)
         } else if head.starts_with(b"# vtk") || ext.as_deref() == Some("vtk") {
             let grid = parse_legacy(path, bytes)?;
             tissue_from_grid(path, &grid, &mut warnings)?
@@ -73,8 +78,22 @@ pub fn read_tissue_bytes(path: &Path, bytes: &[u8], options: &ReadOptions) -> Re
             }
         }
     }
-    if !options.length_scale.is_identity() {
-        tissue.scale(options.length_scale.0);
+    match &recorded_unit {
+        // Already converted to metres from the file's own unit; the same unit given again is no error.
+        Some(unit) => {
+            let metres = super::units::metres_per_unit(unit).unwrap_or(1.0);
+            if !options.length_scale.is_identity() && options.length_scale.0 != Vec3::repeat(metres) {
+                return Err(IoError::Unsupported {
+                    path: path.into(),
+                    message: format!(
+                        "the file records its length unit ({unit}) and is read in it, but a length unit of {} was                          given too; leave --length-unit (input.length_unit) out for this file",
+                        options.length_scale
+                    ),
+                });
+            }
+        }
+        None if !options.length_scale.is_identity() => tissue.scale(options.length_scale.0),
+        None => {}
     }
     for cell in tissue.cells() {
         let (target, volume) = (cell.target_volume(), cell.mesh().signed_volume());
@@ -103,8 +122,20 @@ pub fn read_tissue_bytes(path: &Path, bytes: &[u8], options: &ReadOptions) -> Re
 /// Writes a tissue; the extension picks the format: `.vtp` (ParaView) or `.vtk` (SimuCell3D legacy).
 /// `extra` holds per-cell fields (one value per cell, e.g. pressure).
 pub fn write_tissue(path: &Path, tissue: &Tissue, extra: &[CellField<'_>]) -> Result<(), IoError> {
+    write_tissue_in(path, tissue, extra, OutputUnit::Metre)
+}
+
+/// [`write_tissue`] with lengths in `unit` (see [`super::write_vtp_in`]; `extra` fields as given). A
+/// SimuCell3D legacy `.vtk` is in metres by definition (SimuCell3D reads it so): another unit is refused.
+pub fn write_tissue_in(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], unit: OutputUnit) -> Result<(), IoError> {
     match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
-        Some("vtp") => write_vtp(path, tissue, extra, None),
+        Some("vtp") => write_vtp_in(path, tissue, extra, None, unit),
+        Some("vtk") if !unit.is_si() => Err(IoError::Unsupported {
+            path: path.into(),
+            message: format!(
+                "a SimuCell3D legacy .vtk is in metres; write .vtp for lengths in {unit}, or leave the output unit at m"
+            ),
+        }),
         Some("vtk") => write_simucell3d(path, tissue, extra),
         _ => Err(IoError::Unsupported {
             path: path.into(),

@@ -1,4 +1,6 @@
-//! Length units of input files. tissuefit works in metres; image-tool meshes come in voxels or µm.
+//! Length units of input files and of written files. tissuefit works in metres; image-tool meshes
+//! come in voxels or µm ([`LengthScale`]), and files meant for people may be written in µm
+//! ([`OutputUnit`]), so that ParaView's axes and a table's volumes read 12.3 rather than 1.23e-5.
 
 use crate::geometry::{Real, Vec3};
 use std::fmt;
@@ -117,6 +119,93 @@ impl fmt::Display for LengthScale {
     }
 }
 
+/// The length unit of the files a command writes for people to read: SI metres (the default, and
+/// what every stage reads back) or micrometres. A length column `x` becomes `x_um`, an area `x_um2`,
+/// a volume `x_um3` ([`OutputUnit::column`]); a `.vtp` records its unit in the field data, where
+/// tissuefit's reader finds it and converts back to metres.
+#[derive(
+    Copy, Clone, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+pub enum OutputUnit {
+    /// Metres (SI), the default.
+    #[default]
+    #[serde(rename = "m")]
+    Metre,
+    /// Micrometres (`um`; `µm` is read too).
+    #[serde(rename = "um", alias = "µm")]
+    Micrometre,
+}
+
+impl OutputUnit {
+    /// The unit's name in files and on the command line: `m`, `um`.
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputUnit::Metre => "m",
+            OutputUnit::Micrometre => "um",
+        }
+    }
+
+    /// Whether lengths are written as tissuefit holds them (metres).
+    pub fn is_si(self) -> bool {
+        self == OutputUnit::Metre
+    }
+
+    /// Metres per unit: 1 or 1e-6.
+    pub fn metres(self) -> Real {
+        match self {
+            OutputUnit::Metre => 1.0,
+            OutputUnit::Micrometre => 1e-6,
+        }
+    }
+
+    /// The factor that turns a quantity of length dimension `power` (1 length, 2 area, 3 volume) from
+    /// SI into this unit: 1, or 1e6, 1e12, 1e18 for µm (exact decimal powers, not repeated products).
+    pub fn factor(self, power: i32) -> Real {
+        match self {
+            OutputUnit::Metre => 1.0,
+            OutputUnit::Micrometre => match power {
+                1 => 1e6,
+                2 => 1e12,
+                3 => 1e18,
+                p => 1e6f64.powi(p),
+            },
+        }
+    }
+
+    /// The name of the column `name` holding a quantity of length dimension `power` in this unit:
+    /// `name` itself in SI (the stable names), `name_um`, `name_um2`, `name_um3` in µm.
+    pub fn column(self, name: &str, power: i32) -> String {
+        match (self, power) {
+            (OutputUnit::Metre, _) => name.to_string(),
+            (_, 1) => format!("{name}_{}", self.name()),
+            (_, p) => format!("{name}_{}{p}", self.name()),
+        }
+    }
+}
+
+impl FromStr for OutputUnit {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "m" => Ok(OutputUnit::Metre),
+            "um" | "µm" | "micron" | "microns" => Ok(OutputUnit::Micrometre),
+            other => Err(format!("unknown output length unit `{other}`; use m (SI, the default) or um")),
+        }
+    }
+}
+
+impl fmt::Display for OutputUnit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Metres per unit of a unit name recorded in a file (`m`, `mm`, `um`, `µm`, `nm`).
+pub(crate) fn metres_per_unit(unit: &str) -> Option<Real> {
+    unit_factor(unit.trim()).filter(|_| !unit.trim().is_empty())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -131,6 +220,24 @@ mod tests {
         assert!(slip.contains("`0.1`") && slip.contains("did you mean 0.1um?"), "{slip}");
         assert!(parse_length("0.1,0.2um").unwrap_err().contains("give one length"));
         assert!(parse_length("-1um").is_err());
+    }
+
+    #[test]
+    fn output_units_scale_and_name_columns() {
+        assert_eq!("um".parse::<OutputUnit>().unwrap(), OutputUnit::Micrometre);
+        assert_eq!("µm".parse::<OutputUnit>().unwrap(), OutputUnit::Micrometre);
+        assert_eq!("m".parse::<OutputUnit>().unwrap(), OutputUnit::Metre);
+        assert!("mm".parse::<OutputUnit>().unwrap_err().contains("use m"));
+        let um = OutputUnit::Micrometre;
+        assert_eq!([um.factor(1), um.factor(2), um.factor(3)], [1e6, 1e12, 1e18]);
+        assert_eq!(OutputUnit::Metre.factor(3), 1.0);
+        assert_eq!(um.column("volume", 3), "volume_um3");
+        assert_eq!(um.column("area", 2), "area_um2");
+        assert_eq!(um.column("centroid_x", 1), "centroid_x_um");
+        assert_eq!(OutputUnit::Metre.column("volume", 3), "volume");
+        assert_eq!(metres_per_unit("um"), Some(1e-6));
+        assert_eq!(metres_per_unit(""), None);
+        assert_eq!(metres_per_unit("furlong"), None);
     }
 
     #[test]

@@ -14,13 +14,20 @@
 //! ([`Cell::interface_labels`], a multi-material input). An optional dataset-level `TimeValue` field
 //! carries the simulated time (s).
 //!
+//! Lengths are metres unless the dataset-level field data holds a `length_unit` string array (VTK's
+//! ASCII encoding of a string: its character codes, then 0; `um` is `117 109 0`), which
+//! [`write_vtp_in`] writes for files in µm: then the points, areas and volumes (and the extra fields,
+//! which the caller scales) are in that unit, ParaView's axes read micrometres, and the reader converts
+//! the tissue back to metres.
+//!
 //! The reader takes what the writer writes plus inline ASCII arrays (and big-endian, UInt32 headers,
 //! any integer or float type, polygons with more than three corners, several pieces). Base64 and
 //! compressed data are refused with [`IoError::Unsupported`]. Faces are grouped into cells by the
 //! `cell_id` array; a cell's nodes are the points its faces use, in increasing point index, so a
 //! written tissue reads back with identical node and face order.
 
-use super::{IoError, write_atomically};
+use super::units::metres_per_unit;
+use super::{IoError, OutputUnit, write_atomically};
 use crate::geometry::{Real, Vec3};
 use crate::mesh::{Cell, CellId, CellKind, CellMesh, FaceType, Tissue};
 use roxmltree::Node;
@@ -48,8 +55,34 @@ const RESAVE_HINT: &str = "re-save it from ParaView (File > Save Data, .vtp) wit
 /// Writes `tissue` as a `.vtp` file, atomically. `extra` fields need one value per cell or one per
 /// face; `time` (s), when given, is stored as the dataset's `TimeValue`.
 pub fn write_vtp(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Option<Real>) -> Result<(), IoError> {
-    let header = vtp_header(path, tissue, extra, time)?;
+    let header = vtp_header(path, tissue, extra, time, OutputUnit::Metre)?;
     write_atomically(path, |w| write_vtp_body(w, &header, tissue, extra)).map_err(IoError::from)
+}
+
+/// [`write_vtp`] with lengths in `unit`: the points (and so the face areas, cell volumes and areas,
+/// target volumes) scaled from metres and the unit recorded as the `length_unit` field. `extra` fields
+/// are written as given: a caller with a length-dimensioned field scales it ([`OutputUnit::factor`]).
+/// In SI this is [`write_vtp`], byte for byte.
+pub fn write_vtp_in(
+    path: &Path,
+    tissue: &Tissue,
+    extra: &[CellField<'_>],
+    time: Option<Real>,
+    unit: OutputUnit,
+) -> Result<(), IoError> {
+    if unit.is_si() {
+        return write_vtp(path, tissue, extra, time);
+    }
+    let scaled = scaled_tissue(tissue, unit);
+    let header = vtp_header(path, &scaled, extra, time, unit)?;
+    write_atomically(path, |w| write_vtp_body(w, &header, &scaled, extra)).map_err(IoError::from)
+}
+
+/// A copy of `tissue` with its lengths in `unit`.
+fn scaled_tissue(tissue: &Tissue, unit: OutputUnit) -> Tissue {
+    let mut scaled = tissue.clone();
+    scaled.scale(Vec3::repeat(unit.factor(1)));
+    scaled
 }
 
 /// The bytes of the `.vtp` file [`write_vtp`] would write to `path` (named in errors), for writers that
@@ -60,7 +93,7 @@ pub fn vtp_bytes(
     extra: &[CellField<'_>],
     time: Option<Real>,
 ) -> Result<Vec<u8>, IoError> {
-    let header = vtp_header(path, tissue, extra, time)?;
+    let header = vtp_header(path, tissue, extra, time, OutputUnit::Metre)?;
     let mut bytes = Vec::new();
     write_vtp_body(&mut bytes, &header, tissue, extra)
         .map_err(|source| IoError::Write { path: path.to_path_buf(), source })?;
@@ -68,7 +101,13 @@ pub fn vtp_bytes(
 }
 
 /// Checks the fields and returns the XML header.
-fn vtp_header(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Option<Real>) -> Result<String, IoError> {
+fn vtp_header(
+    path: &Path,
+    tissue: &Tissue,
+    extra: &[CellField<'_>],
+    time: Option<Real>,
+    unit: OutputUnit,
+) -> Result<String, IoError> {
     let invalid = |message: String| IoError::Write {
         path: path.to_path_buf(),
         source: io::Error::new(io::ErrorKind::InvalidInput, message),
@@ -95,7 +134,7 @@ fn vtp_header(path: &Path, tissue: &Tissue, extra: &[CellField<'_>], time: Optio
 
     let (volumes, areas) = cell_measures(tissue);
     let frame = Frame { tissue, volumes: &volumes, areas: &areas };
-    Ok(xml_header(&frame, &arrays(tissue, extra), time))
+    Ok(xml_header(&frame, &arrays(tissue, extra), time, unit))
 }
 
 fn cell_measures(tissue: &Tissue) -> (Vec<Real>, Vec<Real>) {
@@ -280,7 +319,7 @@ impl Array<'_> {
 }
 
 /// Everything before the first appended byte.
-fn xml_header(frame: &Frame, arrays: &[Array], time: Option<Real>) -> String {
+fn xml_header(frame: &Frame, arrays: &[Array], time: Option<Real>, unit: OutputUnit) -> String {
     let mut offsets = Vec::with_capacity(arrays.len());
     let mut offset = 0usize;
     for a in arrays {
@@ -303,13 +342,24 @@ fn xml_header(frame: &Frame, arrays: &[Array], time: Option<Real>) -> String {
     s.push_str("<?xml version=\"1.0\"?>\n");
     s.push_str("<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n");
     s.push_str("  <PolyData>\n");
-    if let Some(t) = time {
+    if time.is_some() || !unit.is_si() {
         s.push_str("    <FieldData>\n");
-        let _ = writeln!(
-            s,
-            "      <DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" format=\"ascii\">\
-             {t:e}</DataArray>"
-        );
+        if let Some(t) = time {
+            let _ = writeln!(
+                s,
+                "      <DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" format=\"ascii\">\
+                 {t:e}</DataArray>"
+            );
+        }
+        if !unit.is_si() {
+            let codes: Vec<String> = unit.name().bytes().chain([0]).map(|b| b.to_string()).collect();
+            let _ = writeln!(
+                s,
+                "      <DataArray type=\"String\" Name=\"{LENGTH_UNIT_FIELD}\" NumberOfTuples=\"1\" format=\"ascii\">\
+                 {}</DataArray>",
+                codes.join(" ")
+            );
+        }
         s.push_str("    </FieldData>\n");
     }
     let _ = writeln!(
@@ -331,6 +381,9 @@ fn xml_header(frame: &Frame, arrays: &[Array], time: Option<Real>) -> String {
     s
 }
 
+/// The dataset-level field naming the unit of the file's lengths.
+pub const LENGTH_UNIT_FIELD: &str = "length_unit";
+
 /// Escapes text for an XML attribute value or element content.
 pub(super) fn escape_xml(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
@@ -351,14 +404,16 @@ pub(super) fn escape_xml(text: &str) -> String {
 }
 
 /// Reads a `.vtp` file written by [`write_vtp`] or by ParaView (ASCII or raw appended data).
+/// Lengths in metres: a file that records its `length_unit` is converted.
 pub fn read_vtp(path: &Path) -> Result<Tissue, IoError> {
     let bytes = super::read_capped(path, super::MAX_TISSUE_FILE)
         .map_err(|source| IoError::Open { path: path.to_path_buf(), source })?;
-    parse_vtp(path, &bytes)
+    parse_vtp(path, &bytes).map(|(tissue, _)| tissue)
 }
 
-/// Parses the bytes of a `.vtp` file; `path` only names it in errors.
-pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<Tissue, IoError> {
+/// Parses the bytes of a `.vtp` file; `path` only names it in errors. Returns the tissue in metres
+/// and the unit the file recorded (`length_unit`, from which it was converted), if any.
+pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<(Tissue, Option<String>), IoError> {
     let (xml, appended) = split_appended(path, bytes)?;
     let doc = roxmltree::Document::parse(&xml)
         .map_err(|e| IoError::parse(path, Some(e.pos().row as usize), format!("malformed XML: {e}")))?;
@@ -404,7 +459,41 @@ pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<Tissue, IoError> {
     if pieces == 0 {
         return Err(parse_err(poly_data, "<PolyData> has no <Piece>".into()));
     }
-    faces.into_tissue(path)
+    let unit = match element_child(poly_data, "FieldData").and_then(|f| named(f, LENGTH_UNIT_FIELD)) {
+        Some(node) => Some(read_unit(&reader, node)?),
+        None => None,
+    };
+    let mut tissue = faces.into_tissue(path)?;
+    if let Some((_, metres)) = &unit
+        && *metres != 1.0
+    {
+        tissue.scale(Vec3::repeat(*metres));
+    }
+    Ok((tissue, unit.map(|(name, _)| name)))
+}
+
+/// The `length_unit` field: one string (VTK's ASCII string encoding, character codes ended by 0, or
+/// the bare name) naming a length unit; returns it and metres per unit.
+fn read_unit(reader: &ArrayReader, node: Node) -> Result<(String, Real), IoError> {
+    let text = node.text().unwrap_or("").trim();
+    let name = match (node.attribute("type"), node.attribute("format")) {
+        (Some("String"), Some("ascii")) => {
+            let codes: Option<Vec<u8>> =
+                text.split_ascii_whitespace().map(|t| t.parse::<u8>().ok()).take_while(|c| *c != Some(0)).collect();
+            codes.and_then(|c| String::from_utf8(c).ok())
+        }
+        _ => None,
+    };
+    let name = name.ok_or_else(|| {
+        reader.error(
+            node,
+            format!("field '{LENGTH_UNIT_FIELD}' is not one ASCII String (character codes ended by 0, e.g. 117 109 0 for um)"),
+        )
+    })?;
+    let metres = metres_per_unit(&name).ok_or_else(|| {
+        reader.error(node, format!("field '{LENGTH_UNIT_FIELD}' names `{name}`, not a length unit (m, mm, um, nm)"))
+    })?;
+    Ok((name, metres))
 }
 
 /// Splits the file into its XML text (closed with `</VTKFile>` when an appended section was cut off)
@@ -1056,6 +1145,56 @@ mod tests {
         assert_same_tissue(&read_vtp(&path).unwrap(), &two_cells());
     }
 
+    /// A file in µm: points × 1e6, the unit recorded as VTK writes a string (`117 109 0`), read back
+    /// in metres (within rounding: × 1e6 then × 1e-6), the time kept beside it.
+    #[test]
+    fn a_file_in_micrometres_records_its_unit_and_reads_back_in_metres() {
+        let dir = tempfile::tempdir().unwrap();
+        let (si, um) = (dir.path().join("si.vtp"), dir.path().join("um.vtp"));
+        let tissue = two_cells();
+        write_vtp(&si, &tissue, &[], Some(2.0)).unwrap();
+        write_vtp_in(&um, &tissue, &[], Some(2.0), OutputUnit::Micrometre).unwrap();
+        let xml = header_of(&std::fs::read(&um).unwrap());
+        let doc = roxmltree::Document::parse(&xml).unwrap();
+        let field = doc.descendants().find(|n| n.has_tag_name("FieldData")).expect("FieldData");
+        let unit = field.children().find(|n| n.attribute("Name") == Some(LENGTH_UNIT_FIELD)).expect("length_unit");
+        assert_eq!((unit.attribute("type"), unit.text()), (Some("String"), Some("117 109 0")));
+        assert!(field.children().any(|n| n.attribute("Name") == Some("TimeValue")));
+        // In SI the writer is the plain one, byte for byte.
+        let again = dir.path().join("si2.vtp");
+        write_vtp_in(&again, &tissue, &[], Some(2.0), OutputUnit::Metre).unwrap();
+        assert_eq!(std::fs::read(&si).unwrap(), std::fs::read(&again).unwrap());
+
+        let back = read_vtp(&um).unwrap();
+        assert_eq!(back.len(), tissue.len());
+        for (r, c) in back.cells().iter().zip(tissue.cells()) {
+            assert_eq!((r.id(), r.kind(), r.face_types()), (c.id(), c.kind(), c.face_types()));
+            assert_eq!(r.mesh().triangles(), c.mesh().triangles());
+            for (p, q) in r.mesh().positions().iter().zip(c.mesh().positions()) {
+                assert!((p - q).norm() <= 1e-12 * q.norm().max(1e-6), "{p} vs {q}");
+            }
+            let (v, w) = (r.target_volume(), c.target_volume());
+            assert!((v - w).abs() <= 1e-12 * w, "{v} vs {w}");
+        }
+        // The raw points are the SI ones × 1e6.
+        let text = std::fs::read(&um).unwrap();
+        let (_, appended) = split_appended(&um, &text).unwrap();
+        let reader =
+            ArrayReader { path: &um, doc: &doc, appended, compressor: None, big_endian: false, header_size: 8 };
+        let points = doc.descendants().find(|n| n.has_tag_name("Points")).unwrap();
+        let array = points.children().find(|n| n.has_tag_name("DataArray")).unwrap();
+        let raw = reader.read_array(array, 3, tissue.node_count()).unwrap().into_f64();
+        let first = tissue.cells()[0].mesh().positions()[0];
+        assert_eq!(raw[..3], [first.x * 1e6, first.y * 1e6, first.z * 1e6]);
+
+        // A unit that is not one is an error naming the field.
+        let at = text.windows(9).position(|w| w == b"117 109 0").unwrap();
+        let mut bad = text.clone();
+        bad[at..at + 9].copy_from_slice(b"102 116 0");
+        let err = parse_vtp(&um, &bad).unwrap_err().to_string();
+        assert!(err.contains("length_unit") && err.contains("`ft`"), "{err}");
+    }
+
     #[test]
     fn bad_extra_fields_are_refused() {
         let dir = tempfile::tempdir().unwrap();
@@ -1278,7 +1417,7 @@ mod tests {
         let mut bytes = xml.into_bytes();
         bytes.extend_from_slice(&data);
         bytes.extend_from_slice(b"\n</AppendedData></VTKFile>");
-        let tissue = parse_vtp(Path::new("be.vtp"), &bytes).unwrap();
+        let (tissue, _) = parse_vtp(Path::new("be.vtp"), &bytes).unwrap();
         let [cell] = tissue.cells() else { panic!("one cell expected") };
         assert_eq!(cell.id(), CellId(9));
         assert_eq!(cell.mesh().triangles(), [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]);

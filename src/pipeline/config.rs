@@ -7,7 +7,7 @@
 use super::PipelineError;
 use crate::geometry::Real;
 use crate::inference::{FitConfig, ObservedConfig};
-use crate::io::LengthScale;
+use crate::io::{LengthScale, OutputUnit};
 use crate::mechanics::{ExplicitNumerics, Parameters};
 use crate::meshing::LabelMeshingOptions;
 use crate::meshing::{TissueKind, TissueSpec};
@@ -37,9 +37,46 @@ pub struct PipelineConfig {
     /// The fit config of `tissuefit fit` without `[observed]`: the observed tissue is `[input]`
     /// meshed with `[mesh]`.
     pub fit: Option<FitConfig>,
+    /// How the run's files for people are written (the length unit). Default: SI.
+    #[serde(default, skip_serializing_if = "OutputSection::is_default")]
+    pub output: OutputSection,
     /// Known parameters of a synthetic input, printed next to the fitted ones and checked.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub demo: Option<DemoSection>,
+}
+
+/// `[output]`: one table for what applies to the files of several stages, rather than a key repeated
+/// in each stage's section (the stages' own settings stay what `tissuefit mesh`, `measure` and
+/// `simulate` take).
+#[derive(Clone, Debug, Default, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// Length unit of the files written for people: "m" (SI) or "um", as `--output-unit` of `mesh`,
+    /// `measure` and `simulate`. With "um" the mesh stage adds `mesh/tissue_um.vtp`, and the measure
+    /// and simulate stages write their tables (columns renamed `volume_um3`, `area_um2`,
+    /// `centroid_x_um`, …), morphology summaries (`length_unit = "um"`, keys renamed likewise) and
+    /// ParaView files (`final.vtp`, frames; the unit recorded in each) in micrometres. The files the
+    /// stages read from each other stay in metres: `mesh/tissue.vtp` (read by measure, simulate and
+    /// fit), `mesh/report.json`, `simulate/summary.json`, `simulate/final.vtk`; the fit's files are
+    /// SI. Default "m".
+    #[serde(default)]
+    pub length_unit: OutputUnit,
+}
+
+impl OutputSection {
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// What the output unit adds to the key of a stage whose files it changes: nothing in SI, so
+    /// that the keys (and a completed run's skipping) stay as they were without `[output]`.
+    pub fn stage_key_text(&self) -> String {
+        if self.length_unit.is_si() {
+            String::new()
+        } else {
+            format!("output.length_unit = {:?}\n", self.length_unit.name())
+        }
+    }
 }
 
 /// `[input]`: a label volume (`labels`), an already meshed tissue (`mesh`) or a synthetic tissue

@@ -12,7 +12,7 @@ use serde_json::{Map, Value};
 use std::fmt::Write as _;
 
 /// The sections `--section` accepts: the pipeline's top-level tables and `model`.
-pub const REFERENCE_SECTIONS: [&str; 7] = ["input", "mesh", "measure", "simulate", "fit", "demo", "model"];
+pub const REFERENCE_SECTIONS: [&str; 8] = ["input", "mesh", "measure", "simulate", "fit", "output", "demo", "model"];
 
 /// One key of a table.
 struct Row {

@@ -244,27 +244,29 @@ fn run_locked(
         length_unit: config.input.length_unit.as_deref(),
         generate: generate.as_ref(),
         mesh: &config.mesh,
-    })?;
+    })? + &config.output.stage_key_text();
     let mesh_deps: Vec<&str> = std::iter::once(input_hash.as_str()).chain(nuclei_hash.as_deref()).collect();
     let mesh_key = stage_key("mesh", &mesh_section, &mesh_deps);
     let mesh = runner.stage("mesh", mesh_key, None, |dir, _| {
-        run_mesh(&config.input, &config.mesh, dir, options.progress).map(|s| (s, true))
+        run_mesh(&config.input, &config.mesh, &config.output, dir, options.progress).map(|s| (s, true))
     })?;
     let tissue_hash = mesh.outputs.get(MESH_TISSUE).cloned().unwrap_or_default();
     let tissue = out.join("mesh").join(MESH_TISSUE);
 
     // measure
-    let measure_key = stage_key("measure", &toml_of(&config.measure)?, &[&tissue_hash]);
-    runner
-        .stage("measure", measure_key, None, |dir, _| run_measure(&tissue, &config.measure, dir).map(|s| (s, true)))?;
+    let output_key = config.output.stage_key_text();
+    let measure_key = stage_key("measure", &(toml_of(&config.measure)? + &output_key), &[&tissue_hash]);
+    runner.stage("measure", measure_key, None, |dir, _| {
+        run_measure(&tissue, &config.measure, &config.output, dir).map(|s| (s, true))
+    })?;
 
     // simulate
     let mut simulate_converged = None;
     if let Some(section) = &config.simulate {
-        let text = toml_of(section)? + &toml_of(&config.measure)?;
+        let text = toml_of(section)? + &toml_of(&config.measure)? + &output_key;
         let key = stage_key("simulate", &text, &[&tissue_hash, &simulate_model_hash]);
         let record = runner.stage("simulate", key, Some(Resumable::Checkpoint), |dir, resume| {
-            run_simulate(&tissue, section, &config.measure, dir, false, resume, options.progress)
+            run_simulate(&tissue, section, &config.measure, &config.output, dir, false, resume, options.progress)
         })?;
         let summary = out.join("simulate").join(crate::stages::simulate::SUMMARY_FILE);
         simulate_converged = Some(crate::stages::simulate::RunSummary::read(&summary)?.reached_goal());

@@ -3,7 +3,7 @@
 //! reruns are byte-identical elsewhere; the manifest has every stage's wall time.
 
 use super::PipelineError;
-use super::config::{InputSection, MeasureSection, SimulateSection};
+use super::config::{InputSection, MeasureSection, OutputSection, SimulateSection};
 use crate::geometry::Real;
 use crate::mechanics::{Parameters, SimulationMode};
 use crate::meshing::LabelMeshingOptions;
@@ -36,12 +36,29 @@ pub fn mesh_options(input: &InputSection, mesh: &LabelMeshingOptions) -> Result<
         zarr_level: input.zarr_level,
         nuclei: input.nuclei.clone(),
         length_unit,
+        // The stage's tissue.vtp is read by the later stages: metres (see [`run_mesh`]).
+        output_unit: Default::default(),
     })
 }
 
 /// Labels, or a mesh input to re-triangulate → `tissue.vtp` + `report.json` ([`stages::mesh::run`],
-/// as `tissuefit mesh`), another mesh input checked and copied, or a generated tissue. Returns a one-line summary.
+/// as `tissuefit mesh`), another mesh input checked and copied, or a generated tissue; `tissue.vtp`
+/// in metres (the later stages read it), and with another `[output]` unit a copy in it
+/// (`tissue_um.vtp`, the same bytes as `tissuefit mesh --output-unit um` writes). Returns a one-line
+/// summary.
 pub fn run_mesh(
+    input: &InputSection,
+    mesh: &LabelMeshingOptions,
+    output: &OutputSection,
+    out: &Path,
+    progress: bool,
+) -> Result<String, PipelineError> {
+    let line = run_mesh_si(input, mesh, out, progress)?;
+    stages::mesh::write_tissue_copy(out, output.length_unit)?;
+    Ok(line)
+}
+
+fn run_mesh_si(
     input: &InputSection,
     mesh: &LabelMeshingOptions,
     out: &Path,
@@ -92,20 +109,26 @@ pub fn describe_morphology(m: &Morphology) -> String {
     )
 }
 
-/// The measure stage's options from `[measure]` (a tissue file in metres, as the mesh stage writes,
-/// named in `summary.json` relative to the measure folder).
-pub fn measure_options(measure: &MeasureSection) -> MeasureOptions {
+/// The measure stage's options from `[measure]` and `[output]` (a tissue file in metres, as the mesh
+/// stage writes, named in `summary.json` relative to the measure folder).
+pub fn measure_options(measure: &MeasureSection, output: &OutputSection) -> MeasureOptions {
     MeasureOptions {
         config: measure.clone(),
         input_name: Some(format!("../mesh/{MESH_TISSUE}")),
+        output_unit: output.length_unit,
         ..MeasureOptions::default()
     }
 }
 
 /// The meshed tissue → `cells.csv`, `contacts.csv`, `summary.json` ([`stages::measure::run`], as
 /// `tissuefit measure`).
-pub fn run_measure(tissue: &Path, measure: &MeasureSection, out: &Path) -> Result<String, PipelineError> {
-    let report = stages::measure::run(tissue, &measure_options(measure), out)?;
+pub fn run_measure(
+    tissue: &Path,
+    measure: &MeasureSection,
+    output: &OutputSection,
+    out: &Path,
+) -> Result<String, PipelineError> {
+    let report = stages::measure::run(tissue, &measure_options(measure, output), out)?;
     Ok(describe_morphology(&report.morphology))
 }
 
@@ -127,10 +150,12 @@ fn simulate_model(section: &SimulateSection) -> Result<Model, String> {
 /// through another). `force`: replace an earlier run's files in `out`; `resume`: go on from
 /// `out/checkpoint.bin` (an interrupted run's periodic checkpoint); `progress`: show the
 /// relaxations' progress on stderr.
+#[allow(clippy::too_many_arguments)]
 pub fn run_simulate(
     tissue: &Path,
     section: &SimulateSection,
     measure: &MeasureSection,
+    output: &OutputSection,
     out: &Path,
     force: bool,
     resume: bool,
@@ -139,6 +164,7 @@ pub fn run_simulate(
     let options = SimulateOptions {
         input_name: Some(format!("../mesh/{MESH_TISSUE}")),
         measure: measure.settings(),
+        output_unit: Some(output.length_unit),
         reference: section
             .chi_without_nuclei
             .then_some(stages::simulate::NucleusFreeReference { voxel_size: section.chi_voxel_size }),
@@ -244,7 +270,7 @@ mod tests {
         assert!(e.to_string().contains(&mesh_dir.join(MESH_TISSUE).display().to_string()), "{e}");
         // With them, its observation is that tissue: the fit's meshed labels are the mesh stage's.
         std::fs::create_dir_all(&mesh_dir).unwrap();
-        run_mesh(&input, &mesh, &mesh_dir, false).unwrap();
+        run_mesh(&input, &mesh, &OutputSection::default(), &mesh_dir, false).unwrap();
         let options = ReadOptions { length_scale: LengthScale::default(), orient: false };
         let written = read_tissue(&mesh_dir.join(MESH_TISSUE), &options).unwrap().tissue;
         let observed = crate::inference::load_observation(&config).unwrap();

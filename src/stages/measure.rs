@@ -1,12 +1,13 @@
 //! The measure stage: morphology of a tissue mesh, or of a label volume measured on its voxels, into
-//! `cells.csv`, `contacts.csv` and `summary.json` (SI units), all or nothing. With a comparison
+//! `cells.csv`, `contacts.csv` and `summary.json` (SI units, or µm with the output unit: see
+//! [`super::output_unit`]), all or nothing. With a comparison
 //! input, every cell also gets its IoU and χ = 1 − IoU against the same label of the other input.
 //! `tissuefit measure` and the pipeline's `[measure]` both run [`run`].
 
-use super::{StageError, write_csv, write_json};
+use super::{StageError, output_unit, write_csv, write_csv_renamed, write_json};
 use crate::geometry::Real;
 use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, is_label_volume, label_overlap, read_labels};
-use crate::io::{OutputGroup, ReadOptions, read_tissue};
+use crate::io::{OutputGroup, OutputUnit, ReadOptions, read_tissue};
 use crate::mesh::{CellKind, Tissue};
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
 use crate::morphology::{
@@ -141,6 +142,8 @@ pub struct MeasureOptions {
     /// its mesh stage's tissue relative to the measure folder (`../mesh/tissue.vtp`), so that a run
     /// directory's files do not depend on where it lies.
     pub input_name: Option<String>,
+    /// Length unit of the written tables and summary (default SI; see [`super::output_unit`]).
+    pub output_unit: OutputUnit,
 }
 
 /// What [`run`] measured.
@@ -317,7 +320,7 @@ pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<Measure
         compared_cells: compared.as_ref().map(|c| c.1),
         summary: &morphology.summary,
     };
-    write_outputs(out, &morphology, &summary)?;
+    write_outputs(out, &morphology, &summary, options.output_unit)?;
     Ok(MeasureReport { morphology, wall_seconds })
 }
 
@@ -349,23 +352,60 @@ fn compare_inputs(input: &Input, other: &Input, options: &MeasureOptions) -> Res
 }
 
 /// The three files all or nothing ([`OutputGroup`]): a full disk leaves none of them, never two.
-fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>) -> Result<(), StageError> {
+fn write_outputs(dir: &Path, m: &Morphology, summary: &SummaryFile<'_>, unit: OutputUnit) -> Result<(), StageError> {
     let io = |e: crate::io::FileError| err(format!("writing the outputs into {}: {e}", dir.display()));
     if m.cells.is_empty() {
         return Err(err(format!("{}: no cell was measured", summary.file)));
     }
     std::fs::create_dir_all(dir).map_err(|e| err(format!("creating {}: {e}", dir.display())))?;
     let mut group = OutputGroup::new();
-    write_tables(&mut group, dir, m).map_err(io)?;
-    write_json(&mut group, &dir.join("summary.json"), summary).map_err(io)?;
+    write_tables(&mut group, dir, m, unit).map_err(io)?;
+    write_summary(&mut group, &dir.join("summary.json"), summary, unit).map_err(io)?;
     group.commit().map_err(io)
 }
 
+/// A morphology summary as JSON into `group`, in `unit` ([`output_unit::summary_in`]).
+pub fn write_summary<T: Serialize>(
+    group: &mut OutputGroup,
+    path: &Path,
+    summary: &T,
+    unit: OutputUnit,
+) -> Result<(), crate::io::FileError> {
+    if unit.is_si() {
+        return write_json(group, path, summary);
+    }
+    let value = serde_json::to_value(summary)
+        .map_err(|e| crate::io::FileError::Write { path: path.to_path_buf(), source: std::io::Error::other(e) })?;
+    write_json(group, path, &output_unit::summary_in(value, unit))
+}
+
 /// `DIR/cells.csv` and `DIR/contacts.csv` into `group`, each with its header even without rows.
-pub fn write_tables(group: &mut OutputGroup, dir: &Path, m: &Morphology) -> Result<(), crate::io::FileError> {
+/// Lengths, areas and volumes in `unit`, their columns renamed with it ([`output_unit`]).
+pub fn write_tables(
+    group: &mut OutputGroup,
+    dir: &Path,
+    m: &Morphology,
+    unit: OutputUnit,
+) -> Result<(), crate::io::FileError> {
+    if !unit.is_si() {
+        let cells = output_unit::cells_in(&m.cells, unit);
+        let contacts = output_unit::contacts_in(&m.contacts, unit);
+        let cell_example = cells.first().cloned().unwrap_or_else(CellMorphology::example);
+        write_csv_renamed(group, &dir.join("cells.csv"), &cells, &cell_example, &|name| {
+            output_unit::column_name(&output_unit::CELL_LENGTH_COLUMNS, unit, name)
+        })?;
+        return write_csv_renamed(group, &dir.join("contacts.csv"), &contacts, &contact_example(), &|name| {
+            output_unit::column_name(&output_unit::CONTACT_LENGTH_COLUMNS, unit, name)
+        });
+    }
     let cell_example = m.cells.first().cloned().unwrap_or_else(CellMorphology::example);
     write_csv(group, &dir.join("cells.csv"), &m.cells, &cell_example)?;
-    let example = ContactMorphology {
+    write_csv(group, &dir.join("contacts.csv"), &m.contacts, &contact_example())
+}
+
+/// A row of zeros: its serialisation names the columns of `contacts.csv` when there is no row.
+fn contact_example() -> ContactMorphology {
+    ContactMorphology {
         cell_a: 0,
         cell_b: 0,
         area: 0.0,
@@ -376,8 +416,7 @@ pub fn write_tables(group: &mut OutputGroup, dir: &Path, m: &Morphology) -> Resu
         area_b: 0.0,
         rim_edges: 0,
         far_field_angle_deg: None,
-    };
-    write_csv(group, &dir.join("contacts.csv"), &m.contacts, &example)
+    }
 }
 
 #[cfg(test)]

@@ -8,7 +8,9 @@
 use super::{StageError, write_json};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, LabelVolume, SUPPORTED_FORMATS, VoxelGrid, is_label_volume, read_labels};
-use crate::io::{LengthScale, OutputGroup, Progress, ReadOptions, read_tissue, write_tissue};
+use crate::io::{
+    LengthScale, OutputGroup, OutputUnit, Progress, ReadOptions, read_tissue, write_tissue, write_tissue_in,
+};
 use crate::meshing::{
     BorderPolicy, LabelMeshing, LabelMeshingOptions, LabelReport, LabelStatus, TissueSpec, generate_tissue,
     mesh_cells_and_nuclei, retriangulate,
@@ -32,6 +34,9 @@ pub struct MeshOptions {
     pub nuclei: Option<PathBuf>,
     /// Mesh input only: the length unit of its coordinates (default metres).
     pub length_unit: Option<LengthScale>,
+    /// Length unit of the written tissue (default SI; µm needs a .vtp, which records it). The report
+    /// stays in metres.
+    pub output_unit: OutputUnit,
 }
 
 /// What [`run`] made.
@@ -49,6 +54,9 @@ struct MeshReport<'a> {
     output: &'a Path,
     wall_seconds: f64,
     threads: usize,
+    /// Length unit of the tissue file when not metres (`um`); the report's lengths are metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tissue_length_unit: Option<OutputUnit>,
     /// m; `null` when no label was meshed.
     l_min: Option<Real>,
     /// [sz, sy, sx] m.
@@ -211,6 +219,14 @@ pub fn run(
     progress: bool,
 ) -> Result<MeshOutcome, StageError> {
     let started = Instant::now();
+    let vtk = out.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("vtk"));
+    if vtk && !options.output_unit.is_si() {
+        return Err(err(format!(
+            "{}: a SimuCell3D legacy .vtk is in metres; write a .vtp for lengths in {} (it records its unit)",
+            out.display(),
+            options.output_unit
+        )));
+    }
     let Meshed { meshing, volume_grid, grid_description, retriangulated } = mesh_input(input, options, progress)?;
     for label in &options.meshing.lumen_labels {
         if !meshing.report.iter().any(|r| r.label == *label) {
@@ -220,7 +236,8 @@ pub fn run(
     let (kept, static_cells, dropped) =
         (meshing.count(LabelStatus::Kept), meshing.count(LabelStatus::Static), meshing.count(LabelStatus::Dropped));
     if !meshing.tissue.is_empty() {
-        write_tissue(out, &meshing.tissue, &[]).map_err(|e| err(format!("writing {}: {e}", out.display())))?;
+        write_tissue_in(out, &meshing.tissue, &[], options.output_unit)
+            .map_err(|e| err(format!("writing {}: {e}", out.display())))?;
     }
     let wall_seconds = started.elapsed().as_secs_f64();
     let threads = rayon::current_num_threads();
@@ -235,6 +252,7 @@ pub fn run(
         output,
         wall_seconds,
         threads,
+        tissue_length_unit: (!options.output_unit.is_si()).then_some(options.output_unit),
         l_min: meshing.l_min,
         voxel_size: volume_grid.voxel_size,
         shape: volume_grid.shape,
@@ -380,8 +398,25 @@ pub fn generate(spec: &TissueSpec, dir: &Path) -> Result<String, StageError> {
     ))
 }
 
-/// Name of the stage's tissue file in a stage folder.
+/// Name of the stage's tissue file in a stage folder (always in metres: the later stages read it).
 pub const TISSUE_FILE: &str = "tissue.vtp";
+
+/// The stage's tissue in another output unit, beside [`TISSUE_FILE`] (`tissue_um.vtp`): for people
+/// and ParaView; no stage reads it.
+pub fn tissue_file_in(unit: OutputUnit) -> String {
+    format!("tissue_{}.vtp", unit.name())
+}
+
+/// Writes `DIR/tissue_UNIT.vtp`, the stage's tissue `DIR/tissue.vtp` in `unit` (nothing in SI).
+pub fn write_tissue_copy(dir: &Path, unit: OutputUnit) -> Result<(), StageError> {
+    if unit.is_si() {
+        return Ok(());
+    }
+    let si = dir.join(TISSUE_FILE);
+    let read = read_tissue(&si, &ReadOptions::default()).map_err(|e| err(format!("reading {}: {e}", si.display())))?;
+    let path = dir.join(tissue_file_in(unit));
+    write_tissue_in(&path, &read.tissue, &[], unit).map_err(|e| err(format!("writing {}: {e}", path.display())))
+}
 /// Name of the stage's report in a stage folder.
 pub const REPORT_FILE: &str = "report.json";
 

@@ -8,6 +8,7 @@
 pub mod fit;
 pub mod measure;
 pub mod mesh;
+pub mod output_unit;
 pub mod simulate;
 
 use crate::io::OutputGroup;
@@ -37,13 +38,29 @@ pub fn write_csv<T: Serialize>(
     rows: &[T],
     example: &T,
 ) -> Result<(), crate::io::FileError> {
+    write_csv_renamed(group, path, rows, example, &|name| name.to_string())
+}
+
+/// [`write_csv`] with each column of the header renamed by `rename` (e.g. `volume` → `volume_um3`
+/// for rows in µm).
+pub fn write_csv_renamed<T: Serialize>(
+    group: &mut OutputGroup,
+    path: &Path,
+    rows: &[T],
+    example: &T,
+    rename: &dyn Fn(&str) -> String,
+) -> Result<(), crate::io::FileError> {
     group.write(path, |w| {
         let mut header = csv::Writer::from_writer(Vec::new());
         header.serialize(example).map_err(std::io::Error::other)?;
         let bytes = header.into_inner().map_err(|e| e.into_error())?;
         let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
-        std::io::Write::write_all(w, first_line)?;
-        std::io::Write::write_all(w, b"\n")?;
+        let mut names = csv::ReaderBuilder::new().has_headers(false).from_reader(first_line);
+        let names = names.records().next().transpose().map_err(std::io::Error::other)?.unwrap_or_default();
+        let mut header = csv::Writer::from_writer(&mut *w);
+        header.write_record(names.iter().map(rename)).map_err(std::io::Error::other)?;
+        header.flush()?;
+        drop(header);
         let mut csv = csv::WriterBuilder::new().has_headers(false).from_writer(&mut *w);
         for row in rows {
             csv.serialize(row).map_err(std::io::Error::other)?;

@@ -9,9 +9,9 @@
 use super::{StageError, write_json};
 use crate::geometry::Real;
 use crate::io::{
-    CHECKPOINT_FILE, CellField, OutputGroup, OutputState, Progress, ReadOptions, RunInfo, RunSettings,
+    CHECKPOINT_FILE, CellField, OutputGroup, OutputState, OutputUnit, Progress, ReadOptions, RunInfo, RunSettings,
     SimulationRecorder, checksum, read_checkpoint, read_tissue, write_bytes_atomically, write_checkpoint, write_events,
-    write_simucell3d, write_tissue,
+    write_simucell3d, write_tissue_in,
 };
 use crate::mechanics::{
     CellInside, CheckpointRequest, EnergyTerms, ExplicitNumerics, MeshFit, Observer, Parameters, RelaxMethod, Sample,
@@ -102,6 +102,10 @@ pub struct SimulateOptions {
     pub input_name: Option<String>,
     /// How the final tissue is measured.
     pub measure: MeasureSettings,
+    /// Length unit of the frames, `final.vtp`, `reference.vtp`, `stats.csv`, `events.csv` and the final
+    /// measurement (see [`super::output_unit`]); `final.vtk` (SimuCell3D), `last_good.vtk` and
+    /// `summary.json` stay SI. `None`: metres for a new run, the run's own unit on resume.
+    pub output_unit: Option<OutputUnit>,
     pub reference: Option<NucleusFreeReference>,
     pub checkpoints: CheckpointOptions,
     /// Replace an earlier run's outputs in the folder (otherwise they are an error).
@@ -326,7 +330,8 @@ pub fn run(
     prepare_output(out, options.force)?;
     let parameters = params.to_toml_string();
     write_bytes_atomically(&out.join("config.toml"), parameters.as_bytes()).map_err(|e| err(e.to_string()))?;
-    let recorder = SimulationRecorder::create(out, time_is_step(&params)).map_err(|e| err(e.to_string()))?;
+    let unit = options.output_unit.unwrap_or_default();
+    let recorder = SimulationRecorder::create(out, time_is_step(&params), unit).map_err(|e| err(e.to_string()))?;
     let c = &options.checkpoints;
     let info = RunInfo {
         version: env!("CARGO_PKG_VERSION").to_string(),
@@ -402,7 +407,7 @@ pub fn resume(dir: &Path, options: &SimulateOptions, input: Option<&Path>) -> Re
     let step = state.progress.step;
     resume_settings(&options.checkpoints, &mut info.settings, step)?;
     let mut sim = Simulation::restore(state, &params).map_err(|e| err(format!("resuming {}: {e}", path.display())))?;
-    let recorder = SimulationRecorder::resume(dir, time_is_step(&params), &info.output)
+    let recorder = SimulationRecorder::resume(dir, time_is_step(&params), &info.output, options.output_unit)
         .map_err(|e| err(format!("resuming the outputs in {}: {e}", dir.display())))?;
     let without_nuclei = match (options.reference, input) {
         (Some(r), Some(path)) => {
@@ -607,16 +612,17 @@ fn drive(
         tracing::warn!("{input}: {warning}");
     }
     let frames = observer.recorder.frames();
+    let unit = observer.recorder.unit();
     observer.recorder.finish().map_err(|e| err(e.to_string()))?;
     // Tissue writers fail with an `IoError`, the output group with a `FileError`.
     fn io(e: impl std::fmt::Display) -> StageError {
         err(e.to_string())
     }
-    write_events(&out.join("events.csv"), sim.events()).map_err(io)?;
+    write_events(&out.join("events.csv"), sim.events(), unit).map_err(io)?;
     let pressure: Vec<f64> = sim.forces().cells.iter().map(|w| w.pressure).collect();
     let fields = [CellField { name: "pressure", values: &pressure }];
     write_simucell3d(&out.join("final.vtk"), sim.tissue(), &fields).map_err(io)?;
-    write_tissue(&out.join("final.vtp"), sim.tissue(), &fields).map_err(io)?;
+    write_tissue_in(&out.join("final.vtp"), sim.tissue(), &fields, unit).map_err(io)?;
     let mut morphology =
         measure_tissue(sim.tissue(), &options.measure).map_err(|e| err(format!("measuring the final tissue: {e}")))?;
     let reference = match without_nuclei {
@@ -630,7 +636,7 @@ fn drive(
             let result = rsim.run(&mut observer);
             observer.0.finish();
             let rsummary = result.map_err(|e| err(format!("{input} without nuclei: {e}")))?;
-            write_tissue(&out.join("reference.vtp"), rsim.tissue(), &[]).map_err(io)?;
+            write_tissue_in(&out.join("reference.vtp"), rsim.tissue(), &[], unit).map_err(io)?;
             let voxel = r.voxel_size.unwrap_or(params.numerics.min_edge_length / 4.0);
             let overlaps = compare_tissues(sim.tissue(), rsim.tissue(), [voxel; 3])
                 .map_err(|e| err(format!("comparing with the nucleus-free reference: {e}")))?;
@@ -679,8 +685,8 @@ fn drive(
     // The tables and both summaries all or nothing: summary.json last, so that a folder with one
     // holds a complete run.
     let mut group = OutputGroup::new();
-    super::measure::write_tables(&mut group, out, &morphology).map_err(io)?;
-    write_json(&mut group, &out.join(MORPHOLOGY_FILE), &morphology.summary).map_err(io)?;
+    super::measure::write_tables(&mut group, out, &morphology, unit).map_err(io)?;
+    super::measure::write_summary(&mut group, &out.join(MORPHOLOGY_FILE), &morphology.summary, unit).map_err(io)?;
     write_json(&mut group, &out.join(SUMMARY_FILE), &run_summary).map_err(io)?;
     group.commit().map_err(io)?;
     // The run is complete: its checkpoint could only restart finished work.

@@ -35,6 +35,7 @@ mod mesh_labels;
 mod meshing;
 mod morphology;
 mod morphology_labels;
+mod output_units;
 mod pipeline;
 mod polarity;
 mod real_data;
