@@ -4,7 +4,7 @@
 //! `.vtp` reads back as the SI tissue. Tolerance 1e-12 relative: scaling by 1e6 and back by 1e-6 is
 //! two roundings (~2e-16 each); anything near 1e-12 would be a wrong factor or a lost unit.
 
-use crate::support::cli::{repo, tissuefit};
+use crate::support::cli::{ok, repo, tissuefit};
 use crate::support::run_dirs::{normalised_hash, read_json};
 use std::path::Path;
 use tissuefit::geometry::{Vec3, bounding_box};
@@ -12,17 +12,6 @@ use tissuefit::io::{LENGTH_UNIT_FIELD, ReadOptions, read_tissue, read_tissue_byt
 use tissuefit::mesh::Tissue;
 
 const TOL: f64 = 1e-12;
-
-fn ok(args: &[&str]) {
-    let o = tissuefit(args);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "tissuefit {args:?}\n{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
 
 fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= TOL * b.abs().max(a.abs())

@@ -2,21 +2,10 @@
 //! model file, and `tissuefit run` with the same settings in a pipeline file write the same files (byte for byte, the wall-time fields
 //! `wall_seconds` and `threads` aside), because both call `tissuefit::stages`.
 
-use crate::support::cli::{repo, tissuefit};
+use crate::support::cli::{ok, repo, tissuefit};
 use crate::support::run_dirs::{normalised_hash, stage_hashes};
 use std::collections::BTreeMap;
 use std::path::Path;
-
-fn ok(args: &[&str]) {
-    let o = tissuefit(args);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "tissuefit {args:?}\n{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
 
 /// `name → normalised hash` of every file in `dir`.
 fn hashes(dir: &Path) -> BTreeMap<String, String> {
