@@ -18,7 +18,9 @@
 //! `model_overrides.cell_types` that the overrides do not hold yet starts as the
 //! model file's list (or the defaults'), so one entry's value can be swept. Values that are paths
 //! (`input.labels`, `input.mesh`, `simulate.model`, `fit.model`) are relative to the sweep file; the
-//! base's own paths to the base. Every key is checked against the pipeline schema (unknown keys named,
+//! base's own paths to the base. In a grid, such a value may be a glob pattern, expanded to the
+//! sorted paths it matches: `"input.labels" = ["embryos/*.tif"]` is one run per label volume (many
+//! samples, each its own run directory, one results table). Every key is checked against the pipeline schema (unknown keys named,
 //! with the nearest valid one suggested) and every run's resolved pipeline is checked before any run
 //! starts.
 
@@ -263,6 +265,43 @@ fn absolutize(root: &mut Table, key: &str, dir: &Path) {
     }
 }
 
+/// A path key's grid values with every glob pattern (`*`, `?`, `[…]`, relative to the sweep file's
+/// folder) replaced by the paths it matches, sorted, as written relative to that folder: one run per
+/// sample of `"input.labels" = ["embryos/*.tif"]`. A pattern that matches nothing is an error.
+fn expand_globs(key: &str, items: Vec<Value>, sweep_dir: &Path) -> Result<Vec<Value>, String> {
+    let mut out = Vec::with_capacity(items.len());
+    for item in items {
+        let pattern = match &item {
+            Value::String(p) if p.contains(['*', '?', '[']) => p.clone(),
+            _ => {
+                out.push(item);
+                continue;
+            }
+        };
+        let absolute = if Path::new(&pattern).is_relative() {
+            sweep_dir.join(&pattern).display().to_string()
+        } else {
+            pattern.clone()
+        };
+        let matches = glob::glob(&absolute).map_err(|e| format!("grid key `{key}`: pattern {pattern:?}: {e}"))?;
+        let mut paths = Vec::new();
+        for m in matches {
+            let m = m.map_err(|e| format!("grid key `{key}`: pattern {pattern:?}: {e}"))?;
+            let shown = m.strip_prefix(sweep_dir).map_or(m.clone(), Path::to_path_buf);
+            paths.push(shown.display().to_string());
+        }
+        if paths.is_empty() {
+            return Err(format!(
+                "grid key `{key}`: pattern {pattern:?} matches no file (relative to {})",
+                sweep_dir.display()
+            ));
+        }
+        paths.sort();
+        out.extend(paths.into_iter().map(Value::String));
+    }
+    Ok(out)
+}
+
 fn absolute_dir(file: &Path) -> PathBuf {
     let dir = file.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf())
@@ -326,7 +365,14 @@ impl Sweep {
                 let mut axes = Vec::new();
                 for (key, v) in lists {
                     match v {
-                        Value::Array(items) if !items.is_empty() => axes.push((key, items)),
+                        Value::Array(items) if !items.is_empty() => {
+                            let items = if PATH_KEYS.contains(&key.as_str()) {
+                                expand_globs(&key, items, &sweep_dir).map_err(|e| config_err(path, e))?
+                            } else {
+                                items
+                            };
+                            axes.push((key, items))
+                        }
                         Value::Array(_) => {
                             return Err(config_err(path, format!("grid key `{key}`: the list is empty")));
                         }

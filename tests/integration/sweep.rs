@@ -348,3 +348,66 @@ fn an_input_is_labels_or_a_mesh_not_both_nor_neither() {
         assert!(err.contains(expect), "{body}: {err}");
     }
 }
+
+/// Many samples (issue 22): a glob in a grid's path key is one run per matching file, sorted, named
+/// relative to the sweep file in `--list` and results.csv; each run measures its own volume; a
+/// pattern that matches nothing is an error naming the key and the pattern.
+#[test]
+fn a_glob_over_label_volumes_is_one_run_per_sample() {
+    let tmp = tempfile::tempdir().unwrap();
+    let base = base_pipeline(tmp.path());
+    // Mesh and measure only.
+    let body = std::fs::read_to_string(&base).unwrap();
+    std::fs::write(&base, body.split("[simulate]").next().unwrap()).unwrap();
+    let samples = tmp.path().join("embryos");
+    std::fs::create_dir(&samples).unwrap();
+    for (name, seed) in [("b.tif", "5"), ("a.tif", "4")] {
+        let o = tissuefit(&[
+            "generate",
+            "labels",
+            "--kind",
+            "aggregate",
+            "--cells",
+            "3",
+            "--seed",
+            seed,
+            "--out",
+            samples.join(name).to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o).1);
+    }
+    std::fs::write(samples.join("notes.txt"), "not a sample").unwrap();
+    let sweep = tmp.path().join("s.toml");
+    std::fs::write(&sweep, "base = \"base.toml\"\n[grid]\n\"input.labels\" = [\"embryos/*.tif\"]\n").unwrap();
+    let o = tissuefit(&["sweep", sweep.to_str().unwrap(), "--list"]);
+    let (stdout, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{stderr}");
+    assert_eq!(
+        stdout.lines().collect::<Vec<_>>(),
+        ["0\tinput.labels=\"embryos/a.tif\"", "1\tinput.labels=\"embryos/b.tif\""]
+    );
+
+    let out = tmp.path().join("out");
+    let o = tissuefit(&["sweep", sweep.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let (stdout, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{stdout}\n{stderr}");
+    let (header, rows) = csv_rows(&out.join("results.csv"));
+    assert_eq!(&header[..3], ["index", "run", "input.labels"]);
+    let labels: Vec<&str> = rows.iter().map(|r| r[2].as_str()).collect();
+    assert_eq!(labels, ["embryos/a.tif", "embryos/b.tif"]);
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap_or_else(|| panic!("{header:?}"));
+    for (i, row) in rows.iter().enumerate() {
+        assert_eq!(row[col("status")], "complete", "{row:?}");
+        let report = read_json(&out.join(format!("run-{i:04}/mesh/report.json")));
+        assert!(report["input"].as_str().unwrap().ends_with(labels[i]), "run {i} meshed its own sample: {report}");
+    }
+    // Two different samples, two different measurements.
+    let a = std::fs::read(out.join("run-0000/measure/cells.csv")).unwrap();
+    let b = std::fs::read(out.join("run-0001/measure/cells.csv")).unwrap();
+    assert_ne!(a, b);
+
+    let (code, stderr) =
+        sweep_error(tmp.path(), "base = \"base.toml\"\n[grid]\n\"input.labels\" = [\"embryos/*.zarr\"]\n");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("grid key `input.labels`: pattern \"embryos/*.zarr\" matches no file"), "{stderr}");
+}
