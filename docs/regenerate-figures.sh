@@ -28,7 +28,7 @@ open(sys.argv[2], "w").write(new)
 PY
 "$bin" render runs/demo/mesh/tissue.vtp --out "$img/demo-mesh.png" --view y --edges --size 420,280
 "$bin" render runs/demo/simulate/final.vtk --out "$img/demo-relaxed.png" --view y --edges --size 420,280
-cp runs/demo/fit/objective.png runs/demo/fit/landscape.png "$img/"
+cp runs/demo/fit/objective.png runs/demo/fit/landscape.png runs/demo/fit/profile.png "$img/"
 
 ovule=../shared/data/real/plant-seg__sample_ovule_labels.tif
 if [ -f "$ovule" ]; then
@@ -38,4 +38,4 @@ if [ -f "$ovule" ]; then
 else
     echo "$ovule not found: the real-data tutorial's output is not regenerated" >&2
 fi
-echo "regenerated: $img/demo-*.png, objective.png, landscape.png, $gen/*.txt"
+echo "regenerated: $img/demo-*.png, objective.png, landscape.png, profile.png, $gen/*.txt"

@@ -13,7 +13,8 @@ pub struct FitArgs {
     /// `[input]` table; its `[fit]` on the labels of `[input]` meshed like `[mesh]`, as `tissuefit run`).
     #[arg(long, value_name = "TOML")]
     pub config: PathBuf,
-    /// Output folder: trace.csv, result.json, objective.png, landscape.png, fit.toml, model.toml, and at
+    /// Output folder: trace.csv, result.json, objective.png, landscape.png, profile.png (the profile of
+    /// each fitted quantity, with the acceptance threshold and range), fit.toml, model.toml, and at
     /// the best point best.vtp (the relaxed tissue), best.toml (the model) and residuals.csv (observed
     /// vs simulated per cell).
     #[arg(long, value_name = "DIR")]

@@ -4,10 +4,11 @@
 //! axes, coloured by log10 objective, the search bounds dashed; with one fitted parameter, the
 //! objective against it). A failed (penalised) evaluation is a cross, never a point on the objective
 //! scale: its penalty would squash the usable objectives into a line; the scales span the usable
-//! evaluations.
+//! evaluations. `profile.png` shows the profile of each quantity the fit reports a range for.
 
 use super::InferenceError;
 use super::forward::Evaluation;
+use super::profile::{NoiseFloor, Slice};
 use super::space::ParameterSpace;
 use crate::geometry::Real;
 use plotters::prelude::*;
@@ -241,6 +242,113 @@ pub fn plot_landscape(path: &Path, space: &ParameterSpace, trace: &[Evaluation])
             .border_style(BLACK)
             .draw()
             .map_err(|e| err(path, e))?;
+        root.present().map_err(|e| err(path, e))?;
+    }
+    crate::io::replace_with(&tmp, path).map_err(|e| err(path, e))
+}
+
+/// The profile (`profile.png`): one panel per profiled quantity (a fitted parameter, the scale, a
+/// ratio), its objective (log10) against log10(value / best value) along the profile, the
+/// acceptance threshold (dashed) and the acceptable range (the closed sides, dotted; an open side is
+/// named in the panel's title). Points more than 100× above the threshold (failure penalties, far
+/// misfits) are drawn as crosses along the top, off scale.
+pub fn plot_profiles(path: &Path, slices: &[Slice], noise: &NoiseFloor) -> Result<(), InferenceError> {
+    ensure_font();
+    if slices.is_empty() {
+        return Ok(());
+    }
+    let ln10 = std::f64::consts::LN_10;
+    let cols = slices.len().min(2);
+    let rows = slices.len().div_ceil(cols);
+    let tmp = path.with_extension("png.tmp.png");
+    {
+        let root = BitMapBackend::new(&tmp, (520 * cols as u32, 380 * rows as u32)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(path, e))?;
+        let panels = root.split_evenly((rows, cols));
+        let threshold = noise.threshold.max(1e-12).log10();
+        for (slice, panel) in slices.iter().zip(panels.iter()) {
+            let on_scale = |o: Real| o.is_finite() && o <= 100.0 * noise.threshold.max(1e-12);
+            let xs: Vec<Real> = slice.offsets.iter().map(|o| o / ln10).collect();
+            let ys: Vec<Real> = slice.objectives.iter().map(|o| o.max(1e-12).log10()).collect();
+            let mut y_lo = threshold;
+            let mut y_hi = threshold;
+            for (&y, &o) in ys.iter().zip(&slice.objectives) {
+                if on_scale(o) {
+                    y_lo = y_lo.min(y);
+                    y_hi = y_hi.max(y);
+                }
+            }
+            let (y_lo, y_hi) = padded(y_lo, y_hi);
+            let mut x_lo = xs.iter().copied().fold(0.0, Real::min);
+            let mut x_hi = xs.iter().copied().fold(0.0, Real::max);
+            for side in [slice.lower, slice.upper].into_iter().flatten() {
+                x_lo = x_lo.min(side / ln10);
+                x_hi = x_hi.max(side / ln10);
+            }
+            let (x_lo, x_hi) = padded(x_lo, x_hi);
+            let open: Vec<&str> = [(slice.lower, "lower"), (slice.upper, "upper")]
+                .iter()
+                .filter(|(side, _)| side.is_none())
+                .map(|(_, name)| *name)
+                .collect();
+            let title = if open.is_empty() {
+                format!("{}: determined", slice.name)
+            } else {
+                format!("{}: {} side open", slice.name, open.join(" and "))
+            };
+            let mut chart = ChartBuilder::on(panel)
+                .caption(title, ("sans-serif", 16))
+                .margin(10)
+                .x_label_area_size(36)
+                .y_label_area_size(56)
+                .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)
+                .map_err(|e| err(path, e))?;
+            chart
+                .configure_mesh()
+                .x_desc(format!("log10({} / best)", slice.name))
+                .y_desc("log10 objective")
+                .draw()
+                .map_err(|e| err(path, e))?;
+            let grey = RGBColor(90, 90, 90);
+            chart
+                .draw_series(DashedLineSeries::new(
+                    vec![(x_lo, threshold), (x_hi, threshold)],
+                    6,
+                    4,
+                    grey.stroke_width(2),
+                ))
+                .map_err(|e| err(path, e))?;
+            let green = RGBColor(0, 140, 60);
+            for side in [slice.lower, slice.upper].into_iter().flatten() {
+                let x = side / ln10;
+                chart
+                    .draw_series(DashedLineSeries::new(vec![(x, y_lo), (x, y_hi)], 2, 4, green.stroke_width(2)))
+                    .map_err(|e| err(path, e))?;
+            }
+            let top = y_hi - 0.03 * (y_hi - y_lo);
+            let mut points: Vec<(Real, Real, Real)> = xs
+                .iter()
+                .zip(&ys)
+                .zip(&slice.objectives)
+                .map(|((&x, &y), &o)| (x, y, o))
+                .filter(|p| on_scale(p.2))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            chart
+                .draw_series(LineSeries::new(points.iter().map(|p| (p.0, p.1)), BLUE.stroke_width(1)))
+                .map_err(|e| err(path, e))?;
+            chart
+                .draw_series(points.iter().map(|p| Circle::new((p.0, p.1), 4, BLUE.filled())))
+                .map_err(|e| err(path, e))?;
+            chart
+                .draw_series(
+                    xs.iter()
+                        .zip(&slice.objectives)
+                        .filter(|(_, o)| !on_scale(**o))
+                        .map(|(&x, _)| Cross::new((x, top), 6, RED.stroke_width(2))),
+                )
+                .map_err(|e| err(path, e))?;
+        }
         root.present().map_err(|e| err(path, e))?;
     }
     crate::io::replace_with(&tmp, path).map_err(|e| err(path, e))

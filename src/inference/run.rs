@@ -214,6 +214,9 @@ pub fn run_fit_observed(
     if options.plots {
         plot::plot_objective(&out.join("objective.png"), &full_trace[..evaluations])?;
         plot::plot_landscape(&out.join("landscape.png"), &model.space, &full_trace)?;
+        if let Some(noise) = &noise {
+            plot::plot_profiles(&out.join("profile.png"), &slices, noise)?;
+        }
     }
     Ok(result)
 }

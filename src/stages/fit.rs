@@ -25,6 +25,7 @@ pub const OUTPUT_FILES: &[&str] = &[
     RESULT_FILE,
     "objective.png",
     "landscape.png",
+    "profile.png",
     "fit.toml",
     "model.toml",
     crate::inference::BEST_TISSUE_FILE,

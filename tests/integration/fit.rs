@@ -176,11 +176,16 @@ fn cli_fit_writes_the_design_keys_and_refuses_to_overwrite_without_resume() {
     assert_eq!(json["evaluations"].as_u64(), Some(3));
     assert_eq!(json["converged"].as_bool(), Some(false));
     let best_files = ["best.vtp", "best.toml", "residuals.csv"];
-    for f in ["trace.csv", "objective.png", "landscape.png", "fit.toml", "model.toml"].iter().chain(&best_files) {
+    for f in ["trace.csv", "objective.png", "landscape.png", "profile.png", "fit.toml", "model.toml"]
+        .iter()
+        .chain(&best_files)
+    {
         assert!(out.join(f).exists(), "{f} missing");
     }
-    let png = std::fs::read(out.join("objective.png")).unwrap();
-    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    for plot in ["objective.png", "profile.png"] {
+        let png = std::fs::read(out.join(plot)).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{plot}");
+    }
     let again = run(&[]);
     assert_eq!(again.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&again.stderr);
