@@ -1,12 +1,12 @@
 //! The slow half of the inference round trip (DESIGN.md §6), in the slow test binary: the doublet
 //! round trips for two coupling truths (with an exact resume) and spring adhesion, and the 20-cell
-//! aggregate fits from label volumes. Minutes each on 2 cores: `cargo test --release --test slow
+//! aggregate fits from label volumes, and the same seed giving the same trace on 1 and 2 threads. Minutes each on 2 cores: `cargo test --release --test slow
 //! fit_round_trips::`; `.ci/run` runs them. The fast fit checks are tests/integration/fit.rs.
 
 use std::path::Path;
 use tissuefit::geometry::Real;
 use tissuefit::imaging::{LabelPattern, LabelSpec, generate_labels};
-use tissuefit::inference::{FitConfig, FitResult, read_trace};
+use tissuefit::inference::{FitConfig, FitOptions, FitResult, read_trace, run_fit};
 use tissuefit::mechanics::ContactModel;
 use tissuefit::meshing::{LabelMeshingOptions, mesh_labels};
 
@@ -279,4 +279,51 @@ fn aggregate_round_trip_recovers_spring_adhesion_over_tension_within_10_percent(
     assert_eq!(r.determined, Some(true), "the fit must find w/(2γ) determined by the aggregate's morphology");
     let [lo, hi] = r.range;
     assert!(lo <= truth_ratio && truth_ratio <= hi, "range [{lo}, {hi}] excludes the truth {truth_ratio}");
+}
+
+#[test]
+fn same_seed_gives_the_same_trace_whatever_the_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let (initial, l_min) = initial_doublet();
+    let truth = model(ContactModel::Coupling, l_min, 1e-3, 0.5e-3, 0.0);
+    observed_labels(dir.path(), &truth, &initial, 12.0);
+    let base = model(ContactModel::Coupling, l_min, 1e-3, 1e-3, 0.0);
+    let config = write_config(
+        dir.path(),
+        &base,
+        COUPLING,
+        "method = \"particle_swarm\"\nmax_evaluations = 6\nswarm_size = 3\nseed = 7\ntolerance = 0",
+        0,
+    );
+    let traces: Vec<String> = [1, 2]
+        .into_iter()
+        .map(|threads| {
+            let out = dir.path().join(format!("out{threads}"));
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| fit(&config, &out, false));
+            // Everything but the wall times.
+            let text = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+            let mut rdr = csv::Reader::from_reader(text.as_bytes());
+            let header = rdr.headers().unwrap().clone();
+            let wall = |i: usize| matches!(&header[i], "wall_seconds" | "elapsed_seconds");
+            rdr.records()
+                .map(|r| {
+                    let r = r.unwrap();
+                    r.iter().enumerate().filter(|(i, _)| !wall(*i)).map(|(_, v)| v).collect::<Vec<_>>().join(",")
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+        })
+        .collect();
+    assert_eq!(traces[0].lines().count(), 6);
+    assert_eq!(traces[0], traces[1]);
+    // A different seed draws a different swarm.
+    let mut config2 = FitConfig::load(&config).unwrap();
+    config2.optimizer.seed = 8;
+    config2.optimizer.max_evaluations = 3;
+    let out = dir.path().join("seed8");
+    run_fit(&config2, &out, &FitOptions::default()).unwrap();
+    let other = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    let first = |t: &str| t.lines().nth(1).map(|l| l.split(',').nth(1).unwrap_or("").to_string());
+    assert_ne!(first(&other), traces[0].lines().next().map(|l| l.split(',').nth(1).unwrap_or("").to_string()));
 }
