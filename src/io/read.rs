@@ -80,18 +80,19 @@ pub fn read_tissue_bytes(path: &Path, bytes: &[u8], options: &ReadOptions) -> Re
     }
     match &recorded_unit {
         // Already converted to metres from the file's own unit; the same unit given again is no error.
-        Some(unit) => {
-            let metres = super::units::metres_per_unit(unit).unwrap_or(1.0);
-            if !options.length_scale.is_identity() && options.length_scale.0 != Vec3::repeat(metres) {
-                return Err(IoError::Unsupported {
-                    path: path.into(),
-                    message: format!(
-                        "the file records its length unit ({unit}) and is read in it, but a length unit of {} was                          given too; leave --length-unit (input.length_unit) out for this file",
-                        options.length_scale
-                    ),
-                });
-            }
+        Some((unit, metres))
+            if !options.length_scale.is_identity() && options.length_scale.0 != Vec3::repeat(*metres) =>
+        {
+            return Err(IoError::Unsupported {
+                path: path.into(),
+                message: format!(
+                    "the file records its length unit ({unit}) and is read in it, but a length unit of {} was \
+                     given too; leave --length-unit (input.length_unit) out for this file",
+                    options.length_scale
+                ),
+            });
         }
+        Some(_) => {}
         None if !options.length_scale.is_identity() => tissue.scale(options.length_scale.0),
         None => {}
     }

@@ -412,8 +412,9 @@ pub fn read_vtp(path: &Path) -> Result<Tissue, IoError> {
 }
 
 /// Parses the bytes of a `.vtp` file; `path` only names it in errors. Returns the tissue in metres
-/// and the unit the file recorded (`length_unit`, from which it was converted), if any.
-pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<(Tissue, Option<String>), IoError> {
+/// and the unit the file recorded (`length_unit`, from which it was converted) with its metres per
+/// unit, if any.
+pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<(Tissue, Option<(String, Real)>), IoError> {
     let (xml, appended) = split_appended(path, bytes)?;
     let doc = roxmltree::Document::parse(&xml)
         .map_err(|e| IoError::parse(path, Some(e.pos().row as usize), format!("malformed XML: {e}")))?;
@@ -469,7 +470,7 @@ pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<(Tissue, Option<Str
     {
         tissue.scale(Vec3::repeat(*metres));
     }
-    Ok((tissue, unit.map(|(name, _)| name)))
+    Ok((tissue, unit))
 }
 
 /// The `length_unit` field: one string (VTK's ASCII string encoding, character codes ended by 0, or
