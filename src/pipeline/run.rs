@@ -285,7 +285,8 @@ fn run_locked(
         let mesh_dir = out.join("mesh");
         runner.stage("fit", key, Some(Resumable::Trace), |dir, resume| {
             let config = super::fit_config(section, &config.input, &config.mesh);
-            let options = crate::inference::FitOptions { resume, progress: options.progress, plots: true };
+            let options =
+                crate::inference::FitOptions { resume, progress: options.progress, plots: true, ..Default::default() };
             let r =
                 crate::stages::fit::run(&config, crate::stages::fit::Observed::MeshStage(&mesh_dir), dir, &options)?;
             let line = r.summary_line();
