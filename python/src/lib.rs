@@ -11,7 +11,7 @@
 //!   the callback's exception).
 
 use ndarray::{Array2, Array3};
-use numpy::{IntoPyArray, PyArray2, PyArray3, PyReadonlyArray3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray3};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
@@ -503,6 +503,52 @@ fn fit(
     std::fs::read_to_string(&path).map_err(|e| error(format!("reading {}: {e}", path.display())))
 }
 
+/// What [`tensions`] returns.
+type Tensions<'py> = (Vec<Bound<'py, PyArray1<f64>>>, Bound<'py, PyArray1<f64>>, String);
+
+/// The direct estimate of interface tensions and cell pressures (the tensions stage) into `out`:
+/// (per cell in tissue order: its faces' tensions; per cell: its pressure; summary.json's text).
+#[pyfunction]
+#[pyo3(signature = (tissue, out, *, file, kind, gauge = None, gauge_tension = None, one_medium_tension = false, rounding_scale_m = None))]
+#[allow(clippy::too_many_arguments)]
+fn tensions<'py>(
+    py: Python<'py>,
+    tissue: &PyTissue,
+    out: PathBuf,
+    file: &str,
+    kind: &str,
+    gauge: Option<(u32, u32)>,
+    gauge_tension: Option<Real>,
+    one_medium_tension: bool,
+    rounding_scale_m: Option<Real>,
+) -> PyResult<Tensions<'py>> {
+    use tissuefit::morphology::tensions::{Gauge, TensionSettings};
+    if let Some(t) = gauge_tension
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(error(format!("gauge_tension must be a positive tension in mN/m, got {t}")));
+    }
+    let settings = TensionSettings {
+        one_medium_tension,
+        gauge: gauge.map_or(Gauge::MediumMean, |(a, b)| Gauge::Interface(a, b)),
+        gauge_value: gauge_tension.unwrap_or(1.0),
+        rounding_scale: rounding_scale_m,
+        ..Default::default()
+    };
+    let kind = if kind == "labels" { "labels" } else { "tissue" };
+    let input = stages::tensions::TensionsInput { file, kind, gauge_in_mn_per_m: gauge_tension.is_some() };
+    let outcome = py.detach(|| stages::tensions::run(&tissue.tissue, &settings, &input, &out)).map_err(error)?;
+    let mut faces = Vec::with_capacity(tissue.tissue.len());
+    let mut at = 0;
+    for cell in tissue.tissue.cells() {
+        let n = cell.mesh().face_count();
+        faces.push(outcome.face_tension[at..at + n].to_vec().into_pyarray(py));
+        at += n;
+    }
+    let summary = serde_json::to_string(&outcome.summary).map_err(error)?;
+    Ok((faces, outcome.pressure.into_pyarray(py), summary))
+}
+
 /// The library's version.
 #[pyfunction]
 fn version() -> &'static str {
@@ -521,6 +567,7 @@ fn _tissuefit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(measure_labels_json, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
+    m.add_function(wrap_pyfunction!(tensions, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
     Ok(())
 }

@@ -142,6 +142,23 @@ def test_measure_gives_the_cli_tables_in_micrometres(demo, tmp_path):
     assert list(frame["cell"]) == [1, 2] and "volume_um3" in frame.columns
 
 
+def test_tensions_are_the_cli_tensions(demo, tmp_path):
+    labels, voxel_size = demo
+    m = tf.tensions(labels, voxel_size, out=tmp_path / "py")
+    cli("tensions", str(DEMO), "--out", str(tmp_path / "cli"))
+    for name in ("interfaces.csv", "cells.csv"):
+        assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+    # Two cells: their contact and each one's free surface.
+    assert sorted(zip(m.interfaces["cell_a"], m.interfaces["cell_b"])) == [(1, 0), (1, 2), (2, 0)]
+    assert m.summary["tension_unit"] == "gauge" and len(m.pressure) == len(m.tissue) == 2
+    for cell, faces in zip(m.tissue.cells, m.face_tension):
+        assert faces.shape == (len(cell.faces),)
+    free = m.interfaces["tension"][m.interfaces["cell_b"] == 0]
+    assert np.nanmean(free) == pytest.approx(1.0)  # the default gauge: mean cell–medium tension = 1
+    in_mn = tf.tensions(m.tissue, gauge_tension=0.5)
+    assert in_mn.summary["tension_unit"] == "mN/m" and in_mn.summary["pressure_unit"] == "kPa"
+
+
 def test_the_fit_gives_the_cli_numbers_bit_for_bit(demo, tmp_path):
     labels, voxel_size = demo
     with pytest.warns(tf.NotConverged, match="not converged"):

@@ -56,6 +56,8 @@ __all__ = [
     "read_labels",
     "read_tissue",
     "simulate",
+    "tensions",
+    "TensionMap",
     "__version__",
 ]
 
@@ -258,7 +260,9 @@ def _columns(rows: list[dict]) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {}
     for key in rows[0]:
         values = [r.get(key) for r in rows]
-        if all(v is None or isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        if all(isinstance(v, bool) for v in values):
+            out[key] = np.asarray(values, dtype=np.bool_)
+        elif all(v is None or isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
             if all(isinstance(v, int) for v in values):
                 out[key] = np.asarray(values, dtype=np.int64)
             else:
@@ -313,6 +317,91 @@ def measure(
         )
     m = json.loads(text)
     return Measurement(cells=_columns(m["cells"]), contacts=_columns(m["contacts"]), summary=m["summary"])
+
+
+@dataclass(frozen=True)
+class TensionMap:
+    """The direct estimate of every interface's tension and every cell's pressure (``tissuefit
+    tensions``): from the shapes alone (force balance at the junction lines, Young–Laplace), in
+    seconds, relative to a gauge.
+
+    ``interfaces``: the columns of ``interfaces.csv`` (``cell_a``, ``cell_b`` with 0 the medium,
+    ``tension``, ``tension_sd``, ``determined``, ``area_um2``...); ``cells``: of ``cells.csv``
+    (``cell``, ``pressure``, ``pressure_sd``, ``determined``...); ``summary``: ``summary.json``
+    (units: ``tension_unit``, ``pressure_unit``, residuals, warnings). ``tissue``: the tissue the
+    estimate was made on; ``face_tension[i]``: the tension of each face of ``tissue.cells[i]``
+    (NaN where undetermined); ``pressure[i]``: that cell's pressure. ``out``: the folder with the
+    four files (``tensions.vtp`` for ParaView)."""
+
+    interfaces: dict[str, np.ndarray]
+    cells: dict[str, np.ndarray]
+    summary: dict
+    tissue: Tissue
+    face_tension: list[np.ndarray]
+    pressure: np.ndarray
+    out: str
+
+    def interfaces_frame(self) -> Any:
+        """The interfaces as a pandas DataFrame (needs pandas)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.interfaces)
+
+    def cells_frame(self) -> Any:
+        """The cells as a pandas DataFrame (needs pandas)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.cells)
+
+
+def tensions(
+    data: Union[Tissue, Any],
+    voxel_size: Union[float, Sequence[float], None] = None,
+    *,
+    gauge: Optional[tuple[int, int]] = None,
+    gauge_tension: Optional[float] = None,
+    one_medium_tension: bool = False,
+    out: Optional[PathLike] = None,
+    target_nodes: Optional[int] = None,
+) -> TensionMap:
+    """Estimates every interface's tension and every cell's pressure from the shapes of a
+    :class:`Tissue` or of a label volume (meshed first as :func:`mesh` does, with ``voxel_size``
+    in µm), as ``tissuefit tensions`` does.
+
+    ``gauge``: the interface (a, b) whose tension is the unit (0 = the medium; default: the mean of
+    the cell–medium tensions); ``gauge_tension``: that tension in mN/m, when known (tensions are then
+    in mN/m and pressures in kPa); ``one_medium_tension``: one tension for every cell–medium
+    interface. ``out``: the folder for the four files (default: a new temporary folder)."""
+    folder = os.fspath(out) if out is not None else tempfile.mkdtemp(prefix="tissuefit-tensions-")
+    if isinstance(data, Tissue):
+        if voxel_size is not None or target_nodes is not None:
+            raise TissuefitError("tensions: voxel_size and target_nodes apply to a label volume, not to a Tissue")
+        tissue, kind, rounding = data, "tissue", None
+    else:
+        if voxel_size is None:
+            raise TissuefitError("tensions: a label volume needs its voxel_size (µm, one number or (z, y, x))")
+        tissue = mesh(data, voxel_size, target_nodes=target_nodes)
+        # A segmentation rounds its junctions over a voxel: the estimate's scale (as the CLI does).
+        kind, rounding = "labels", max(_voxel_size(voxel_size))
+    faces, pressure, summary = _native.tensions(
+        tissue._native,
+        folder,
+        file="the tissue given in Python" if kind == "tissue" else "the label volume given in Python",
+        kind=kind,
+        gauge=None if gauge is None else (int(gauge[0]), int(gauge[1])),
+        gauge_tension=gauge_tension,
+        one_medium_tension=one_medium_tension,
+        rounding_scale_m=rounding,
+    )
+    return TensionMap(
+        interfaces=_read_csv_columns(Path(folder) / "interfaces.csv"),
+        cells=_read_csv_columns(Path(folder) / "cells.csv"),
+        summary=json.loads(summary),
+        tissue=tissue,
+        face_tension=list(faces),
+        pressure=pressure,
+        out=folder,
+    )
 
 
 def _toml_text(value: Mapping[str, Any]) -> str:
@@ -527,12 +616,13 @@ def fit(
         result=result,
         tissue=read_tissue(best) if best.exists() else None,
         out=folder,
-        trace=_read_trace(Path(folder) / "trace.csv"),
+        trace=_read_csv_columns(Path(folder) / "trace.csv"),
     )
 
 
-def _read_trace(path: Path) -> dict[str, np.ndarray]:
-    """trace.csv as numpy columns (numbers where every row holds one)."""
+def _read_csv_columns(path: Path) -> dict[str, np.ndarray]:
+    """A CSV file of ours as numpy columns (numbers where every row holds one; "true"/"false" as
+    booleans)."""
     if not path.exists():
         return {}
     with path.open(newline="") as f:
@@ -541,9 +631,15 @@ def _read_trace(path: Path) -> dict[str, np.ndarray]:
     for r in rows:
         row: dict[str, Any] = {}
         for k, v in r.items():
+            if v in ("true", "false"):
+                row[k] = v == "true"
+                continue
             try:
-                row[k] = float(v)
+                row[k] = int(v)
             except (TypeError, ValueError):
-                row[k] = v
+                try:
+                    row[k] = float(v) if v != "" else None
+                except (TypeError, ValueError):
+                    row[k] = v
         parsed.append(row)
     return _columns(parsed)

@@ -9,18 +9,15 @@ use super::{InputArgs, Outcome};
 use crate::geometry::Real;
 use crate::imaging::{LabelReadOptions, read_labels};
 use crate::io::parse_length;
-use crate::io::{CellField, OutputGroup, OutputPolicy, read_tissue, vtp_bytes};
+use crate::io::{OutputPolicy, read_tissue};
 use crate::mesh::Tissue;
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, mesh_labels};
-use crate::morphology::ContactRule;
-use crate::morphology::tensions::{Gauge, TensionMap, TensionSettings, estimate_tensions};
+use crate::morphology::tensions::{Gauge, TensionMap, TensionSettings};
 use crate::stages::measure::is_labels;
-use crate::stages::write_csv;
+use crate::stages::tensions::{OUTPUT_FILES, Summary, TensionsInput};
 use anyhow::{Context, bail};
-use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct TensionsArgs {
@@ -95,69 +92,6 @@ fn parse_tension(s: &str) -> Result<Real, String> {
 }
 
 /// What `tensions` writes into --out.
-const OUTPUT_FILES: [&str; 4] = ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp"];
-
-#[derive(Serialize, Default)]
-struct InterfaceRow {
-    cell_a: u32,
-    cell_b: u32,
-    tension: Option<Real>,
-    tension_sd: Option<Real>,
-    determined: bool,
-    area_um2: Real,
-    samples: usize,
-    mean_curvature_per_um: Option<Real>,
-    fit: &'static str,
-    fit_rms_um: Option<Real>,
-}
-
-#[derive(Serialize, Default)]
-struct CellRow {
-    cell: u32,
-    pressure: Option<Real>,
-    pressure_sd: Option<Real>,
-    determined: bool,
-    free_mean_curvature_per_um: Option<Real>,
-    free_area_um2: Real,
-}
-
-#[derive(Serialize)]
-struct Summary<'a> {
-    file: String,
-    /// `tissue` or `labels` (meshed first).
-    input: &'static str,
-    cells: usize,
-    interfaces: usize,
-    determined_interfaces: usize,
-    determined_pressures: usize,
-    /// What fixes the scale, and the units of the tension and pressure columns.
-    gauge: String,
-    gauge_value: Real,
-    tension_unit: &'static str,
-    pressure_unit: &'static str,
-    one_medium_tension: bool,
-    uncertainty: &'static str,
-    contact_distance_um: Real,
-    /// How the interfaces were found: `distance` (δ) or `interface_labels` (the input's own).
-    contact_rule: ContactRule,
-    junction_samples: usize,
-    junction_samples_skipped: usize,
-    junction_samples_near_vertices: usize,
-    junction_samples_trimmed: usize,
-    junction_lines: usize,
-    unknowns: usize,
-    condition_number: Option<Real>,
-    /// Force imbalance per junction sample, |Σ T_k t_k|, in units of the gauge.
-    residual_rms: Option<Real>,
-    residual_median: Option<Real>,
-    /// Rms Young–Laplace residual of the pressures (pressure unit).
-    pressure_residual_rms: Option<Real>,
-    wall_seconds: f64,
-    threads: usize,
-    warnings: &'a [String],
-}
-
-/// The tissue, `tissue` or `labels`, and for labels the largest voxel edge (m).
 fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Option<Real>)> {
     let path = &args.tissue;
     if is_labels(path) {
@@ -217,121 +151,14 @@ pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
         rounding_scale: voxel,
         interface_labels: !args.distance_contacts,
     };
-    let start = Instant::now();
-    let map = estimate_tensions(&tissue, &settings)
-        .with_context(|| format!("estimating tensions in {}", args.tissue.display()))?;
-    let wall_seconds = start.elapsed().as_secs_f64();
-    for w in &map.warnings {
-        tracing::warn!("{}: {w}", args.tissue.display());
-    }
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let (tension_unit, pressure_unit) =
-        if args.gauge_tension.is_some() { ("mN/m", "kPa") } else { ("gauge", "gauge/um") };
-    let gauge = match args.gauge {
-        Gauge::MediumMean if args.one_medium_tension => "the cell–medium tension (shared)".to_string(),
-        Gauge::MediumMean => "the mean of the cell–medium tensions".to_string(),
-        Gauge::Interface(a, b) => format!("the tension of interface {a}-{b}"),
-    };
-    let summary = Summary {
-        file: args.tissue.display().to_string(),
-        input,
-        cells: map.cells.len(),
-        interfaces: map.interfaces.len(),
-        determined_interfaces: map.interfaces.iter().filter(|f| f.determined).count(),
-        determined_pressures: map.cells.iter().filter(|c| c.determined).count(),
-        gauge,
-        gauge_value: settings.gauge_value,
-        tension_unit,
-        pressure_unit,
-        one_medium_tension: args.one_medium_tension,
-        uncertainty: "tension_sd and pressure_sd: first-order propagation of the force-balance residuals, \
-                      cluster-robust by junction line; biases shared by all junctions are not in it",
-        contact_distance_um: map.contact_distance * 1e6,
-        contact_rule: map.contact_rule,
-        junction_samples: map.samples,
-        junction_samples_skipped: map.samples_skipped,
-        junction_samples_near_vertices: map.samples_near_vertices,
-        junction_samples_trimmed: map.samples_trimmed,
-        junction_lines: map.junction_lines,
-        unknowns: map.unknowns,
-        condition_number: map.condition_number,
-        residual_rms: map.residual_rms,
-        residual_median: map.residual_median,
-        pressure_residual_rms: map.pressure_residual_rms.map(|p| p * 1e-6),
-        wall_seconds,
-        threads: rayon::current_num_threads(),
-        warnings: &map.warnings,
-    };
-    write_outputs(&args.out, &tissue, &map, &summary)?;
-    print_summary(&mut std::io::stdout().lock(), &args.tissue, &map, &summary)?;
+    let file = args.tissue.display().to_string();
+    let described = TensionsInput { file: &file, kind: input, gauge_in_mn_per_m: args.gauge_tension.is_some() };
+    let outcome = crate::stages::tensions::run(&tissue, &settings, &described, &args.out)?;
+    print_summary(&mut std::io::stdout().lock(), &args.tissue, &outcome.map, &outcome.summary)?;
     Ok(Outcome::Success)
 }
 
-fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summary<'_>) -> anyhow::Result<()> {
-    let interfaces: Vec<InterfaceRow> = map
-        .interfaces
-        .iter()
-        .map(|f| InterfaceRow {
-            cell_a: f.cell_a,
-            cell_b: f.cell_b,
-            tension: f.tension,
-            tension_sd: f.tension_sd,
-            determined: f.determined,
-            area_um2: f.area * 1e12,
-            samples: f.samples,
-            mean_curvature_per_um: f.mean_curvature.map(|h| h * 1e-6),
-            fit: f.fit,
-            fit_rms_um: f.fit_rms.map(|r| r * 1e6),
-        })
-        .collect();
-    let cells: Vec<CellRow> = map
-        .cells
-        .iter()
-        .map(|c| CellRow {
-            cell: c.cell,
-            pressure: c.pressure.map(|p| p * 1e-6),
-            pressure_sd: c.pressure_sd.map(|p| p * 1e-6),
-            determined: c.determined,
-            free_mean_curvature_per_um: c.free_mean_curvature.map(|h| h * 1e-6),
-            free_area_um2: c.free_area * 1e12,
-        })
-        .collect();
-    // Per-face tension and per-cell pressure for ParaView (NaN where undetermined, and on nuclei,
-    // which take no part).
-    let mut face_tension: Vec<Real> = Vec::with_capacity(tissue.face_count());
-    for (cell, faces) in tissue.cells().iter().zip(&map.face_interface) {
-        if faces.len() == cell.mesh().face_count() {
-            face_tension.extend(faces.iter().map(|&k| map.interfaces[k].tension.unwrap_or(Real::NAN)));
-        } else {
-            face_tension.extend(std::iter::repeat_n(Real::NAN, cell.mesh().face_count()));
-        }
-    }
-    let by_id: std::collections::BTreeMap<u32, Option<Real>> =
-        map.cells.iter().map(|c| (c.cell, c.pressure.map(|p| p * 1e-6))).collect();
-    let pressure: Vec<Real> =
-        tissue.cells().iter().map(|c| by_id.get(&c.id().0).copied().flatten().unwrap_or(Real::NAN)).collect();
-    if face_tension.len() != tissue.face_count() {
-        bail!("internal: {} face tensions for {} faces", face_tension.len(), tissue.face_count());
-    }
-    let mut group = OutputGroup::new();
-    write_csv(&mut group, &dir.join("interfaces.csv"), &interfaces, &InterfaceRow::default())?;
-    write_csv(&mut group, &dir.join("cells.csv"), &cells, &CellRow::default())?;
-    let path = dir.join("summary.json");
-    group
-        .write(&path, |w| {
-            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
-            writeln!(w)
-        })
-        .with_context(|| format!("writing {}", path.display()))?;
-    let vtp = dir.join("tensions.vtp");
-    let fields =
-        [CellField { name: "tension", values: &face_tension }, CellField { name: "pressure", values: &pressure }];
-    let bytes = vtp_bytes(&vtp, tissue, &fields, None)?;
-    group.write_bytes(&vtp, &bytes).with_context(|| format!("writing {}", vtp.display()))?;
-    group.commit().with_context(|| format!("writing the outputs into {}", dir.display()))
-}
-
-fn print_summary(out: &mut impl Write, input: &Path, map: &TensionMap, s: &Summary<'_>) -> std::io::Result<()> {
+fn print_summary(out: &mut impl Write, input: &Path, map: &TensionMap, s: &Summary) -> std::io::Result<()> {
     writeln!(
         out,
         "{}: {} cells, {} interfaces ({} determined), {} junction samples on {} lines, {:.3} s",

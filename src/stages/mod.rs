@@ -10,6 +10,7 @@ pub mod measure;
 pub mod mesh;
 pub mod output_unit;
 pub mod simulate;
+pub mod tensions;
 
 use crate::io::OutputGroup;
 use serde::Serialize;

@@ -1,0 +1,238 @@
+//! The tensions stage: the direct estimate of every interface's tension and every cell's pressure
+//! from a tissue's shapes ([`crate::morphology::tensions`]) into `interfaces.csv`, `cells.csv`,
+//! `summary.json` and `tensions.vtp` (per-face tension, per-cell pressure), written together.
+//! `tissuefit tensions` (which reads or meshes its input first) and the Python API both run [`run`].
+
+use super::{StageError, write_csv};
+use crate::geometry::Real;
+use crate::io::{CellField, OutputGroup, vtp_bytes};
+use crate::mesh::Tissue;
+use crate::morphology::ContactRule;
+use crate::morphology::tensions::{Gauge, TensionMap, TensionSettings, estimate_tensions};
+use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+fn err(message: impl Into<String>) -> StageError {
+    StageError::new("tensions", message)
+}
+
+/// How the input is named in `summary.json`, and whether the gauge's tension was given in mN/m.
+pub struct TensionsInput<'a> {
+    /// The input as the user gave it (a path, or "the tissue given in Python").
+    pub file: &'a str,
+    /// "labels" or "tissue".
+    pub kind: &'static str,
+    /// The gauge's tension was given (in mN/m): tensions in mN/m and pressures in kPa; else relative.
+    pub gauge_in_mn_per_m: bool,
+}
+
+/// What [`run`] estimated and wrote.
+pub struct TensionsOutcome {
+    pub map: TensionMap,
+    /// The tension of every face's interface, cell after cell in tissue order (NaN where undetermined),
+    /// in the summary's `tension_unit`.
+    pub face_tension: Vec<Real>,
+    /// Every cell's pressure in tissue order (NaN where undetermined), in the summary's `pressure_unit`.
+    pub pressure: Vec<Real>,
+    /// `summary.json` as written.
+    pub summary: Summary,
+}
+
+/// Estimates the tensions and pressures of `tissue` with `settings` and writes the four files into
+/// `out` (created when missing), all or nothing.
+pub fn run(
+    tissue: &Tissue,
+    settings: &TensionSettings,
+    input: &TensionsInput<'_>,
+    out: &Path,
+) -> Result<TensionsOutcome, StageError> {
+    let start = Instant::now();
+    let map =
+        estimate_tensions(tissue, settings).map_err(|e| err(format!("estimating tensions in {}: {e}", input.file)))?;
+    let wall_seconds = start.elapsed().as_secs_f64();
+    for w in &map.warnings {
+        tracing::warn!("{}: {w}", input.file);
+    }
+    std::fs::create_dir_all(out).map_err(|e| err(format!("creating {}: {e}", out.display())))?;
+    let (tension_unit, pressure_unit) = if input.gauge_in_mn_per_m { ("mN/m", "kPa") } else { ("gauge", "gauge/um") };
+    let gauge = match settings.gauge {
+        Gauge::MediumMean if settings.one_medium_tension => "the cell–medium tension (shared)".to_string(),
+        Gauge::MediumMean => "the mean of the cell–medium tensions".to_string(),
+        Gauge::Interface(a, b) => format!("the tension of interface {a}-{b}"),
+    };
+    let summary = Summary {
+        file: input.file.to_string(),
+        input: input.kind,
+        cells: map.cells.len(),
+        interfaces: map.interfaces.len(),
+        determined_interfaces: map.interfaces.iter().filter(|f| f.determined).count(),
+        determined_pressures: map.cells.iter().filter(|c| c.determined).count(),
+        gauge,
+        gauge_value: settings.gauge_value,
+        tension_unit,
+        pressure_unit,
+        one_medium_tension: settings.one_medium_tension,
+        uncertainty: "tension_sd and pressure_sd: first-order propagation of the force-balance residuals, \
+                      cluster-robust by junction line; biases shared by all junctions are not in it",
+        contact_distance_um: map.contact_distance * 1e6,
+        contact_rule: map.contact_rule,
+        junction_samples: map.samples,
+        junction_samples_skipped: map.samples_skipped,
+        junction_samples_near_vertices: map.samples_near_vertices,
+        junction_samples_trimmed: map.samples_trimmed,
+        junction_lines: map.junction_lines,
+        unknowns: map.unknowns,
+        condition_number: map.condition_number,
+        residual_rms: map.residual_rms,
+        residual_median: map.residual_median,
+        pressure_residual_rms: map.pressure_residual_rms.map(|p| p * 1e-6),
+        wall_seconds,
+        threads: rayon::current_num_threads(),
+        warnings: map.warnings.clone(),
+    };
+    let Fields { face_tension, pressure } = write_outputs(out, tissue, &map, &summary).map_err(err)?;
+    Ok(TensionsOutcome { map, face_tension, pressure, summary })
+}
+
+/// The per-face and per-cell fields written into `tensions.vtp`.
+struct Fields {
+    face_tension: Vec<Real>,
+    pressure: Vec<Real>,
+}
+
+/// What the stage writes into its folder, all or nothing.
+pub const OUTPUT_FILES: [&str; 4] = ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp"];
+
+/// A row of `interfaces.csv`.
+#[derive(Serialize, Default)]
+struct InterfaceRow {
+    cell_a: u32,
+    cell_b: u32,
+    tension: Option<Real>,
+    tension_sd: Option<Real>,
+    determined: bool,
+    area_um2: Real,
+    samples: usize,
+    mean_curvature_per_um: Option<Real>,
+    fit: &'static str,
+    fit_rms_um: Option<Real>,
+}
+
+/// A row of `cells.csv`.
+#[derive(Serialize, Default)]
+struct CellRow {
+    cell: u32,
+    pressure: Option<Real>,
+    pressure_sd: Option<Real>,
+    determined: bool,
+    free_mean_curvature_per_um: Option<Real>,
+    free_area_um2: Real,
+}
+
+/// `summary.json`.
+#[derive(Serialize)]
+pub struct Summary {
+    pub file: String,
+    /// `tissue` or `labels` (meshed first).
+    pub input: &'static str,
+    pub cells: usize,
+    pub interfaces: usize,
+    pub determined_interfaces: usize,
+    pub determined_pressures: usize,
+    /// What fixes the scale, and the units of the tension and pressure columns.
+    pub gauge: String,
+    pub gauge_value: Real,
+    pub tension_unit: &'static str,
+    pub pressure_unit: &'static str,
+    pub one_medium_tension: bool,
+    pub uncertainty: &'static str,
+    pub contact_distance_um: Real,
+    /// How the interfaces were found: `distance` (δ) or `interface_labels` (the input's own).
+    pub contact_rule: ContactRule,
+    pub junction_samples: usize,
+    pub junction_samples_skipped: usize,
+    pub junction_samples_near_vertices: usize,
+    pub junction_samples_trimmed: usize,
+    pub junction_lines: usize,
+    pub unknowns: usize,
+    pub condition_number: Option<Real>,
+    /// Force imbalance per junction sample, |Σ T_k t_k|, in units of the gauge.
+    pub residual_rms: Option<Real>,
+    pub residual_median: Option<Real>,
+    /// Rms Young–Laplace residual of the pressures (pressure unit).
+    pub pressure_residual_rms: Option<Real>,
+    pub wall_seconds: f64,
+    pub threads: usize,
+    pub warnings: Vec<String>,
+}
+
+/// The tissue, `tissue` or `labels`, and for labels the largest voxel edge (m).
+fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summary) -> Result<Fields, String> {
+    let interfaces: Vec<InterfaceRow> = map
+        .interfaces
+        .iter()
+        .map(|f| InterfaceRow {
+            cell_a: f.cell_a,
+            cell_b: f.cell_b,
+            tension: f.tension,
+            tension_sd: f.tension_sd,
+            determined: f.determined,
+            area_um2: f.area * 1e12,
+            samples: f.samples,
+            mean_curvature_per_um: f.mean_curvature.map(|h| h * 1e-6),
+            fit: f.fit,
+            fit_rms_um: f.fit_rms.map(|r| r * 1e6),
+        })
+        .collect();
+    let cells: Vec<CellRow> = map
+        .cells
+        .iter()
+        .map(|c| CellRow {
+            cell: c.cell,
+            pressure: c.pressure.map(|p| p * 1e-6),
+            pressure_sd: c.pressure_sd.map(|p| p * 1e-6),
+            determined: c.determined,
+            free_mean_curvature_per_um: c.free_mean_curvature.map(|h| h * 1e-6),
+            free_area_um2: c.free_area * 1e12,
+        })
+        .collect();
+    // Per-face tension and per-cell pressure for ParaView (NaN where undetermined, and on nuclei,
+    // which take no part).
+    let mut face_tension: Vec<Real> = Vec::with_capacity(tissue.face_count());
+    for (cell, faces) in tissue.cells().iter().zip(&map.face_interface) {
+        if faces.len() == cell.mesh().face_count() {
+            face_tension.extend(faces.iter().map(|&k| map.interfaces[k].tension.unwrap_or(Real::NAN)));
+        } else {
+            face_tension.extend(std::iter::repeat_n(Real::NAN, cell.mesh().face_count()));
+        }
+    }
+    let by_id: std::collections::BTreeMap<u32, Option<Real>> =
+        map.cells.iter().map(|c| (c.cell, c.pressure.map(|p| p * 1e-6))).collect();
+    let pressure: Vec<Real> =
+        tissue.cells().iter().map(|c| by_id.get(&c.id().0).copied().flatten().unwrap_or(Real::NAN)).collect();
+    if face_tension.len() != tissue.face_count() {
+        return Err(format!("internal: {} face tensions for {} faces", face_tension.len(), tissue.face_count()));
+    }
+    let mut group = OutputGroup::new();
+    let io = |path: &Path, e: &dyn std::fmt::Display| format!("writing {}: {e}", path.display());
+    let path = dir.join("interfaces.csv");
+    write_csv(&mut group, &path, &interfaces, &InterfaceRow::default()).map_err(|e| io(&path, &e))?;
+    let path = dir.join("cells.csv");
+    write_csv(&mut group, &path, &cells, &CellRow::default()).map_err(|e| io(&path, &e))?;
+    let path = dir.join("summary.json");
+    group
+        .write(&path, |w| {
+            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
+            writeln!(w)
+        })
+        .map_err(|e| io(&path, &e))?;
+    let vtp = dir.join("tensions.vtp");
+    let fields =
+        [CellField { name: "tension", values: &face_tension }, CellField { name: "pressure", values: &pressure }];
+    let bytes = vtp_bytes(&vtp, tissue, &fields, None).map_err(|e| io(&vtp, &e))?;
+    group.write_bytes(&vtp, &bytes).map_err(|e| io(&vtp, &e))?;
+    group.commit().map_err(|e| format!("writing the outputs into {}: {e}", dir.display()))?;
+    Ok(Fields { face_tension, pressure })
+}
