@@ -302,3 +302,41 @@ def tissue_files(path: str) -> list[tuple[str, str]]:
         if os.path.isfile(f):
             out.append((f, f"{base}: {label}"))
     return out
+
+
+def _toml_load(path: str) -> dict | None:
+    try:
+        import tomllib  # Python 3.11+
+    except ImportError:  # pragma: no cover - Python 3.10
+        try:
+            import tomli as tomllib  # type: ignore[no-redef]
+        except ImportError:
+            return None
+    with open(path, "rb") as fh:
+        return tomllib.load(fh)
+
+
+def fit_config_for(path: str) -> tuple[Any, dict]:
+    """(config for tissuefit.fit, mesh options) from a config file the user chose.
+
+    A fit config file is passed on as its path (its relative paths stay relative to it). A pipeline
+    file (one with an ``[input]`` table) gives its ``[fit]`` table as a dict, with ``model`` made
+    absolute (relative to the pipeline file) and without ``[observed]`` (the widget meshes the
+    Labels layer), and its mesh options: ``[mesh]`` ``target_nodes`` and ``[input]`` ``seed``.
+    """
+    data = _toml_load(path)
+    if data is None or "input" not in data:
+        return path, {}
+    if "fit" not in data:
+        raise ValueError(f"{path} is a pipeline file without a [fit] table: nothing to fit")
+    fit = dict(data["fit"])
+    fit.pop("observed", None)
+    model = fit.get("model")
+    if isinstance(model, str) and not os.path.isabs(model):
+        fit["model"] = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(path)), model))
+    mesh: dict = {}
+    if isinstance(data.get("mesh"), dict) and "target_nodes" in data["mesh"]:
+        mesh["target_nodes"] = int(data["mesh"]["target_nodes"])
+    if isinstance(data["input"], dict) and "seed" in data["input"]:
+        mesh["seed"] = int(data["input"]["seed"])
+    return fit, mesh

@@ -40,6 +40,7 @@ from ._layers import (
     PARAMETER_HEADERS,
     color_choices,
     contrast_limits,
+    fit_config_for,
     fit_status,
     labels_volume,
     parameter_rows,
@@ -328,7 +329,8 @@ class FitWidget(_TissuefitWidget):
         self.config_edit = QLineEdit()
         self.config_edit.setPlaceholderText("none selected")
         self.config_edit.setToolTip(
-            "Fit configuration: a `tissuefit fit` TOML, or a pipeline file with a [fit] table."
+            "Fit configuration: a `tissuefit fit` TOML, or a pipeline file with a [fit] table "
+            "(then its [mesh] target_nodes applies when Nodes per cell is 'default')."
         )
         config_browse = QPushButton("Browse…")
         config_browse.clicked.connect(self._browse_config)
@@ -394,14 +396,24 @@ class FitWidget(_TissuefitWidget):
         if not os.path.isfile(config):
             self._fail_early(f"Fit config {config!r} is not a file.")
             return None
+        try:
+            fit_config, mesh_options = fit_config_for(config)
+        except (ValueError, OSError) as e:
+            self._fail_early(f"Fit config {config!r}: {e}")
+            return None
+        except Exception as e:  # a TOML syntax error: tissuefit would report it too
+            self._fail_early(f"Fit config {config!r} is not valid TOML: {e}")
+            return None
         inputs = super()._inputs()
         if inputs is None:
             return None
+        if inputs["target_nodes"] is None and "target_nodes" in mesh_options:
+            inputs["target_nodes"] = mesh_options["target_nodes"]  # the pipeline file's [mesh]
         out = self.out_edit.text().strip()
         if not out:
             out = tempfile.mkdtemp(prefix="tissuefit-fit-")
             self.out_edit.setText(out)
-        inputs["config"] = config
+        inputs["config"] = fit_config
         inputs["out"] = out
         return inputs
 
