@@ -116,6 +116,15 @@ def contrast_limits(values: Iterable[float]) -> tuple[float, float]:
     return (lo, hi)
 
 
+def color_limits(values: Iterable[float], color_by: str) -> tuple[float, float]:
+    """Contrast limits for a colour-by choice: cell ids padded by one id on each side (so that no
+    cell sits on the colormap's dark ends), other quantities their exact span."""
+    lo, hi = contrast_limits(values)
+    if color_by == CELL_ID:
+        return (lo - 1.0, hi + 1.0)
+    return (lo, hi)
+
+
 def surface_layer_data(
     tissue: Any,
     name: str,
@@ -129,7 +138,7 @@ def surface_layer_data(
     kwargs: dict[str, Any] = {
         "name": name,
         "colormap": COLORMAP,
-        "contrast_limits": contrast_limits(data[2]),
+        "contrast_limits": color_limits(data[2], color_by),
         "metadata": {"tissuefit_color_by": color_by, "tissuefit_cells": cell_ids(tissue)},
     }
     if scale is not None:

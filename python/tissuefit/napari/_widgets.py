@@ -39,7 +39,7 @@ from ._layers import (
     CELL_ID,
     PARAMETER_HEADERS,
     color_choices,
-    contrast_limits,
+    color_limits,
     fit_config_for,
     fit_status,
     labels_volume,
@@ -270,7 +270,8 @@ class _TissuefitWidget(QWidget):
         self.cancel_button.setEnabled(False)
         if self.progress_bar.maximum() == 0:
             self.progress_bar.setRange(0, 1)
-            self.progress_bar.setValue(0 if self.last_error else 1)
+        if self.last_error is None:
+            self.progress_bar.setValue(self.progress_bar.maximum())
 
     def _layer_placement(self, layer: Labels) -> dict:
         """scale/translate that put µm vertices on the labels layer's world coordinates."""
@@ -371,6 +372,8 @@ class FitWidget(_TissuefitWidget):
         self.main_layout.addWidget(self.result_label)
         self.main_layout.addLayout(color_row)
         self.main_layout.addWidget(self.table)
+
+        self.setMinimumWidth(540)
 
         #: the FitResult of the last successful run
         self.result: Any = None
@@ -495,5 +498,5 @@ class FitWidget(_TissuefitWidget):
         values = None if choice == CELL_ID else self._choices.get(choice, {})
         _, _, vals = surface_data(self.result.tissue, values)
         layer.vertex_values = vals
-        layer.contrast_limits = contrast_limits(vals)
+        layer.contrast_limits = color_limits(vals, choice)
         layer.metadata["tissuefit_color_by"] = choice
