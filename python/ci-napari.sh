@@ -22,6 +22,9 @@ say() { echo "ci-napari: $*"; }
 PKGS="xvfb xauth libgl1 libegl1 libgl1-mesa-dri libglib2.0-0 libfontconfig1 libdbus-1-3 \
 libxkbcommon-x11-0 libxcb-icccm4 libxcb-image0 libxcb-keysyms1 libxcb-randr0 libxcb-render-util0 \
 libxcb-xinerama0 libxcb-xfixes0 libxcb-shape0 libxcb-cursor0 libxcb-xkb1"
+if ! "$PYTHON" -c "import ensurepip, venv" 2>/dev/null; then
+    PKGS="$PKGS python3-venv"   # Debian's python3 has venv's pip only from this package
+fi
 MISSING=""
 for p in $PKGS; do
     if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
@@ -63,7 +66,7 @@ set +e
 # shellcheck disable=SC2086
 QT_API=pyqt5 xvfb-run -a -s "-screen 0 1280x1024x24" \
     "$VENV/bin/python" -m pytest "$REPO/python/tests/test_napari.py" -v -s -p no:cacheprovider \
-    --rootdir "$REPO/python" ${PYTEST_ARGS:-}
+    --rootdir "$REPO/python" --disable-warnings ${PYTEST_ARGS:-}
 rc=$?
 set -e
 say "pytest exit status $rc"
