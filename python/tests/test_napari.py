@@ -122,6 +122,21 @@ def test_surface_data_matches_cells(demo):
     assert kwargs["contrast_limits"][0] < kwargs["contrast_limits"][1]
 
 
+def test_voxel_size_from_layer_units():
+    from napari.layers import Labels
+
+    layer = Labels(np.zeros((2, 3, 4), np.uint16), scale=(0.5, 0.31, 0.31), name="l")
+    assert _layers.voxel_size_um(layer) == pytest.approx((0.5, 0.31, 0.31))
+    if not hasattr(layer, "units"):
+        pytest.skip("this napari's layers have no units (napari < 0.6)")
+    layer.units = ("nm", "nm", "nm")
+    layer.scale = (500, 310, 310)
+    assert _layers.voxel_size_um(layer) == pytest.approx((0.5, 0.31, 0.31))
+    assert _layers.um_per_layer_unit(layer) == pytest.approx((1e-3, 1e-3, 1e-3))
+    with pytest.raises(ValueError, match="3-D"):
+        _layers.labels_volume(Labels(np.zeros((3, 4), np.uint16), name="flat"))
+
+
 def test_manifest_valid():
     import npe2
 
@@ -167,6 +182,18 @@ def test_mesh_widget_without_labels_says_so(make_napari_viewer, notes):
     w.run()
     assert not w.running
     assert notes and notes[-1][0] == "error" and "Labels layer" in notes[-1][1]
+
+
+def test_mesh_widget_shows_tissuefit_errors(make_napari_viewer, qtbot, notes):
+    viewer = make_napari_viewer()
+    viewer.add_labels(np.zeros((8, 8, 8), np.uint16), scale=(0.31, 0.31, 0.31), name="empty")
+    w = dock(viewer, _widgets.MeshWidget)
+    w.run()
+    wait_run(qtbot, w)
+    assert isinstance(w.last_error, tissuefit.TissuefitError), w.last_error
+    assert notes and notes[-1][0] == "error" and notes[-1][1].startswith("tissuefit error: ")
+    assert not [l for l in viewer.layers if isinstance(l, Surface)]
+    assert w.run_button.isEnabled()
 
 
 # ----------------------------------------------------------------------------- fit widget
