@@ -59,7 +59,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
     if let Some(s) = args.seed {
         config.optimizer.seed = s;
     }
-    let options = FitOptions { resume: args.resume, progress: true, plots: true };
+    let options = FitOptions { resume: args.resume, progress: true, plots: true, ..Default::default() };
     let result = crate::stages::fit::run(&config, crate::stages::fit::Observed::Config, &args.out, &options)
         .with_context(|| format!("fitting {}", args.config.display()))?;
     eprintln!(

@@ -1,7 +1,9 @@
 //! `tissuefit measure TISSUE|LABELS.tif --out DIR [--compare TISSUE|LABELS.tif]`: morphology of a
 //! tissue mesh, or of a label volume measured on its voxels, into `cells.csv`, `contacts.csv` and
 //! `summary.json` (SI units), each written to a temporary name and renamed. With `--compare`, every
-//! cell also gets its IoU and χ = 1 − IoU against the same label of the other input.
+//! cell also gets its IoU and χ = 1 − IoU against the same label of the other input. With
+//! `--zarr-properties` (an OME-Zarr label input), the cells' rows also go into the label image's
+//! NGFF `image-label.properties`, after the files.
 
 use super::label_args::parse_voxel_size;
 use super::{InputArgs, Outcome};
@@ -37,7 +39,7 @@ pub struct MeasureArgs {
         conflicts_with_all = [
             "contact_distance", "distance_contacts", "include_static", "exterior_free_fraction", "length_unit", "orient", "voxel_size",
             "border", "lumen_labels", "min_voxels", "normal_smoothing", "compare", "compare_voxel_size",
-            "zarr_level", "output_unit",
+            "zarr_level", "output_unit", "zarr_properties",
         ]
     )]
     pub config: Option<PathBuf>,
@@ -97,7 +99,7 @@ fn run_stage(tissue: &Path, pipeline: &Path, out: &Path) -> anyhow::Result<Outco
         );
     }
     let started = Instant::now();
-    let mut options = measure_options(&config.measure, &config.output);
+    let mut options = measure_options(&config.measure, &config.input, &config.output);
     // summary.json names the tissue as a run directory does (`../mesh/tissue.vtp`) only where it
     // lies there.
     let beside = out.parent().map(|run| run.join("mesh").join(crate::pipeline::MESH_TISSUE));
@@ -141,6 +143,8 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<Outcome> {
         compare_voxel_size: args.compare_voxel_size,
         input_name: None,
         output_unit: args.output_unit,
+        label_store: None,
+        output_name: None,
     };
     let report = stages::measure::run(&args.tissue, &options, &args.out)?;
     print_summary(&mut std::io::stdout().lock(), &args.tissue, &report.morphology, report.wall_seconds)?;

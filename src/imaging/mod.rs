@@ -9,6 +9,8 @@
 //! - [`read_labels`]: the one reader every command uses; it dispatches by content to the TIFF
 //!   ([`read_label_tiff`], ImageJ/OME voxel sizes), OME-Zarr (`zarr_read.rs`, NGFF multiscales) and
 //!   NumPy `.npy` (`npy_read.rs`) readers. TIFF out: [`write_label_tiff`].
+//! - [`write_label_properties`]: per-label results written back into an OME-Zarr label image's NGFF
+//!   `image-label.properties` (`zarr_properties.rs`), for `tissuefit measure --zarr-properties`.
 //! - [`voxelize`]: closed cell surfaces → labels, by exact ray–triangle crossings along x.
 //! - [`label_overlap`]: per-label IoU and χ = 1 − IoU of two label volumes on one grid.
 //! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate).
@@ -30,6 +32,7 @@ mod tiff_read;
 mod tiff_write;
 mod volume;
 mod voxelize;
+mod zarr_properties;
 mod zarr_read;
 
 pub use error::ImagingError;
@@ -48,3 +51,7 @@ pub use tiff_read::{
 pub use tiff_write::{LabelDtype, LabelWriteOptions, TiffCompression, write_label_tiff};
 pub use volume::{AnisotropyError, LabelInfo, LabelMask, LabelVolume, MAX_ANISOTROPY, VoxelGrid};
 pub use voxelize::{VoxelizeStats, voxelize, voxelize_with_stats};
+pub use zarr_properties::{
+    LABEL_VALUE_KEY, LabelProperties, PROVENANCE_KEY, PropertiesTarget, metadata_for_hash, properties_target, utc_now,
+    write_label_properties,
+};

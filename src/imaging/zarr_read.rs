@@ -40,10 +40,10 @@ const SUPPORTED_CODECS: [&str; 8] =
 type Transforms = (Option<Vec<Real>>, Option<Vec<Real>>);
 
 /// A Zarr group's version and the attributes holding the OME metadata.
-struct Group {
-    zarr_version: u8,
+pub(super) struct Group {
+    pub(super) zarr_version: u8,
     /// v2: `.zattrs`; v3: `attributes.ome` (or `attributes` for a store that skipped the `ome` key).
-    ome: Value,
+    pub(super) ome: Value,
 }
 
 /// Stored label type.
@@ -76,29 +76,8 @@ impl Dtype {
 
 /// Reads an OME-Zarr label image; see the module documentation.
 pub fn read_label_zarr(path: &Path, options: &LabelReadOptions) -> Result<LabelRead, ImagingError> {
-    let named_file = path.file_name().and_then(|n| n.to_str()).is_some_and(|n| ZARR_METADATA_FILES.contains(&n));
-    let root = if named_file {
-        match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        }
-    } else {
-        path.to_path_buf()
-    };
-    if root.exists() && !root.is_dir() {
-        return Err(ImagingError::Zarr {
-            path: root,
-            message: "is a file; an OME-Zarr store is a folder (give the .zarr folder of the image or label group)"
-                .into(),
-        });
-    }
-    if !root.is_dir() {
-        let source =
-            std::io::Error::new(std::io::ErrorKind::NotFound, "no such folder (an OME-Zarr store is a folder)");
-        return Err(ImagingError::Open { path: root, source });
-    }
     let mut warnings = Vec::new();
-    let (root, group) = find_multiscales(&root, &mut warnings)?;
+    let (root, group) = label_image_group(path, &mut warnings)?;
     let bad = |message: String| ImagingError::Zarr { path: root.clone(), message };
     let key = if group.zarr_version == 2 { ".zattrs" } else { "zarr.json attributes.ome" };
     let list = group.ome["multiscales"].as_array().ok_or_else(|| bad(format!("{key}: `multiscales` is not a list")))?;
@@ -253,6 +232,34 @@ pub fn read_label_zarr(path: &Path, options: &LabelReadOptions) -> Result<LabelR
         compression: 0,
         warnings,
     })
+}
+
+/// The multiscales group that `path` names (the store folder, or one of its metadata files), with
+/// its Zarr version and OME attributes: the label image read by [`read_label_zarr`] and written to
+/// by [`super::zarr_properties`], following a `labels` group that lists one image.
+pub(super) fn label_image_group(path: &Path, warnings: &mut Vec<String>) -> Result<(PathBuf, Group), ImagingError> {
+    let named_file = path.file_name().and_then(|n| n.to_str()).is_some_and(|n| ZARR_METADATA_FILES.contains(&n));
+    let root = if named_file {
+        match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        }
+    } else {
+        path.to_path_buf()
+    };
+    if root.exists() && !root.is_dir() {
+        return Err(ImagingError::Zarr {
+            path: root,
+            message: "is a file; an OME-Zarr store is a folder (give the .zarr folder of the image or label group)"
+                .into(),
+        });
+    }
+    if !root.is_dir() {
+        let source =
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no such folder (an OME-Zarr store is a folder)");
+        return Err(ImagingError::Open { path: root, source });
+    }
+    find_multiscales(&root, warnings)
 }
 
 /// The group at `root` with its `multiscales`, following a `labels` group that lists one image.

@@ -57,8 +57,10 @@ use super::config::{ForwardConfig, ObjectiveConfig};
 use super::space::ParameterSpace;
 use crate::geometry::{Real, Vec3};
 use crate::imaging::{LabelVolume, label_overlap, voxelize};
-use crate::io::Heartbeat;
-use crate::mechanics::{CellTypeParams, NoObserver, Observer, Parameters, Simulation, SimulationSummary};
+use crate::io::{Heartbeat, Watch};
+use crate::mechanics::{
+    CellTypeParams, CheckpointRequest, NoObserver, Observer, Parameters, Simulation, SimulationSummary,
+};
 use crate::mesh::Tissue;
 use crate::meshing::{LabelMeshingOptions, mesh_labels};
 use crate::morphology::{MeasureSettings, measure_tissue};
@@ -321,12 +323,17 @@ pub struct ForwardModel {
     /// Lines in a log while an evaluation's relaxation runs (none by default; the fit turns it on
     /// with its progress, so that a log shows an evaluation of many minutes is alive).
     pub heartbeat: Option<Heartbeat>,
+    /// A caller's stop request: a relaxation in progress ends at its step (the evaluation is then
+    /// not recorded, see [`super::Evaluator::evaluate_batch`]).
+    pub watch: Watch,
 }
 
 /// The observer of an evaluation's relaxation: a [`Heartbeat`] line (the point, step, residual)
-/// when one is due; it looks at the clock every [`BEAT_STEPS`] steps only.
+/// when one is due (it looks at the clock every [`BEAT_STEPS`] steps only), and a stop at the end of
+/// the step once the caller's [`Watch`] is stopped.
 struct EvaluationBeat<'a> {
-    heartbeat: &'a Heartbeat,
+    heartbeat: Option<&'a Heartbeat>,
+    watch: &'a Watch,
     point: &'a str,
     max_steps: u64,
 }
@@ -340,14 +347,24 @@ impl Observer for EvaluationBeat<'_> {
     }
 
     fn progress(&mut self, step: u64, residual: Real) {
-        if step.is_multiple_of(BEAT_STEPS) {
-            self.heartbeat.beat(|| {
-                format!(
-                    "evaluation at {} running: step {step} of at most {} per pass, residual {residual:.3e}",
-                    self.point, self.max_steps
-                )
-            });
+        if !step.is_multiple_of(BEAT_STEPS) {
+            return;
         }
+        let message = || {
+            format!(
+                "evaluation at {} running: step {step} of at most {} per pass, residual {residual:.3e}",
+                self.point, self.max_steps
+            )
+        };
+        if let Some(heartbeat) = self.heartbeat {
+            heartbeat.beat(message);
+        }
+        // A caller listening (the Python API) hears it too, and can stop the fit from here.
+        self.watch.tick("fit", step, self.max_steps, "step", message);
+    }
+
+    fn checkpoint_due(&mut self, _step: u64) -> CheckpointRequest {
+        if self.watch.stopped() { CheckpointRequest::SaveAndStop } else { CheckpointRequest::No }
     }
 }
 
@@ -377,7 +394,7 @@ impl ForwardModel {
             base.numerics.contact_cutoff = l;
         }
         base.validate().map_err(|e| super::InferenceError::Config(format!("model: {e}")))?;
-        Ok(Self { observation, base, space, objective, forward, heartbeat: None })
+        Ok(Self { observation, base, space, objective, forward, heartbeat: None, watch: Watch::default() })
     }
 
     /// Scores simulated metrics against the observed ones (see the module doc).
@@ -434,19 +451,19 @@ impl ForwardModel {
         if let Err(e) = params.validate() {
             return (failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default()), None);
         }
-        let relaxed = match &self.heartbeat {
-            Some(heartbeat) if heartbeat.is_on() => {
-                // The fitted parameters (the fixed ones come first in the list).
-                let values = self.space.parameter_values(&x);
-                let point = values[values.len() - x.len()..]
-                    .iter()
-                    .map(|(p, v)| format!("{} = {v:.4e}", p.name()))
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                let max_steps = params.simulation.max_steps;
-                self.relax(&params, start, &mut EvaluationBeat { heartbeat, point: &point, max_steps })
-            }
-            _ => self.relax(&params, start, &mut NoObserver),
+        let heartbeat = self.heartbeat.as_ref().filter(|h| h.is_on());
+        let relaxed = if heartbeat.is_some() || self.watch.is_on() {
+            // The fitted parameters (the fixed ones come first in the list).
+            let values = self.space.parameter_values(&x);
+            let point = values[values.len() - x.len()..]
+                .iter()
+                .map(|(p, v)| format!("{} = {v:.4e}", p.name()))
+                .collect::<Vec<_>>()
+                .join(", ");
+            let max_steps = params.simulation.max_steps;
+            self.relax(&params, start, &mut EvaluationBeat { heartbeat, watch: &self.watch, point: &point, max_steps })
+        } else {
+            self.relax(&params, start, &mut NoObserver)
         };
         let (tissue, summary) = match relaxed {
             Ok(r) => r,

@@ -36,11 +36,11 @@ pub use config::{
 pub use forward::{
     Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metric, Metrics, Observation, Status, shift_offset,
 };
-pub use optimise::{BOUND_PENALTY, BudgetSpent, Evaluator, OptimiserOutcome, optimise};
+pub use optimise::{BOUND_PENALTY, Evaluator, Halt, OptimiserOutcome, optimise};
 pub use plot::{plot_landscape, plot_objective};
 pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};
 pub use result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
-pub use run::{FitOptions, load_observation, run_fit, run_fit_observed};
+pub use run::{FitOptions, load_observation, observe_labels, run_fit, run_fit_observed};
 pub use space::{FitParameter, FittedParameter, PARAMETER_NAMES, ParameterSpace};
 pub use trace::{read_trace, recorded_elapsed_seconds, write_trace};
 
@@ -61,4 +61,8 @@ pub enum InferenceError {
     /// fitted value, only the failures' summary and what to change.
     #[error("the fit failed: {0}")]
     Failed(String),
+    /// The caller stopped the fit ([`crate::io::Watch::stop`]): the finished evaluations are in the
+    /// trace, from which the fit resumes.
+    #[error("stopped by the caller; the finished evaluations are in trace.csv, resume the fit to go on")]
+    Stopped,
 }

@@ -27,10 +27,15 @@ use std::time::Instant;
 /// Objective charged per squared log-unit a Nelder–Mead point lies outside the bounds.
 pub const BOUND_PENALTY: Real = 100.0;
 
-/// The budget of distinct evaluations is spent (a normal way for a fit to end).
-#[derive(Debug, thiserror::Error)]
-#[error("evaluation budget of {0} spent")]
-pub struct BudgetSpent(pub usize);
+/// Why the evaluator refused a batch: the budget of distinct evaluations is spent (a normal way for
+/// a fit to end), or the caller stopped the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum Halt {
+    #[error("evaluation budget of {0} spent")]
+    BudgetSpent(usize),
+    #[error("stopped by the caller")]
+    Stopped,
+}
 
 type Key = Vec<u64>;
 
@@ -110,9 +115,13 @@ impl<'a> Evaluator<'a> {
     }
 
     /// Evaluates a batch of log points (clamped first); results in order. With `charge_budget`
-    /// false (the profile) the budget is not enforced. Errs with [`BudgetSpent`] when some point
-    /// would exceed the budget (the points before it are evaluated and recorded).
-    pub fn evaluate_batch(&self, xs: &[Vec<Real>], charge_budget: bool) -> Result<Vec<Evaluation>, BudgetSpent> {
+    /// false (the profile) the budget is not enforced. Errs with [`Halt::BudgetSpent`] when some point
+    /// would exceed the budget (the points before it are evaluated and recorded), and with
+    /// [`Halt::Stopped`] when the model's watch was stopped before or during a batch that needs new
+    /// simulations (nothing of the batch is recorded then: an evaluation cut short is no evaluation);
+    /// points already in the trace are still answered (argmin's Nelder–Mead panics on an error while
+    /// it reads its initial simplex, which is always in the trace).
+    pub fn evaluate_batch(&self, xs: &[Vec<Real>], charge_budget: bool) -> Result<Vec<Evaluation>, Halt> {
         let clamped: Vec<Vec<Real>> = xs.iter().map(|x| self.model.space.clamp(x).0).collect();
         let mut pending: Vec<Vec<Real>> = Vec::new();
         let mut pending_keys: HashMap<Key, usize> = HashMap::new();
@@ -146,7 +155,13 @@ impl<'a> Evaluator<'a> {
                 pending.push(x.clone());
             }
         }
+        if !pending.is_empty() && self.model.watch.stopped() {
+            return Err(Halt::Stopped);
+        }
         let results: Vec<Evaluation> = pending.par_iter().map(|x| self.model.evaluate(x)).collect();
+        if !pending.is_empty() && self.model.watch.stopped() {
+            return Err(Halt::Stopped);
+        }
         let out = {
             let mut store = self.store.lock().expect("evaluator lock");
             store.simulated += results.len();
@@ -160,11 +175,11 @@ impl<'a> Evaluator<'a> {
             (self.on_record)(&store.trace);
             clamped[..accepted].iter().map(|x| store.trace[store.index[&key(x)]].clone()).collect()
         };
-        if spent { Err(BudgetSpent(self.budget)) } else { Ok(out) }
+        if spent { Err(Halt::BudgetSpent(self.budget)) } else { Ok(out) }
     }
 
     /// Objective at `x` as Nelder–Mead sees it: the clamped point's objective plus the bound penalty.
-    fn penalised(&self, xs: &[Vec<Real>]) -> Result<Vec<Real>, BudgetSpent> {
+    fn penalised(&self, xs: &[Vec<Real>]) -> Result<Vec<Real>, Halt> {
         let evals = self.evaluate_batch(xs, true)?;
         Ok(xs.iter().zip(evals).map(|(x, e)| e.objective + BOUND_PENALTY * self.model.space.clamp(x).1).collect())
     }
@@ -240,8 +255,10 @@ pub fn optimise(evaluator: &Evaluator<'_>, config: &OptimizerConfig) -> Result<O
             loop {
                 let simplex = initial_simplex(&center, fraction, &lo, &hi);
                 // The initial simplex is independent: evaluate it in parallel, the solver then hits the cache.
-                if let Err(spent) = evaluator.evaluate_batch(&simplex, true) {
-                    return Ok(OptimiserOutcome { converged: false, reason: spent.to_string() });
+                match evaluator.evaluate_batch(&simplex, true) {
+                    Err(Halt::Stopped) => return Err(InferenceError::Stopped),
+                    Err(spent) => return Ok(OptimiserOutcome { converged: false, reason: spent.to_string() }),
+                    Ok(_) => {}
                 }
                 let solver = NelderMead::new(simplex)
                     .with_sd_tolerance(config.tolerance)
@@ -303,7 +320,9 @@ pub fn optimise(evaluator: &Evaluator<'_>, config: &OptimizerConfig) -> Result<O
             Ok(OptimiserOutcome { converged, reason: reason.unwrap_or_else(|| "stopped".into()) })
         }
         Err(e) => {
-            if let Some(spent) = e.downcast_ref::<BudgetSpent>() {
+            if let Some(Halt::Stopped) = e.downcast_ref::<Halt>() {
+                Err(InferenceError::Stopped)
+            } else if let Some(spent) = e.downcast_ref::<Halt>() {
                 Ok(OptimiserOutcome { converged: false, reason: spent.to_string() })
             } else {
                 Err(InferenceError::Optimiser(e.to_string()))

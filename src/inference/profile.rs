@@ -31,6 +31,7 @@
 //! profile would find correlated with another; the ratio and scale directions cover the correlations
 //! the physics predicts.
 
+use super::InferenceError;
 use super::config::ProfileConfig;
 use super::optimise::Evaluator;
 use crate::geometry::Real;
@@ -154,17 +155,17 @@ pub fn ratio_parts(names: &[String]) -> Vec<(&'static str, &'static str, &'stati
 }
 
 /// Probes every direction through `best` and returns the slices (parameters, scale, ratios) and
-/// the noise floor at the optimum.
+/// the noise floor at the optimum; [`InferenceError::Stopped`] when the caller stopped the fit.
 pub fn profile(
     evaluator: &Evaluator<'_>,
     best: &[Real],
     best_objective: Real,
     config: &ProfileConfig,
-) -> (Vec<Slice>, NoiseFloor) {
+) -> Result<(Vec<Slice>, NoiseFloor), InferenceError> {
     let space = &evaluator.model().space;
     let n = space.dim();
     if config.points == 0 {
-        return (Vec::new(), NoiseFloor::estimate(best_objective, &[], config));
+        return Ok((Vec::new(), NoiseFloor::estimate(best_objective, &[], config)));
     }
     let fitted: Vec<String> = space.fitted.iter().map(|p| p.name().to_string()).collect();
     let mut dirs: Vec<Direction> = (0..n)
@@ -209,10 +210,8 @@ pub fn profile(
     for k in 1..=config.noise_replicates {
         points.push(best.iter().zip(&sign).map(|(b, s)| b + s * k as Real * NOISE_STEP).collect());
     }
-    let evals = match evaluator.evaluate_batch(&points, false) {
-        Ok(e) => e,
-        Err(_) => unreachable!("profile points are not charged to the budget"),
-    };
+    // Profile points are not charged to the budget: only a stop refuses them.
+    let evals = evaluator.evaluate_batch(&points, false).map_err(|_| InferenceError::Stopped)?;
     let replicates: Vec<(Real, bool, String)> =
         evals[probes..].iter().map(|e| (e.objective, e.status.usable(), e.reason.clone())).collect();
     let noise = NoiseFloor::estimate(best_objective, &replicates, config);
@@ -242,7 +241,7 @@ pub fn profile(
             Slice { name, offsets: xs, objectives: ys, lower, upper, noise_lower, noise_upper }
         })
         .collect();
-    (slices, noise)
+    Ok((slices, noise))
 }
 
 /// Where the objective first crosses `threshold` walking from the optimum (index `mid`) through

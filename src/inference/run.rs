@@ -10,11 +10,11 @@ use super::space::{FitParameter, ParameterSpace};
 use super::trace::{read_trace, write_trace};
 use super::{InferenceError, plot};
 use crate::geometry::Real;
-use crate::imaging::read_labels;
-use crate::io::{Heartbeat, LengthScale, Progress, ReadOptions, read_tissue, write_bytes_atomically};
+use crate::imaging::{LabelVolume, read_labels};
+use crate::io::{Heartbeat, LengthScale, Progress, ReadOptions, Watch, read_tissue, write_bytes_atomically};
 use crate::mechanics::{ContactModel, Polarity};
 use crate::mesh::{CellKind, FaceType};
-use crate::meshing::{mesh_labels, retriangulate};
+use crate::meshing::{LabelMeshingOptions, mesh_labels, retriangulate};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Mutex;
@@ -32,6 +32,9 @@ pub struct FitOptions {
     pub progress: bool,
     /// Write the PNG plots. Default false here; the CLI turns them on.
     pub plots: bool,
+    /// A caller's listener and stop request (the Python API): hears each evaluation; stopping it
+    /// ends the fit with [`InferenceError::Stopped`] after the trace is written.
+    pub watch: Watch,
 }
 
 /// Reads the observed input (meshing a label volume first) and measures it.
@@ -61,18 +64,27 @@ pub fn load_observation(config: &FitConfig) -> Result<Observation, InferenceErro
     for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }
-    let mut options = obs.meshing.clone();
-    let meshed = mesh_labels(&read.volume, &options)
-        .map_err(|e| InferenceError::Observed(format!("meshing {}: {e}", path.display())))?;
+    observe_labels(read.volume, &obs.meshing, &path.display().to_string())
+}
+
+/// The observation of a label volume: meshed with `meshing`, the simulations later measured like
+/// it (the same options with the l_min the meshing used). `name` names the volume in messages.
+pub fn observe_labels(
+    volume: LabelVolume,
+    meshing: &LabelMeshingOptions,
+    name: &str,
+) -> Result<Observation, InferenceError> {
+    let mut options = meshing.clone();
+    let meshed =
+        mesh_labels(&volume, &options).map_err(|e| InferenceError::Observed(format!("meshing {name}: {e}")))?;
     for r in meshed.report.iter().filter(|r| r.reason.is_some()) {
-        tracing::info!("{}: label {}: {:?}: {}", path.display(), r.label, r.status, r.reason.as_deref().unwrap_or(""));
+        tracing::info!("{name}: label {}: {:?}: {}", r.label, r.status, r.reason.as_deref().unwrap_or(""));
     }
     if meshed.tissue.is_empty() {
-        return Err(InferenceError::Observed(format!("{}: no label could be meshed", path.display())));
+        return Err(InferenceError::Observed(format!("{name}: no label could be meshed")));
     }
-    // Simulations are measured like the data: the same options with the l_min actually used.
     options.l_min = meshed.l_min;
-    Observation::new(meshed.tissue, Some(read.volume), Some(options))
+    Observation::new(meshed.tissue, Some(volume), Some(options))
 }
 
 /// The best evaluation of a trace slice (lowest objective, earliest on ties).
@@ -126,6 +138,7 @@ pub fn run_fit_observed(
     let mut model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())?;
     // A log (stderr not a terminal) also hears from inside an evaluation of many minutes.
     model.heartbeat = Some(Heartbeat::new("fit", options.progress));
+    model.watch = options.watch.clone();
     check_fitted_parameters_act(&model)?;
     std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
     let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;
@@ -142,7 +155,8 @@ pub fn run_fit_observed(
             "evaluation",
             "{elapsed_precise} [{wide_bar}] {pos}/{len} evaluations, {msg}",
             options.progress,
-        ),
+        )
+        .with_watch(options.watch.clone()),
         0usize,
     ));
     let write_error: Mutex<Option<InferenceError>> = Mutex::new(None);
@@ -170,7 +184,8 @@ pub fn run_fit_observed(
         *shown = trace.len();
     };
     let evaluator = Evaluator::new(&model, budget, preloaded, Box::new(on_record), started);
-    let outcome = optimise(&evaluator, &config.optimizer)?;
+    // A stopped fit's trace holds every finished evaluation already (each batch is written as it ends).
+    let outcome = optimise(&evaluator, &config.optimizer).inspect_err(|_| progress.lock().expect("lock").0.finish())?;
     let trace = evaluator.trace();
     let evaluations = trace.len();
     let best = best_of(&trace).cloned().ok_or_else(|| InferenceError::Optimiser("no evaluation was made".into()))?;
@@ -183,7 +198,8 @@ pub fn run_fit_observed(
     }
     progress.lock().expect("lock").0.set_message(format!("best objective {:.4e}; profiling", best.objective));
     let (slices, noise) = if best.status.usable() {
-        let (slices, noise) = profile(&evaluator, &best.x, best.objective, &config.profile);
+        let (slices, noise) = profile(&evaluator, &best.x, best.objective, &config.profile)
+            .inspect_err(|_| progress.lock().expect("lock").0.finish())?;
         (slices, Some(noise))
     } else {
         (Vec::new(), None)
@@ -196,6 +212,9 @@ pub fn run_fit_observed(
     }
     // The best point relaxed once more for its tissue (best.vtp), with its model and residuals.
     let best_relaxation = write_best_outputs(&model, &best, out)?;
+    if model.watch.stopped() {
+        return Err(InferenceError::Stopped);
+    }
     let result = assemble(
         &model,
         config,

@@ -23,7 +23,9 @@ pub use checkpoint::{
 pub use error::IoError;
 pub use legacy_tissue::TissueFormat;
 pub use legacy_write::write_simucell3d;
-pub use progress::{DEFAULT_LINE_SECONDS, Heartbeat, LINE_SECONDS_VARIABLE, Progress, line_interval, set_quiet};
+pub use progress::{
+    DEFAULT_LINE_SECONDS, Heartbeat, LINE_SECONDS_VARIABLE, Progress, Report, Watch, line_interval, set_quiet,
+};
 pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue, write_tissue_in};
 pub use simulation_output::{SimulationRecorder, write_events};

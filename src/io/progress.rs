@@ -12,8 +12,8 @@
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// Seconds between two progress lines of [`Progress::update`] by default.
@@ -61,6 +61,8 @@ pub struct Progress {
     every: Duration,
     last: Option<Instant>,
     started: Instant,
+    /// A caller's listener (the Python API), told of every update whether or not anything is shown.
+    watch: Watch,
 }
 
 impl Progress {
@@ -84,7 +86,14 @@ impl Progress {
             every: line_interval(),
             last: None,
             started: Instant::now(),
+            watch: Watch::default(),
         }
+    }
+
+    /// Also tells `watch` of every update, line and message (see [`Watch`]).
+    pub fn with_watch(mut self, watch: Watch) -> Self {
+        self.watch = watch;
+        self
     }
 
     /// A display of a simulation's `len` steps.
@@ -104,10 +113,14 @@ impl Progress {
     /// is due.
     pub fn update(&mut self, position: u64, message: impl FnOnce() -> String) {
         let due = self.lines && self.last.is_none_or(|t| t.elapsed() >= self.every);
-        if self.bar.is_hidden() && !due {
+        let heard = self.watch.due();
+        if self.bar.is_hidden() && !due && !heard {
             return;
         }
         let message = message();
+        if heard {
+            self.watch.report(&self.label, position, self.len, self.unit, &message);
+        }
         if due {
             self.write(position, &message);
         }
@@ -120,12 +133,14 @@ impl Progress {
         if self.lines {
             self.write(position, message);
         }
+        self.watch.report(&self.label, position, self.len, self.unit, message);
         self.bar.set_position(position.min(self.len));
         self.bar.set_message(message.to_string());
     }
 
-    /// Sets the bar's message only (no line).
+    /// Sets the bar's message only (no line; a watch hears it at the bar's position).
     pub fn set_message(&self, message: String) {
+        self.watch.report(&self.label, self.bar.position(), self.len, self.unit, &message);
         self.bar.set_message(message);
     }
 
@@ -188,5 +203,140 @@ impl Heartbeat {
         }
         eprintln!("{}: {}; {:.1} s", self.label, message(), self.started.elapsed().as_secs_f64());
         *last = Instant::now();
+    }
+}
+
+/// What a [`Watch`] hears: the work (a [`Progress`]'s label, e.g. "fit" or "simulate tissue.vtp"),
+/// how far it got in its unit, and the message a bar would show.
+#[derive(Clone, Copy, Debug)]
+pub struct Report<'a> {
+    pub label: &'a str,
+    pub done: u64,
+    pub total: u64,
+    /// "step", "evaluation", "label".
+    pub unit: &'a str,
+    pub message: &'a str,
+}
+
+/// A caller's hold on long work that it does not display itself (the Python API, a napari
+/// widget): its listener hears every update of the work's [`Progress`] displays (from the thread
+/// doing the work, at most every [`Watch::EVERY`], and every fit evaluation), and the caller can ask
+/// the work to stop: a listener that returns `false`, or [`Watch::stop`]. The work looks at
+/// [`Watch::stopped`] where it can stop cleanly (a simulation at the end of a step, a fit before
+/// and during each evaluation) and ends with its "stopped" error. The default watch hears nothing
+/// and never stops.
+#[derive(Clone, Default)]
+pub struct Watch(Option<Arc<WatchInner>>);
+
+type Listener = Box<dyn Fn(&Report<'_>) -> bool + Send + Sync>;
+
+struct WatchInner {
+    listener: Listener,
+    stop: AtomicBool,
+    last: Mutex<Option<Instant>>,
+}
+
+impl std::fmt::Debug for Watch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.0 {
+            Some(inner) => write!(f, "Watch(stopped: {})", inner.stop.load(Ordering::SeqCst)),
+            None => f.write_str("Watch(none)"),
+        }
+    }
+}
+
+impl Watch {
+    /// The least time between two reports of [`Progress::update`] (a fit's per-evaluation lines
+    /// always reach the listener).
+    pub const EVERY: Duration = Duration::from_millis(200);
+
+    /// A watch whose `listener` returns whether the work may go on.
+    pub fn new(listener: impl Fn(&Report<'_>) -> bool + Send + Sync + 'static) -> Self {
+        Self(Some(Arc::new(WatchInner {
+            listener: Box::new(listener),
+            stop: AtomicBool::new(false),
+            last: Mutex::new(None),
+        })))
+    }
+
+    /// Whether anyone listens.
+    pub fn is_on(&self) -> bool {
+        self.0.is_some()
+    }
+
+    /// Asks the work to stop at its next clean point.
+    pub fn stop(&self) {
+        if let Some(inner) = &self.0 {
+            inner.stop.store(true, Ordering::SeqCst);
+        }
+    }
+
+    /// Whether the work was asked to stop.
+    pub fn stopped(&self) -> bool {
+        self.0.as_ref().is_some_and(|inner| inner.stop.load(Ordering::SeqCst))
+    }
+
+    /// Whether a rate-limited update is due (its message is then worth building).
+    fn due(&self) -> bool {
+        let Some(inner) = &self.0 else { return false };
+        inner.last.lock().map(|last| last.is_none_or(|t| t.elapsed() >= Self::EVERY)).unwrap_or(false)
+    }
+
+    /// Tells the listener when a rate-limited report is due ([`Watch::EVERY`]), with `message`
+    /// built only then.
+    pub fn tick(&self, label: &str, done: u64, total: u64, unit: &str, message: impl FnOnce() -> String) {
+        if self.due() {
+            self.report(label, done, total, unit, &message());
+        }
+    }
+
+    /// Tells the listener; its `false` stops the work.
+    pub fn report(&self, label: &str, done: u64, total: u64, unit: &str, message: &str) {
+        let Some(inner) = &self.0 else { return };
+        if let Ok(mut last) = inner.last.lock() {
+            *last = Some(Instant::now());
+        }
+        if !(inner.listener)(&Report { label, done, total, unit, message }) {
+            inner.stop.store(true, Ordering::SeqCst);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicU64;
+
+    #[test]
+    fn a_watch_hears_a_progress_display_and_its_listener_can_stop_the_work() {
+        let heard = Arc::new(AtomicU64::new(0));
+        let h = heard.clone();
+        let watch = Watch::new(move |r| {
+            assert_eq!((r.label, r.total, r.unit), ("work", 10, "step"));
+            h.fetch_add(1, Ordering::SeqCst);
+            r.done < 5
+        });
+        // A display that shows nothing (no bar, no lines) still tells its watch.
+        let mut progress = Progress::new("work", 10, "step", "{pos}", false).with_watch(watch.clone());
+        progress.update(1, || "first".into());
+        assert_eq!(heard.load(Ordering::SeqCst), 1);
+        // Updates closer together than Watch::EVERY are not passed on; lines always are.
+        progress.update(2, || panic!("the message of an update nobody hears is not built"));
+        assert_eq!(heard.load(Ordering::SeqCst), 1);
+        assert!(!watch.stopped());
+        progress.line(7, "an evaluation finished");
+        assert_eq!(heard.load(Ordering::SeqCst), 2);
+        assert!(watch.stopped(), "the listener's false stops the work");
+    }
+
+    #[test]
+    fn the_default_watch_hears_nothing_and_never_stops() {
+        let watch = Watch::default();
+        assert!(!watch.is_on());
+        watch.report("work", 1, 2, "step", "m");
+        watch.tick("work", 1, 2, "step", || panic!("not built"));
+        watch.stop();
+        assert!(!watch.stopped());
+        assert_eq!(format!("{watch:?}"), "Watch(none)");
     }
 }

@@ -452,7 +452,7 @@ pub fn generate_tissue(spec: &TissueSpec) -> Result<GeneratedTissue, GenerateErr
         seed: spec.seed,
         ..Default::default()
     };
-    let meshing = mesh_cells_and_nuclei(&volume, None, &options, &|_| {})?;
+    let meshing = mesh_cells_and_nuclei(&volume, None, &options, &|_| true)?;
     let expected_labels = n as usize + usize::from(layout.lumen);
     if let Some(r) = meshing.report.iter().find(|r| r.status == LabelStatus::Dropped) {
         let what = if r.label > n { "the lumen" } else { "cell" };

@@ -36,6 +36,7 @@ use crate::mesh::{Cell, CellId, CellKind, Tissue, TissueError};
 use ndarray::Axis;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Background voxels around each label's bounding box in the mask given to the mesher.
 pub const MASK_MARGIN: usize = 2;
@@ -97,6 +98,8 @@ pub enum LabelMeshingError {
     NucleiGrid { reason: String },
     #[error("nucleus label {label} + the largest cell label {offset} exceeds the largest cell id {max}")]
     NucleusIdOverflow { label: u32, offset: u32, max: u32 },
+    #[error("stopped by the caller before every label was meshed")]
+    Stopped,
     #[error(transparent)]
     Tissue(#[from] TissueError),
     #[error(transparent)]
@@ -206,14 +209,16 @@ pub fn label_seed(seed: u64, label: u32) -> u64 {
 
 /// Meshes every label of `volume`; see the module documentation.
 pub fn mesh_labels(volume: &LabelVolume, options: &LabelMeshingOptions) -> Result<LabelMeshing, LabelMeshingError> {
-    mesh_cells_and_nuclei(volume, None, options, &|_| {})
+    mesh_cells_and_nuclei(volume, None, options, &|_| true)
 }
 
-/// [`mesh_labels`], calling `on_label(label)` (from a worker thread) as each label is finished.
+/// [`mesh_labels`], calling `on_label(label)` (from a worker thread) as each label is finished; when
+/// it returns `false` the labels not yet started are left and the meshing ends with
+/// [`LabelMeshingError::Stopped`].
 pub fn mesh_labels_with_progress(
     volume: &LabelVolume,
     options: &LabelMeshingOptions,
-    on_label: &(dyn Fn(u32) + Sync),
+    on_label: &(dyn Fn(u32) -> bool + Sync),
 ) -> Result<LabelMeshing, LabelMeshingError> {
     mesh_cells_and_nuclei(volume, None, options, on_label)
 }
@@ -224,12 +229,13 @@ pub fn mesh_labels_with_progress(
 /// `min_voxels` voxels, when most of it lies in background, when its host was not meshed or is not a
 /// cell (a lumen), when it cannot be meshed, or when its mesh's centroid is not inside the host's
 /// surface (the simulation finds a nucleus's host by that centroid). Nuclei use the cells' l_min (and
-/// the same refinement); their seeds differ from the cells'. `on_label` is called for cells and nuclei.
+/// the same refinement); their seeds differ from the cells'. `on_label` is called for cells and nuclei;
+/// its `false` stops the meshing ([`LabelMeshingError::Stopped`]).
 pub fn mesh_cells_and_nuclei(
     volume: &LabelVolume,
     nuclei: Option<&LabelVolume>,
     options: &LabelMeshingOptions,
-    on_label: &(dyn Fn(u32) + Sync),
+    on_label: &(dyn Fn(u32) -> bool + Sync),
 ) -> Result<LabelMeshing, LabelMeshingError> {
     if let Some(l_min) = options.l_min
         && !(l_min.is_finite() && l_min > 0.0)
@@ -270,17 +276,26 @@ pub fn mesh_cells_and_nuclei(
         }
     };
 
-    let results: Vec<(LabelReport, Option<Cell>)> = stats
+    let go_on = AtomicBool::new(true);
+    let results: Vec<Option<(LabelReport, Option<Cell>)>> = stats
         .par_iter()
         .map(|info| {
+            if !go_on.load(Ordering::Relaxed) {
+                return None;
+            }
             let result = mesh_one(volume, info, options, skip_reason(info), l_min);
-            on_label(info.label);
-            result
+            if !on_label(info.label) {
+                go_on.store(false, Ordering::Relaxed);
+            }
+            Some(result)
         })
         .collect();
+    if !go_on.load(Ordering::Relaxed) {
+        return Err(LabelMeshingError::Stopped);
+    }
     let mut cells = Vec::new();
     let mut report = Vec::with_capacity(results.len());
-    for (r, cell) in results {
+    for (r, cell) in results.into_iter().flatten() {
         report.push(r);
         cells.extend(cell);
     }
@@ -356,7 +371,7 @@ fn mesh_nuclei(
     options: &LabelMeshingOptions,
     l_min: Option<Real>,
     offset: u32,
-    on_label: &(dyn Fn(u32) + Sync),
+    on_label: &(dyn Fn(u32) -> bool + Sync),
 ) -> Result<(Vec<LabelReport>, Vec<Cell>), LabelMeshingError> {
     let mut stats = nuclei.label_stats();
     stats.sort_by_key(|s| s.label);
@@ -367,9 +382,13 @@ fn mesh_nuclei(
     }
     let votes = host_votes(volume, nuclei);
     let nucleus_options = LabelMeshingOptions { seed: !options.seed, ..options.clone() };
-    let results: Vec<(LabelReport, Option<Cell>)> = stats
+    let go_on = AtomicBool::new(true);
+    let results: Vec<Option<(LabelReport, Option<Cell>)>> = stats
         .par_iter()
         .map(|info| {
+            if !go_on.load(Ordering::Relaxed) {
+                return None;
+            }
             let ranked = votes.get(&info.label).map(Vec::as_slice).unwrap_or(&[]);
             let (host_label, host_voxels) = ranked.first().copied().unwrap_or((0, 0));
             let share = host_voxels as Real / info.voxels.max(1) as Real;
@@ -386,12 +405,14 @@ fn mesh_nuclei(
                 None
             };
             let (mut report, cell) = mesh_one(nuclei, info, &nucleus_options, skip, l_min);
-            on_label(info.label);
+            if !on_label(info.label) {
+                go_on.store(false, Ordering::Relaxed);
+            }
             report.kind = report.kind.map(|_| CellKind::Nucleus);
             if host_label != 0 {
                 report.host = Some(host_label);
             }
-            let Some(cell) = cell else { return (report, None) };
+            let Some(cell) = cell else { return Some((report, None)) };
             let host = host.expect("a meshed nucleus has a host");
             let centroid = cell.mesh().volume_centroid();
             if !centroid.is_some_and(|c| host.mesh().winding_number(&c) > 0.5) {
@@ -399,7 +420,7 @@ fn mesh_nuclei(
                     &mut report,
                     format!("its centroid is not inside the surface of its host, label {host_label}"),
                 );
-                return (report, None);
+                return Some((report, None));
             }
             let id = CellId(info.label + offset);
             report.nodes_outside_host =
@@ -407,12 +428,15 @@ fn mesh_nuclei(
             report.cell_id = Some(id.0);
             report.status = LabelStatus::Kept;
             report.reason = None;
-            (report, Some(Cell::new(id, CellKind::Nucleus, cell_type_of(CellKind::Nucleus), cell.mesh().clone())))
+            Some((report, Some(Cell::new(id, CellKind::Nucleus, cell_type_of(CellKind::Nucleus), cell.mesh().clone()))))
         })
         .collect();
+    if !go_on.load(Ordering::Relaxed) {
+        return Err(LabelMeshingError::Stopped);
+    }
     let mut reports = Vec::with_capacity(results.len());
     let mut kept = Vec::new();
-    for (r, cell) in results {
+    for (r, cell) in results.into_iter().flatten() {
         reports.push(r);
         kept.extend(cell);
     }

@@ -306,6 +306,19 @@ impl PipelineConfig {
                 return Err(PipelineError::Config(format!("{origin}: {key}: {} does not exist", file.display())));
             }
         }
+        if config.measure.zarr_properties
+            && let Some(labels) = &config.input.labels
+        {
+            let format = crate::imaging::detect_label_format(labels);
+            if format != Some(crate::imaging::LabelFormat::OmeZarr) {
+                let what = format.map_or_else(|| "not an OME-Zarr store".to_string(), |f| format!("a {f} file"));
+                return Err(PipelineError::Config(format!(
+                    "{origin}: measure.zarr_properties: writes the measured cells into an OME-Zarr label image, but \
+                     input.labels ({}) is {what}; remove the key (measure/cells.csv holds the same rows)",
+                    labels.display()
+                )));
+            }
+        }
         // The model files are only read now that they are known to exist.
         if let Some(s) = &config.simulate {
             s.parameters().map_err(|e| PipelineError::Config(format!("{origin}: simulate: {e}")))?;
@@ -361,6 +374,11 @@ impl PipelineConfig {
             if let Some(bad) = crate::io::implausible_length(key, l) {
                 return Err(bad);
             }
+        }
+        if self.measure.zarr_properties && self.input.labels.is_none() {
+            return Err("measure.zarr_properties: writes the measured cells into the OME-Zarr label image \
+                        `input.labels`, and this pipeline has none; remove the key"
+                .into());
         }
         let f = self.measure.exterior_free_fraction;
         if !(0.0..=1.0).contains(&f) {

@@ -141,7 +141,10 @@ impl Manifest {
 }
 
 /// blake3 of a file's bytes, hex. A folder (an OME-Zarr store) is hashed as every file under it:
-/// each one's relative name and bytes, in name order; a dataset in an HDF5 file (`FILE.h5/DATASET`)
+/// each one's relative name and bytes, in name order, its Zarr metadata files (`.zattrs`,
+/// `zarr.json`) without the label image's `image-label.properties` and `tissuefit` provenance
+/// ([`crate::imaging::metadata_for_hash`]: results that `zarr_properties` writes back, so that writing
+/// them does not re-run the stages); a dataset in an HDF5 file (`FILE.h5/DATASET`)
 /// as the dataset's path and the file's bytes.
 pub fn hash_file(path: &Path) -> Result<String, PipelineError> {
     let mut hasher = blake3::Hasher::new();
@@ -160,14 +163,20 @@ pub fn hash_file(path: &Path) -> Result<String, PipelineError> {
             let file = path.join(&name);
             hasher.update(&(name.len() as u64).to_le_bytes());
             hasher.update(name.as_bytes());
-            let len = std::fs::metadata(&file)
-                .map_err(|e| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") })?
-                .len();
+            let failed = |e: std::io::Error| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") };
+            if is_zarr_metadata(&name) {
+                // Small JSON: the label image's properties and tissuefit's note, results written
+                // back by `zarr_properties`, are left out.
+                let bytes = std::fs::read(&file).map_err(failed)?;
+                let view = crate::imaging::metadata_for_hash(&name, &bytes);
+                hasher.update(&(view.len() as u64).to_le_bytes());
+                hasher.update(&view);
+                continue;
+            }
+            let len = std::fs::metadata(&file).map_err(failed)?.len();
             hasher.update(&len.to_le_bytes());
-            let mut f = std::fs::File::open(&file)
-                .map_err(|e| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") })?;
-            std::io::copy(&mut f, &mut hasher)
-                .map_err(|e| PipelineError::Io { path: file.clone(), message: format!("hashing: {e}") })?;
+            let mut f = std::fs::File::open(&file).map_err(failed)?;
+            std::io::copy(&mut f, &mut hasher).map_err(failed)?;
         }
         return Ok(hasher.finalize().to_hex().to_string());
     }
@@ -176,6 +185,11 @@ pub fn hash_file(path: &Path) -> Result<String, PipelineError> {
     std::io::copy(&mut file, &mut hasher)
         .map_err(|e| PipelineError::Io { path: path.to_path_buf(), message: format!("hashing: {e}") })?;
     Ok(hasher.finalize().to_hex().to_string())
+}
+
+/// Whether the store file `name` (relative, with `/`) is Zarr group or array metadata.
+fn is_zarr_metadata(name: &str) -> bool {
+    matches!(name.rsplit('/').next(), Some(".zattrs" | "zarr.json"))
 }
 
 /// blake3 of every file under `dir` (relative names with `/`, sorted).

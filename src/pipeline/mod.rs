@@ -3,7 +3,8 @@
 //!
 //! Run directory: `DIR/<stage>/` per stage, `DIR/config.resolved.toml` (defaults filled in, paths
 //! resolved) and `DIR/manifest.json` (version, git commit when known at build time, resolved config,
-//! blake3 hashes of the inputs, seed, threads, and per stage its key, status, wall time and the
+//! blake3 hashes of the inputs (an OME-Zarr store's without its per-label `properties`, which
+//! `[measure] zarr_properties` writes back into it), seed, threads, and per stage its key, status, wall time and the
 //! hashes of its outputs). A stage is written into a temporary sibling folder and renamed into
 //! place when all its files are there; only then is it marked complete in the manifest. A stage's
 //! key hashes its config section and the hashes of the files it reads (the label volume, an earlier

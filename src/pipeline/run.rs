@@ -257,13 +257,16 @@ fn run_locked(
     let output_key = config.output.stage_key_text();
     let measure_key = stage_key("measure", &(toml_of(&config.measure)? + &output_key), &[&tissue_hash]);
     runner.stage("measure", measure_key, None, |dir, _| {
-        run_measure(&tissue, &config.measure, &config.output, dir).map(|s| (s, true))
+        run_measure(&tissue, &config, dir, &out.join("measure")).map(|s| (s, true))
     })?;
 
     // simulate
     let mut simulate_converged = None;
     if let Some(section) = &config.simulate {
-        let text = toml_of(section)? + &toml_of(&config.measure)? + &output_key;
+        // The simulate stage measures its final tissue with [measure]'s settings; writing cells into
+        // the label store is the measure stage's alone, so `zarr_properties` does not re-run it.
+        let measure = super::MeasureSection { zarr_properties: false, ..config.measure.clone() };
+        let text = toml_of(section)? + &toml_of(&measure)? + &output_key;
         let key = stage_key("simulate", &text, &[&tissue_hash, &simulate_model_hash]);
         let record = runner.stage("simulate", key, Some(Resumable::Checkpoint), |dir, resume| {
             run_simulate(&tissue, section, &config.measure, &config.output, dir, false, resume, options.progress)
@@ -285,7 +288,8 @@ fn run_locked(
         let mesh_dir = out.join("mesh");
         runner.stage("fit", key, Some(Resumable::Trace), |dir, resume| {
             let config = super::fit_config(section, &config.input, &config.mesh);
-            let options = crate::inference::FitOptions { resume, progress: options.progress, plots: true };
+            let options =
+                crate::inference::FitOptions { resume, progress: options.progress, plots: true, ..Default::default() };
             let r =
                 crate::stages::fit::run(&config, crate::stages::fit::Observed::MeshStage(&mesh_dir), dir, &options)?;
             let line = r.summary_line();

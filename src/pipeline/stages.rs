@@ -3,7 +3,7 @@
 //! reruns are byte-identical elsewhere; the manifest has every stage's wall time.
 
 use super::PipelineError;
-use super::config::{InputSection, MeasureSection, OutputSection, SimulateSection};
+use super::config::{InputSection, MeasureSection, OutputSection, PipelineConfig, SimulateSection};
 use crate::geometry::Real;
 use crate::mechanics::{Parameters, SimulationMode};
 use crate::meshing::LabelMeshingOptions;
@@ -109,26 +109,31 @@ pub fn describe_morphology(m: &Morphology) -> String {
     )
 }
 
-/// The measure stage's options from `[measure]` and `[output]` (a tissue file in metres, as the mesh
-/// stage writes, named in `summary.json` relative to the measure folder).
-pub fn measure_options(measure: &MeasureSection, output: &OutputSection) -> MeasureOptions {
+/// The measure stage's options from `[measure]`, `[input]` and `[output]` (a tissue file in metres,
+/// as the mesh stage writes, named in `summary.json` relative to the measure folder; with
+/// `zarr_properties`, the cells go into the label image `input.labels`).
+pub fn measure_options(measure: &MeasureSection, input: &InputSection, output: &OutputSection) -> MeasureOptions {
     MeasureOptions {
         config: measure.clone(),
         input_name: Some(format!("../mesh/{MESH_TISSUE}")),
         output_unit: output.length_unit,
+        label_store: if measure.zarr_properties { input.labels.clone() } else { None },
         ..MeasureOptions::default()
     }
 }
 
 /// The meshed tissue → `cells.csv`, `contacts.csv`, `summary.json` ([`stages::measure::run`], as
-/// `tissuefit measure`).
+/// `tissuefit measure`) into `out`, the temporary folder of the stage whose final place is
+/// `stage_dir` (named by the `zarr_properties` provenance).
 pub fn run_measure(
     tissue: &Path,
-    measure: &MeasureSection,
-    output: &OutputSection,
+    config: &PipelineConfig,
     out: &Path,
+    stage_dir: &Path,
 ) -> Result<String, PipelineError> {
-    let report = stages::measure::run(tissue, &measure_options(measure, output), out)?;
+    let mut options = measure_options(&config.measure, &config.input, &config.output);
+    options.output_name = Some(stage_dir.display().to_string());
+    let report = stages::measure::run(tissue, &options, out)?;
     Ok(describe_morphology(&report.morphology))
 }
 

@@ -9,9 +9,12 @@
 
 use super::StageError;
 use crate::geometry::Real;
-use crate::imaging::read_labels;
-use crate::inference::{FitConfig, FitOptions, FitResult, InferenceError, Observation, load_observation};
+use crate::imaging::{LabelVolume, read_labels};
+use crate::inference::{
+    FitConfig, FitOptions, FitResult, InferenceError, Observation, load_observation, observe_labels,
+};
 use crate::io::{LengthScale, ReadOptions, read_tissue};
+use crate::mesh::Tissue;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -47,6 +50,11 @@ pub enum Observed<'a> {
     /// to measure the simulations like the data. Without labels (a mesh input) the observation is
     /// that tissue alone.
     MeshStage(&'a Path),
+    /// A label volume in memory (the Python API), meshed like `observed.labels` with
+    /// `observed.meshing` (whose `[observed]` then names no file).
+    Labels(&'a LabelVolume),
+    /// A tissue in memory (the Python API), observed as `observed.tissue` is.
+    Tissue(&'a Tissue),
 }
 
 /// The observation of `config` from `observed`.
@@ -54,6 +62,13 @@ fn observation(config: &FitConfig, observed: Observed) -> Result<Observation, St
     let dir = match observed {
         Observed::Config => return load_observation(config).map_err(|e| err(e.to_string())),
         Observed::MeshStage(dir) => dir,
+        Observed::Labels(volume) => {
+            let meshing = config.observed.as_ref().map(|o| o.meshing.clone()).unwrap_or_default();
+            return observe_labels(volume.clone(), &meshing, "the label volume").map_err(|e| err(e.to_string()));
+        }
+        Observed::Tissue(tissue) => {
+            return Observation::new(tissue.clone(), None, None).map_err(|e| err(e.to_string()));
+        }
     };
     let path = dir.join(super::mesh::TISSUE_FILE);
     let read = read_tissue(&path, &ReadOptions { length_scale: LengthScale::default(), orient: false })

@@ -3,10 +3,21 @@
 //! [`super::output_unit`]), all or nothing. With a comparison
 //! input, every cell also gets its IoU and χ = 1 − IoU against the same label of the other input.
 //! `tissuefit measure` and the pipeline's `[measure]` both run [`run`].
+//!
+//! `zarr_properties` (`--zarr-properties`) also writes every measured cell's row into the OME-Zarr
+//! label image's NGFF `image-label.properties` (see `crate::imaging`'s `zarr_properties.rs` for the
+//! merge rule and the provenance): the keys are the `cells.csv` columns in µm (`volume_um3`, as with
+//! the µm output unit, whatever the files' unit), `cell` becoming `label-value`. The store is
+//! checked to be writable before measuring and written last, after the three files: when that last
+//! write fails the folder holds a complete measurement and the store is unchanged.
 
 use super::{StageError, output_unit, write_csv, write_csv_renamed, write_json};
 use crate::geometry::Real;
-use crate::imaging::{LabelOverlap, LabelReadOptions, LabelVolume, is_label_volume, label_overlap, read_labels};
+use crate::imaging::{
+    ImagingError, LabelFormat, LabelOverlap, LabelProperties, LabelReadOptions, LabelVolume, PropertiesTarget,
+    detect_label_format, is_label_volume, label_overlap, properties_target, read_labels, utc_now,
+    write_label_properties,
+};
 use crate::io::{OutputGroup, OutputUnit, ReadOptions, read_tissue};
 use crate::mesh::{CellKind, Tissue};
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS};
@@ -16,6 +27,7 @@ use crate::morphology::{
 };
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
+use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -97,6 +109,15 @@ pub struct MeasureConfig {
     #[serde(default = "default_exterior_free_fraction")]
     #[arg(long, value_name = "FRACTION", default_value_t = DEFAULT_EXTERIOR_FREE_FRACTION)]
     pub exterior_free_fraction: Real,
+    /// OME-Zarr label input only: after the other outputs, also write every measured cell's row into
+    /// the label image's NGFF `image-label.properties` (`{"label-value": 3, "volume_um3": …}`: the
+    /// cells.csv columns, always in µm and named so), which napari-ome-zarr shows as the Labels
+    /// layer's features, with a `tissuefit` provenance object beside. Entries of other labels, and
+    /// other keys, are kept; a re-run replaces our keys. In a pipeline the label image is
+    /// `input.labels` (an error for any other input). Default false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    #[arg(long)]
+    pub zarr_properties: bool,
 }
 
 fn default_exterior_free_fraction() -> Real {
@@ -110,6 +131,7 @@ impl Default for MeasureConfig {
             distance_contacts: false,
             include_static: false,
             exterior_free_fraction: DEFAULT_EXTERIOR_FREE_FRACTION,
+            zarr_properties: false,
         }
     }
 }
@@ -144,6 +166,12 @@ pub struct MeasureOptions {
     pub input_name: Option<String>,
     /// Length unit of the written tables and summary (default SI; see [`super::output_unit`]).
     pub output_unit: OutputUnit,
+    /// The OME-Zarr label image `zarr_properties` writes into; default the input itself. The
+    /// pipeline gives its `input.labels`, whose meshed tissue the stage measures.
+    pub label_store: Option<PathBuf>,
+    /// How the `zarr_properties` provenance names the output folder; default `out` as given. The
+    /// pipeline gives its measure folder, not the temporary one the stage is written into.
+    pub output_name: Option<String>,
 }
 
 /// What [`run`] measured.
@@ -232,7 +260,11 @@ pub fn reading_tissue(path: &Path) -> String {
 /// Measures `input` (a tissue file or a label volume) into the folder `out` (made when missing, only
 /// once the measurement succeeded):
 /// `cells.csv`, `contacts.csv` (a header when nothing touches) and `summary.json`, all or nothing.
+///
+/// With `zarr_properties`, the label image's metadata is checked to be writable first, and the
+/// measured cells are written into it ([`write_zarr_properties`]) once the three files are.
 pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<MeasureReport, StageError> {
+    let zarr_target = options.config.zarr_properties.then(|| zarr_properties_target(input, options)).transpose()?;
     let measured = read_input(input, options)?;
     match &measured {
         Input::Tissue(_) if options.labels.any_set() => {
@@ -321,7 +353,104 @@ pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<Measure
         summary: &morphology.summary,
     };
     write_outputs(out, &morphology, &summary, options.output_unit)?;
+    if let Some(target) = &zarr_target {
+        write_zarr_properties(target, &morphology, input, options, out, label_route.is_some()).map_err(|e| {
+            err(format!(
+                "the measurement is complete in {} ({}), but the cells could not be written into the label image \
+                 (--zarr-properties), which is left as it was: {e}",
+                out.display(),
+                OUTPUT_FILES.join(", ")
+            ))
+        })?;
+    }
     Ok(MeasureReport { morphology, wall_seconds })
+}
+
+/// The metadata file `zarr_properties` writes into: the label image of `options.label_store`, or of
+/// the input; anything but an OME-Zarr label image, or a read-only one, is refused naming the flag.
+fn zarr_properties_target(input: &Path, options: &MeasureOptions) -> Result<PropertiesTarget, StageError> {
+    let store = options.label_store.as_deref().unwrap_or(input);
+    let what = match detect_label_format(store) {
+        Some(LabelFormat::OmeZarr) => None,
+        Some(format) => Some(format!("a {format} file")),
+        None if !is_labels(store) && store.is_file() => Some("a tissue mesh".to_string()),
+        None => Some("not an OME-Zarr store".to_string()),
+    };
+    if let Some(what) = what {
+        return Err(err(format!(
+            "--zarr-properties (`zarr_properties`) writes the measured cells into an OME-Zarr label image, but {} is \
+             {what}; leave the flag out (cells.csv holds the same rows)",
+            store.display()
+        )));
+    }
+    properties_target(store).map_err(|e| err(format!("--zarr-properties (`zarr_properties`): {e}")))
+}
+
+/// The `cells.csv` column names as written in µm (`volume_um3`, …), without `cell` (an entry's
+/// `label-value`): the keys an entry of `image-label.properties` gets from us.
+fn zarr_property_keys() -> Vec<String> {
+    let um = OutputUnit::Micrometre;
+    match serde_json::to_value(CellMorphology::example()) {
+        Ok(Value::Object(map)) => map
+            .keys()
+            .filter(|k| *k != "cell")
+            .map(|k| output_unit::column_name(&output_unit::CELL_LENGTH_COLUMNS, um, k))
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// Every measured cell (not the nuclei a pipeline's mesh adds, whose ids are not labels) as an
+/// `image-label.properties` entry: its `cells.csv` row in µm, empty values left out; with a
+/// `tissuefit` provenance object (version, time, input, outputs, settings).
+fn write_zarr_properties(
+    target: &PropertiesTarget,
+    m: &Morphology,
+    input: &Path,
+    options: &MeasureOptions,
+    out: &Path,
+    labels_input: bool,
+) -> Result<(), ImagingError> {
+    let um = OutputUnit::Micrometre;
+    let cells: Vec<CellMorphology> =
+        output_unit::cells_in(&m.cells, um).into_iter().filter(|c| c.kind != CellKind::Nucleus).collect();
+    let mut rows = Vec::with_capacity(cells.len());
+    for c in &cells {
+        let Ok(Value::Object(map)) = serde_json::to_value(c) else {
+            return Err(ImagingError::Write {
+                path: target.file.clone(),
+                message: format!("cell {} does not serialise as an object", c.cell),
+            });
+        };
+        let values = map
+            .into_iter()
+            .filter(|(k, v)| k != "cell" && !v.is_null())
+            .map(|(k, v)| (output_unit::column_name(&output_unit::CELL_LENGTH_COLUMNS, um, &k), v))
+            .collect();
+        rows.push(LabelProperties { label: c.cell, values });
+    }
+    let l = &options.labels;
+    let mut settings = serde_json::json!({ "measure": options.config });
+    if labels_input {
+        settings["labels"] = serde_json::json!({
+            "voxel_size_m": l.voxel_size,
+            "zarr_level": l.zarr_level.unwrap_or(0),
+            "border": l.border.to_string(),
+            "lumen_labels": l.lumen_labels,
+            "min_voxels": l.min_voxels,
+            "normal_smoothing_m": l.normal_smoothing,
+        });
+    }
+    let provenance = serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "written": utc_now(),
+        "input": options.input_name.clone().unwrap_or_else(|| input.display().to_string()),
+        "outputs": options.output_name.clone().unwrap_or_else(|| out.display().to_string()),
+        "cells": rows.len(),
+        "length_unit": um.name(),
+        "settings": settings,
+    });
+    write_label_properties(target, &rows, &zarr_property_keys(), provenance)
 }
 
 /// Per-label overlap of the measured input (`voxels_a`) with the compared one (`voxels_b`).

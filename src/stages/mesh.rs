@@ -188,6 +188,7 @@ fn mesh_input(input: &Path, options: &MeshOptions, progress: bool) -> Result<Mes
         if let Ok(mut p) = display.lock() {
             p.update(n, String::new);
         }
+        true
     };
     let meshing = mesh_cells_and_nuclei(&volume, nuclei.as_ref(), &options.meshing, &on_label).map_err(|e| {
         err(match &options.nuclei {

@@ -10,8 +10,8 @@ use super::{StageError, write_json};
 use crate::geometry::Real;
 use crate::io::{
     CHECKPOINT_FILE, CellField, OutputGroup, OutputState, OutputUnit, Progress, ReadOptions, RunInfo, RunSettings,
-    SimulationRecorder, checksum, read_checkpoint, read_tissue, write_bytes_atomically, write_checkpoint, write_events,
-    write_simucell3d, write_tissue_in,
+    SimulationRecorder, Watch, checksum, read_checkpoint, read_tissue, write_bytes_atomically, write_checkpoint,
+    write_events, write_simucell3d, write_tissue_in,
 };
 use crate::mechanics::{
     CellInside, CheckpointRequest, EnergyTerms, ExplicitNumerics, MeshFit, Observer, Parameters, RelaxMethod, Sample,
@@ -118,6 +118,8 @@ pub struct SimulateOptions {
     pub notes: bool,
     /// Set (e.g. by a Ctrl-C handler) to save a checkpoint at the end of the step and stop.
     pub interrupt: Option<&'static AtomicBool>,
+    /// A caller's listener and stop request (the Python API): stopping it is an interrupt.
+    pub watch: Watch,
 }
 
 /// `summary.json`: how the run went (DESIGN.md §2 keys, SI units).
@@ -458,6 +460,7 @@ struct Checkpoints {
     path: PathBuf,
     info: RunInfo,
     interrupt: Option<&'static AtomicBool>,
+    watch: Watch,
     last: Instant,
     /// Start of this session and wall time of the earlier ones (s).
     session: Instant,
@@ -481,7 +484,7 @@ impl Observer for RunObserver {
     fn checkpoint_due(&mut self, step: u64) -> CheckpointRequest {
         let c = &self.checkpoints;
         let s = &c.info.settings;
-        if c.interrupt.is_some_and(|f| f.load(Ordering::SeqCst)) || s.stop_at_step == Some(step) {
+        if c.interrupt.is_some_and(|f| f.load(Ordering::SeqCst)) || c.watch.stopped() || s.stop_at_step == Some(step) {
             CheckpointRequest::SaveAndStop
         } else if (s.checkpoint_every_steps > 0 && step.is_multiple_of(s.checkpoint_every_steps))
             || (s.checkpoint_every_seconds > 0.0 && c.last.elapsed().as_secs_f64() >= s.checkpoint_every_seconds)
@@ -539,7 +542,8 @@ fn drive(
 ) -> Result<SimulateOutcome, StageError> {
     let s = &params.simulation;
     let label = options.label.clone().unwrap_or_else(|| format!("simulate {}", info.input));
-    let progress = Progress::of_steps(label.clone(), params.planned_steps(), options.progress);
+    let progress =
+        Progress::of_steps(label.clone(), params.planned_steps(), options.progress).with_watch(options.watch.clone());
     let every_seconds = info.settings.checkpoint_every_seconds;
     if !(every_seconds.is_finite() && every_seconds >= 0.0) {
         return Err(err(format!(
@@ -553,6 +557,7 @@ fn drive(
         path: out.join(CHECKPOINT_FILE),
         info,
         interrupt: options.interrupt,
+        watch: options.watch.clone(),
         last: Instant::now(),
         session: Instant::now(),
         wall_before,

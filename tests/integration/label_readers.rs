@@ -686,6 +686,64 @@ fn a_pipeline_run_hashes_a_zarr_store_and_reruns_when_a_chunk_or_the_level_chang
     assert_eq!(go(), ["mesh:complete", "measure:complete"]);
 }
 
+/// `[measure] zarr_properties = true`: the measure stage (measuring the meshed tissue, whose cell
+/// ids are the labels) writes its cells into the `input.labels` store's `image-label.properties`;
+/// the properties are left out of the store's hash, so a second run skips every stage. A TIFF
+/// `input.labels` is refused naming the key.
+#[test]
+fn a_pipeline_writes_zarr_properties_into_its_labels_and_a_rerun_skips_its_stages() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = doublet([14, 20, 24]);
+    let root = dir.path().join("doublet.zarr");
+    Store {
+        zarr_version: 2,
+        axes: ZYX_UM.to_vec(),
+        levels: vec![Level { shape: vec![14, 20, 24], values: c_order(labels.labels()), scale: vec![1.0, 0.5, 0.5] }],
+        dtype: "<u2",
+        codec: Codec::Gzip,
+        chunks: vec![7, 10, 12],
+        skip_empty: false,
+    }
+    .write(&root);
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, "[input]\nlabels = \"doublet.zarr\"\n[measure]\nzarr_properties = true\n").unwrap();
+    let run = dir.path().join("run");
+    let args = ["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()];
+    let go = || {
+        let o = tissuefit(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        statuses(&run)
+    };
+    assert_eq!(go(), ["mesh:complete", "measure:complete"]);
+    let attrs: Value = serde_json::from_slice(&std::fs::read(root.join(".zattrs")).unwrap()).unwrap();
+    let list = attrs["image-label"]["properties"].as_array().unwrap();
+    let mut csv = csv::Reader::from_path(run.join("measure").join("cells.csv")).unwrap();
+    let rows: Vec<(u64, f64)> =
+        csv.records().map(|r| r.unwrap()).map(|r| (r[0].parse().unwrap(), r[3].parse().unwrap())).collect();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(list.len(), 2, "{list:?}");
+    for ((label, volume), entry) in rows.iter().zip(list) {
+        assert_eq!(entry["label-value"], json!(label));
+        let um3 = entry["volume_um3"].as_f64().unwrap();
+        assert!((um3 - volume * 1e18).abs() <= 1e-12 * um3, "{um3} vs {volume}");
+    }
+    assert_eq!(attrs["image-label"]["version"], "0.4", "kept");
+    assert!(attrs["tissuefit"]["outputs"].as_str().unwrap().ends_with("measure"), "{}", attrs["tissuefit"]);
+    assert_eq!(attrs["tissuefit"]["input"], "../mesh/tissue.vtp");
+    assert_eq!(go(), ["mesh:skipped", "measure:skipped"]);
+
+    let volume = LabelVolume::new(labels.labels().clone(), [1e-6; 3], Vec3::zeros()).unwrap();
+    write_label_tiff(&dir.path().join("doublet.tif"), &volume, &LabelWriteOptions::default()).unwrap();
+    std::fs::write(&pipeline, "[input]\nlabels = \"doublet.tif\"\n[measure]\nzarr_properties = true\n").unwrap();
+    let o = tissuefit(&args);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("measure.zarr_properties") && e.contains("doublet.tif") && e.contains("TIFF"), "{e}");
+    std::fs::write(&pipeline, "[input]\nmesh = \"run/mesh/tissue.vtp\"\n[measure]\nzarr_properties = true\n").unwrap();
+    let e = String::from_utf8_lossy(&tissuefit(&args).stderr).to_string();
+    assert!(e.contains("measure.zarr_properties") && e.contains("input.labels"), "{e}");
+}
+
 #[test]
 fn zarr_level_in_a_fit_config_needs_a_labels_input() {
     let text =

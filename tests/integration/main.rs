@@ -48,3 +48,4 @@ mod scenarios;
 mod simulate_defaults;
 mod stage_parity;
 mod sweep;
+mod zarr_properties;

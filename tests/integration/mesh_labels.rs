@@ -368,7 +368,7 @@ fn nuclei_become_nucleus_cells_inside_their_hosts_and_stray_nuclei_are_reported(
     // Nuclei are clear of their cells' walls by 2.5 voxels, so some are small: keep those of ≥ 30 voxels
     // (the debris block, 27 voxels, is still dropped).
     let options = LabelMeshingOptions { min_voxels: 30, ..Default::default() };
-    let meshing = mesh_cells_and_nuclei(&cells, Some(&nuclei), &options, &|_| {}).unwrap();
+    let meshing = mesh_cells_and_nuclei(&cells, Some(&nuclei), &options, &|_| true).unwrap();
     assert_eq!(meshing.nucleus_id_offset, 50, "nucleus ids start above the largest cell label");
     assert_eq!(meshing.nuclei.iter().map(|r| r.label).collect::<Vec<_>>(), (1..=8).chain([40]).collect::<Vec<_>>());
     assert_eq!(meshing.tissue.len(), 8 + 8);
@@ -400,7 +400,7 @@ fn nuclei_become_nucleus_cells_inside_their_hosts_and_stray_nuclei_are_reported(
 
     // A nuclei volume on another grid is refused, naming what differs.
     let other = LabelVolume::new(nuclei.labels().clone(), [0.4e-6; 3], Vec3::zeros()).unwrap();
-    let err = mesh_cells_and_nuclei(&cells, Some(&other), &LabelMeshingOptions::default(), &|_| {}).unwrap_err();
+    let err = mesh_cells_and_nuclei(&cells, Some(&other), &LabelMeshingOptions::default(), &|_| true).unwrap_err();
     assert!(err.to_string().contains("another grid") && err.to_string().contains("voxel size"), "{err}");
 }
 

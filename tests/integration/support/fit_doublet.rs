@@ -153,7 +153,7 @@ span = 1.3
 
 pub fn fit(config: &Path, out: &Path, resume: bool) -> FitResult {
     let config = FitConfig::load(config).unwrap();
-    run_fit(&config, out, &FitOptions { resume, progress: false, plots: true }).unwrap()
+    run_fit(&config, out, &FitOptions { resume, progress: false, plots: true, ..Default::default() }).unwrap()
 }
 
 /// w/(2γ) = ω·c²/(4γ) of the truth (c = [`spring_cutoff`], as set by `model`).
