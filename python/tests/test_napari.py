@@ -70,6 +70,15 @@ def notes(monkeypatch):
         monkeypatch.setattr(
             _widgets, f"show_{level}", lambda msg, _level=level: seen.append((_level, str(msg)))
         )
+    # and what reached napari's notification manager as an error by another way (e.g. a worker's
+    # relay of an exception it raised): recorded as ("error", ...) too
+    from napari.utils.notifications import notification_manager
+
+    monkeypatch.setattr(
+        notification_manager,
+        "receive_error",
+        lambda exctype, value, tb=None, thread=None: seen.append(("error", f"napari: {value!r}")),
+    )
     return seen
 
 
@@ -321,6 +330,7 @@ def test_fit_widget_cancel(make_napari_viewer, qtbot, demo, notes, tmp_path):
     assert not [l for l in viewer.layers if isinstance(l, Surface)]
     assert w.run_button.isEnabled() and not w.cancel_button.isEnabled()
     assert w.status_label.text() == "Cancelled."
+    # a cancel is no error: neither the widget nor napari's worker shows one
     assert not any(level == "error" for level, _ in notes)
 
 
@@ -338,6 +348,8 @@ def test_fit_widget_shows_errors(make_napari_viewer, qtbot, demo, notes, tmp_pat
     assert notes and notes[-1][0] == "error" and notes[-1][1].startswith("tissuefit error: ")
     assert w.status_label.text().startswith("tissuefit error: ")
     assert not [l for l in viewer.layers if isinstance(l, Surface)]
+    # shown once (by the widget), not a second time by napari's worker relay
+    assert sum(level == "error" for level, _ in notes) == 1
 
 
 # ----------------------------------------------------------------------------- reader

@@ -237,12 +237,28 @@ class _TissuefitWidget(QWidget):
         self.progress_bar.setRange(0, 0)
         self.progress_bar.setFormat("starting")
         self.status_label.setText("running…")
-        worker = create_worker(self._work, inputs, _start_thread=False, _ignore_errors=True)
-        worker.returned.connect(lambda out: self._on_returned(inputs, out))
+        worker = create_worker(self._guarded_work, inputs, _start_thread=False, _ignore_errors=True)
+        worker.returned.connect(lambda out: self._on_done(inputs, out))
         worker.errored.connect(self._on_errored)
         worker.finished.connect(self._on_finished)
         self.worker = worker
         worker.start()
+
+    def _guarded_work(self, inputs: dict) -> tuple[bool, Any]:
+        # The worker returns errors instead of raising them: napari's workers relay a raised error
+        # to its notification manager as well, which would show a cancel as an error and every
+        # tissuefit error twice; _on_errored reports them once, as they are.
+        try:
+            return (True, self._work(inputs))
+        except Exception as exc:  # noqa: BLE001 - handed to _on_errored, never swallowed
+            return (False, exc)
+
+    def _on_done(self, inputs: dict, out: tuple[bool, Any]) -> None:
+        ok, value = out
+        if ok:
+            self._on_returned(inputs, value)
+        else:
+            self._on_errored(value)
 
     def _work(self, inputs: dict) -> Any:  # pragma: no cover - overridden
         raise NotImplementedError
