@@ -170,6 +170,14 @@ def test_mesh_widget_adds_surface(make_napari_viewer, qtbot, demo, notes):
     w = dock(viewer, _widgets.MeshWidget)
     assert w.layer_combo.currentText() == "doublet"
     assert w.voxel_label.text().startswith("z 0.31, y 0.31, x 0.31 µm")
+    viewer.add_labels(np.zeros((2, 2, 2), np.uint16), name="other")
+    layer.name = "doublet renamed"
+    assert [w.layer_combo.itemText(i) for i in range(w.layer_combo.count())] == [
+        "doublet renamed",
+        "other",
+    ]
+    assert w.layer_combo.currentText() == "doublet renamed"
+    layer.name = "doublet"
     w.nodes_spin.setValue(200)
     w.run()
     wait_run(qtbot, w)

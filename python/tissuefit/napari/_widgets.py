@@ -140,7 +140,12 @@ class _TissuefitWidget(QWidget):
 
     def _refresh_layers(self, event: Any = None) -> None:
         current = self.layer_combo.currentText()
-        names = [layer.name for layer in self.labels_layers()]
+        layers = self.labels_layers()
+        for layer in layers:  # follow renames (connecting twice is a no-op)
+            layer.events.name.connect(self._refresh_layers)
+        names = [layer.name for layer in layers]
+        if current not in names and event is not None and getattr(event, "source", None) in layers:
+            current = event.source.name  # the selected layer was renamed
         self.layer_combo.blockSignals(True)
         self.layer_combo.clear()
         self.layer_combo.addItems(names)
