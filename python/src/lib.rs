@@ -19,6 +19,7 @@ use std::sync::{Arc, Mutex};
 use tissuefit::geometry::{Real, Vec3};
 use tissuefit::imaging::{BorderPolicy, LabelReadOptions, LabelVolume, read_labels as read_label_file};
 use tissuefit::inference::{FitConfig, FitOptions, InferenceError};
+use tissuefit::pipeline::PipelineConfig;
 use tissuefit::io::{LengthScale, OutputUnit, ReadOptions, Watch, read_tissue as read_tissue_file, write_tissue_in};
 use tissuefit::meshing::{LabelMeshingError, LabelMeshingOptions, mesh_labels_with_progress};
 use tissuefit::morphology::{LabelMeasureSettings, measure_labels, measure_tissue};
@@ -423,8 +424,20 @@ fn simulate(
 }
 
 /// The fit config of TOML text whose relative paths are relative to `base`; `[observed]` may be
-/// left out (the observed tissue is given in Python).
-fn fit_config(text: &str, base: &Path, origin: &str) -> PyResult<FitConfig> {
+/// left out (the observed tissue is given in Python). A pipeline file (it has `[input]`) gives its
+/// `[fit]` with `[input]` and `[mesh]` as `tissuefit fit --config PIPELINE` takes it; the second
+/// value says so (its `[input]` then gives way to an observed tissue given in Python).
+fn fit_config(text: &str, base: &Path, origin: &str) -> PyResult<(FitConfig, bool)> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| error(format!("{origin}: {e}")))?;
+    if table.contains_key("input") {
+        let name = Path::new(origin).file_name().map_or_else(|| "pipeline.toml".into(), |n| n.to_os_string());
+        let pipeline = PipelineConfig::load_text(text, &base.join(name)).map_err(error)?;
+        let fit = pipeline
+            .fit
+            .as_ref()
+            .ok_or_else(|| error(format!("{origin}: the pipeline has no [fit] section; add one to fit")))?;
+        return Ok((tissuefit::pipeline::fit_config(fit, &pipeline.input, &pipeline.mesh), true));
+    }
     let mut config: FitConfig = toml::from_str(text).map_err(|e| error(format!("{origin}: {e}")))?;
     config.check_settings().map_err(|e| error(format!("{origin}: {e}")))?;
     let fix = |p: &mut PathBuf| {
@@ -437,7 +450,7 @@ fn fit_config(text: &str, base: &Path, origin: &str) -> PyResult<FitConfig> {
         observed.labels.as_mut().map(fix);
     }
     config.model.as_mut().map(fix);
-    Ok(config)
+    Ok((config, false))
 }
 
 /// Runs the fit stage into `out` on the observed tissue: a label volume (meshed with the config's
@@ -459,22 +472,26 @@ fn fit(
     resume: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
-    let mut config = fit_config(config, &base, origin)?;
+    let (mut config, pipeline) = fit_config(config, &base, origin)?;
     let volume = match (labels, voxel_size_m) {
         (Some(l), Some(v)) => Some(volume_from(l, v, origin_m)?),
         (Some(_), None) => return Err(error("labels need their voxel_size (z, y, x) in µm")),
         (None, _) => None,
     };
-    if (volume.is_some() || tissue.is_some())
-        && config.observed.as_ref().is_some_and(|o| o.labels.is_some() || o.tissue.is_some())
-    {
-        return Err(error(format!(
-            "{origin}: [observed] names an input file and an observed tissue was given too; give one of them"
-        )));
-    }
-    if let (Some(v), Some(observed)) = (&volume, config.observed.as_mut()) {
+    let given = volume.is_some() || tissue.is_some();
+    if given && let Some(observed) = config.observed.as_mut() {
+        if observed.labels.is_some() || observed.tissue.is_some() {
+            if !pipeline {
+                return Err(error(format!(
+                    "{origin}: [observed] names an input file and an observed tissue was given too; give one of them"
+                )));
+            }
+            // A pipeline's [input] gives way to the tissue given here; its [mesh] settings stay.
+            observed.labels = None;
+            observed.tissue = None;
+        }
         // Recorded in the fit's fit.toml, like a labels file's voxel size.
-        observed.voxel_size = Some(v.voxel_size());
+        observed.voxel_size = volume.as_ref().map(|v| v.voxel_size());
     }
     let observed = match (&volume, tissue) {
         (Some(v), None) => stages::fit::Observed::Labels(v),

@@ -531,6 +531,9 @@ class FitResult:
     tissue: Optional[Tissue]
     out: str
     trace: dict[str, np.ndarray] = field(default_factory=dict)
+    """``trace.csv``: every evaluation (parameters, metrics, objective, status) as numpy columns."""
+    residuals: dict[str, np.ndarray] = field(default_factory=dict)
+    """``residuals.csv``: per cell, the observed and simulated metrics at the best point."""
 
     @property
     def ok(self) -> bool:
@@ -560,7 +563,10 @@ def fit(
     ``observed``: a label volume (array [z, y, x], with ``voxel_size`` in µm; meshed with the
     config's ``[observed.meshing]``), a :class:`Tissue`, a label or tissue file path, or None (the
     config's own ``[observed]``). ``config``: the fit config (``tissuefit fit --config``'s schema)
-    as a path, TOML text or dict; ``[observed]`` may be left out. ``out``: the fit folder (default
+    as a path, TOML text or dict; ``[observed]`` may be left out. A pipeline file (e.g.
+    ``pipelines/demo.toml``) gives its ``[fit]`` with its ``[mesh]`` settings and seed, as
+    ``tissuefit fit --config PIPELINE`` takes it; an observed tissue given here replaces its
+    ``[input]``. ``out``: the fit folder (default
     a new temporary folder) with trace.csv, result.json, best.vtp, the plots. ``resume``: go on from
     ``out``'s trace. A fit in which no evaluation succeeded raises :class:`TissuefitError`; a fit
     that ran but did not converge returns with ``converged == False`` (check :attr:`FitResult.ok`)."""
@@ -617,6 +623,7 @@ def fit(
         tissue=read_tissue(best) if best.exists() else None,
         out=folder,
         trace=_read_csv_columns(Path(folder) / "trace.csv"),
+        residuals=_read_csv_columns(Path(folder) / "residuals.csv"),
     )
 
 
