@@ -436,6 +436,7 @@ def test_tension_layers_nan_are_grey(demo_tensions):
     coloured, grey = _layers.tension_layer_data(none, "n")
     assert len(coloured[0][1]) == 0 and len(grey[0][1]) == n_faces
     assert coloured[1]["contrast_limits"] == (0.0, 1.0)
+    assert len(Surface(coloured[0], **coloured[1]).faces) == 0  # napari takes the empty layer
     assert _layers.robust_limits([np.nan, 2.0, np.nan]) == (1.5, 2.5)
 
 
@@ -526,9 +527,57 @@ def test_tension_widget_doublet(make_napari_viewer, qtbot, demo, notes):
     assert w.surface_layer.name == "doublet tensions (mN/m)"
     assert w.table.horizontalHeaderItem(2).text() == "tension (mN/m)"
     assert "tensions in mN/m, pressures in kPa" in w.result_label.text()
-    assert [l.name for l in viewer.layers if isinstance(l, Surface)] == ["doublet tensions (mN/m)"]
+    # a new run adds its layer; the first run's stays
+    assert [l.name for l in viewer.layers if isinstance(l, Surface)] == [
+        "doublet tensions (gauge)",
+        "doublet tensions (mN/m)",
+    ]
+    w.color_combo.setCurrentText(_layers.PRESSURE)  # redraws the last run's layer only
+    assert [l.name for l in viewer.layers if isinstance(l, Surface)] == [
+        "doublet tensions (gauge)",
+        "doublet pressures (kPa)",
+    ]
     assert not any(level == "error" for level, _ in notes)
     print(f"tension map in the widget: {w.last_run_seconds:.2f} s; {changed} surface pixels")
+
+
+def test_tension_widget_undetermined_grey(make_napari_viewer, qtbot, demo, notes, monkeypatch):
+    """Undetermined faces/cells in the widget: the real estimate with 100 faces of cell 1 and its
+    pressure set to NaN (the demo's estimate determines everything)."""
+    import dataclasses
+
+    real = tissuefit.tensions
+
+    def with_nan(*args, **kwargs):
+        tm = real(*args, **kwargs)
+        ft = [np.array(f, float) for f in tm.face_tension]
+        ft[0][:100] = np.nan
+        pressure = np.array(tm.pressure, float)
+        pressure[0] = np.nan
+        return dataclasses.replace(tm, face_tension=ft, pressure=pressure)
+
+    monkeypatch.setattr(tissuefit, "tensions", with_nan)
+    viewer = make_napari_viewer()
+    add_demo(viewer, demo)
+    w = dock(viewer, _widgets.TensionWidget)
+    w.run()
+    wait_run(qtbot, w)
+    assert w.last_error is None, w.last_error
+    grey = w.undetermined_layer
+    assert grey is not None and grey.name == "doublet tensions (gauge): undetermined"
+    assert len(grey.faces) == 100 and len(grey.vertices) == 300
+    assert np.all(np.isfinite(w.surface_layer.vertex_values))
+    n_faces = sum(len(c.faces) for c in w.tension_map.tissue.cells)
+    assert len(w.surface_layer.faces) == n_faces - 100
+    rgba = grey.colormap.map(np.array([0.5]))  # values 0.5 of contrast limits (0, 1)
+    assert tuple(grey.contrast_limits) == (0.0, 1.0) and set(np.unique(grey.vertex_values)) == {0.5}
+    np.testing.assert_allclose(rgba[0, :3], _layers.UNDETERMINED_RGB, atol=0.01)
+    w.color_combo.setCurrentText(_layers.PRESSURE)
+    cell1 = w.tension_map.tissue.cells[0]
+    assert w.undetermined_layer.name == "doublet pressures (gauge/um): undetermined"
+    assert len(w.undetermined_layer.faces) == len(cell1.faces)
+    assert len(w.surface_layer.faces) == len(w.tension_map.tissue.cells[1].faces)
+    assert len([l for l in viewer.layers if isinstance(l, Surface)]) == 2
 
 
 def test_tension_widget_errors(make_napari_viewer, qtbot, notes):

@@ -632,6 +632,8 @@ class TensionWidget(_TissuefitWidget):
         self.tension_map = tmap
         self._source = inputs["layer"]
         self._fill_table(tmap)
+        # a new run adds its own layers (the previous run's stay); Colour by redraws the last run's
+        self.surface_layer = self.undetermined_layer = None
         self._show_layers()
         self.last_run_seconds = time.perf_counter() - self._started
         summary = tmap.summary
@@ -656,7 +658,7 @@ class TensionWidget(_TissuefitWidget):
         return f"{base} pressures ({p_unit})"
 
     def _show_layers(self) -> None:
-        """(Re)adds the layers of the last result for the current colour-by choice."""
+        """(Re)draws the last result for the current colour-by choice: replaces the last run's layers."""
         if self.tension_map is None or self._source is None:
             return
         for old in (self.surface_layer, self.undetermined_layer):
