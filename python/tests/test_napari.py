@@ -152,7 +152,7 @@ def test_manifest_valid():
     manifest = npe2.PluginManifest.from_file(str(MANIFEST))
     assert manifest.name == "tissuefit"
     widgets = {w.display_name for w in manifest.contributions.widgets}
-    assert widgets == {"Mesh labels", "Fit tissue mechanics"}
+    assert widgets == {"Mesh labels", "Fit tissue mechanics", "Tension map (direct estimate)"}
 
 
 def test_manifest_entry_point_installed():
@@ -358,6 +358,251 @@ def test_fit_widget_shows_errors(make_napari_viewer, qtbot, demo, notes, tmp_pat
     assert not [l for l in viewer.layers if isinstance(l, Surface)]
     # shown once (by the widget), not a second time by napari's worker relay
     assert sum(level == "error" for level, _ in notes) == 1
+
+
+# ----------------------------------------------------------------------------- tension map
+class _FakeMap:
+    """A TensionMap with chosen values on a real tissue (for the NaN paths the demo never takes)."""
+
+    def __init__(self, tmap, face_tension, pressure):
+        self.tissue, self.summary, self.out = tmap.tissue, tmap.summary, None
+        self.interfaces, self.cells = tmap.interfaces, tmap.cells
+        self.face_tension, self.pressure = face_tension, np.asarray(pressure, float)
+
+
+@pytest.fixture(scope="module")
+def demo_tensions(demo):
+    return tissuefit.tensions(demo[0], demo[1])
+
+
+def test_face_surface_unshared_vertices(demo_tensions):
+    tm = demo_tensions
+    tissue = tm.tissue
+    n_faces = sum(len(c.faces) for c in tissue.cells)
+    verts, faces, values = _layers.face_surface_data(tissue, tm.face_tension)
+    assert verts.shape == (3 * n_faces, 3) and values.shape == (3 * n_faces,)
+    np.testing.assert_array_equal(faces, np.arange(3 * n_faces).reshape(-1, 3))
+    # each face's three vertices carry the face's value, and sit where the cell's face does (z, y, x)
+    face_values = np.concatenate([np.asarray(f, float) for f in tm.face_tension])
+    np.testing.assert_array_equal(values[faces], np.repeat(face_values[:, None], 3, axis=1))
+    expected = np.concatenate(
+        [np.asarray(c.vertices)[np.asarray(c.faces)].reshape(-1, 3)[:, ::-1] for c in tissue.cells]
+    )
+    np.testing.assert_allclose(verts, expected)
+    # the demo's three interfaces are all determined: one coloured layer, no grey one
+    layers = _layers.tension_layer_data(tm, "t")
+    assert len(layers) == 1
+    (data, kwargs, kind), = layers
+    assert kind == "surface" and np.all(np.isfinite(data[2])) and len(data[1]) == n_faces
+    lo, hi = kwargs["contrast_limits"]
+    assert lo < hi and lo >= np.nanmin(face_values) and hi <= np.nanmax(face_values)
+    with pytest.raises(ValueError, match="face values"):
+        _layers.face_surface_data(tissue, [f[:-1] for f in tm.face_tension])
+
+
+def test_tension_layers_nan_are_grey(demo_tensions):
+    tm = demo_tensions
+    tissue = tm.tissue
+    ft = [np.array(f, float) for f in tm.face_tension]
+    ft[0][:100] = np.nan  # 100 undetermined faces on the first cell
+    fake = _FakeMap(tm, ft, [np.nan, 1.5])  # and the first cell's pressure undetermined
+    n_faces = sum(len(c.faces) for c in tissue.cells)
+
+    coloured, grey = _layers.tension_layer_data(fake, "t", translate=(1.0, 2.0, 3.0))
+    assert len(coloured[0][1]) == n_faces - 100 and len(grey[0][1]) == 100
+    assert len(coloured[0][0]) == 3 * (n_faces - 100) and len(grey[0][0]) == 300
+    assert np.all(np.isfinite(coloured[0][2]))
+    assert grey[1]["name"] == "t: undetermined" and grey[1]["colormap"] == "gray"
+    assert grey[1]["translate"] == (1.0, 2.0, 3.0) == coloured[1]["translate"]
+    # the grey layer draws one colour, UNDETERMINED_RGB, through napari's own colormap
+    layer = Surface(grey[0], **grey[1])
+    rgba = layer.colormap.map(
+        (np.unique(layer.vertex_values) - layer.contrast_limits[0])
+        / (layer.contrast_limits[1] - layer.contrast_limits[0])
+    )
+    assert rgba.shape[0] == 1
+    np.testing.assert_allclose(rgba[0, :3], _layers.UNDETERMINED_RGB, atol=0.01)
+    # NaN faces are not in the coloured layer's contrast limits either
+    lo, hi = coloured[1]["contrast_limits"]
+    assert np.isfinite(lo) and np.isfinite(hi) and lo < hi
+
+    # per-cell pressure: shared vertices, the determined cell coloured, the other grey
+    coloured, grey = _layers.tension_layer_data(fake, "p", color_by=_layers.PRESSURE)
+    assert len(coloured[0][0]) == len(tissue.cells[1].vertices)
+    assert set(np.unique(coloured[0][2])) == {1.5}
+    assert len(grey[0][0]) == len(tissue.cells[0].vertices)
+    # all undetermined: an empty coloured layer, everything grey
+    none = _FakeMap(tm, [np.full(len(f), np.nan) for f in ft], [np.nan, np.nan])
+    coloured, grey = _layers.tension_layer_data(none, "n")
+    assert len(coloured[0][1]) == 0 and len(grey[0][1]) == n_faces
+    assert coloured[1]["contrast_limits"] == (0.0, 1.0)
+    assert len(Surface(coloured[0], **coloured[1]).faces) == 0  # napari takes the empty layer
+    assert _layers.robust_limits([np.nan, 2.0, np.nan]) == (1.5, 2.5)
+
+
+def test_interface_rows_and_units(demo, demo_tensions):
+    tm = demo_tensions
+    rows = _layers.interface_rows(tm)
+    assert {(r[0], r[1]) for r in rows} == {("1", "medium"), ("1", "2"), ("2", "medium")}
+    assert all(r[3] == "yes" and " ± " in r[2] for r in rows)
+    for r, t, sd, area in zip(
+        rows, tm.interfaces["tension"], tm.interfaces["tension_sd"], tm.interfaces["area_um2"]
+    ):
+        assert r[2] == f"{t:.4g} ± {sd:.2g}" and r[4] == f"{area:.4g}"
+    assert _layers.interface_headers(tm.summary)[2] == "tension (gauge)"
+    assert "tensions in gauge, pressures in gauge/um" in _layers.tension_status(tm.summary)
+    si = tissuefit.tensions(demo[0], demo[1], gauge_tension=0.5)
+    assert _layers.interface_headers(si.summary)[2] == "tension (mN/m)"
+    assert "pressures in kPa" in _layers.tension_status(si.summary)
+    # an undetermined interface shows no number
+    cols = dict(tm.interfaces)
+    cols["determined"] = np.array([False, True, True])
+    cols["tension"] = np.array([np.nan, 1.0, 1.0])
+
+    class M:
+        interfaces, summary = cols, tm.summary
+
+    assert _layers.interface_rows(M)[0][2:4] == ("–", "no")
+
+
+def test_tension_widget_doublet(make_napari_viewer, qtbot, demo, notes):
+    viewer = make_napari_viewer(show=True)
+    labels, voxel = demo
+    labels_layer = viewer.add_labels(labels, scale=voxel, name="doublet", translate=(0.5, 1.0, 1.5))
+    w = dock(viewer, _widgets.TensionWidget)
+    assert w.layer_combo.currentText() == "doublet"
+    viewer.dims.ndisplay = 3
+    labels_layer.visible = False
+    viewer.reset_view()
+    qtbot.wait(50)
+    empty = viewer.screenshot(canvas_only=True, flash=False)
+
+    w.run()
+    assert w.running  # in a worker thread, not blocking the GUI
+    wait_run(qtbot, w)
+    assert w.last_error is None, w.last_error
+    assert isinstance(w.tension_map, tissuefit.TensionMap)
+    surfaces = [l for l in viewer.layers if isinstance(l, Surface)]
+    assert surfaces == [w.surface_layer] and w.undetermined_layer is None  # all determined
+    layer = w.surface_layer
+    assert layer.name == "doublet tensions (gauge)"
+    n_faces = sum(len(c.faces) for c in w.tension_map.tissue.cells)
+    assert len(layer.faces) == n_faces and len(layer.vertices) == 3 * n_faces
+    assert np.all(np.isfinite(layer.vertex_values))
+    lo, hi = layer.contrast_limits
+    assert lo < hi and layer.colormap.name == "turbo"
+    np.testing.assert_allclose(layer.translate, labels_layer.translate)
+    # the table: the three interfaces 1-0, 1-2, 2-0
+    assert w.table.rowCount() == 3
+    pairs = {(w.table.item(i, 0).text(), w.table.item(i, 1).text()) for i in range(3)}
+    assert pairs == {("1", "medium"), ("1", "2"), ("2", "medium")}
+    assert w.table.horizontalHeaderItem(2).text() == "tension (gauge)"
+    assert "3/3 interface tensions, 2/2 pressures determined" in w.result_label.text()
+    assert notes and notes[-1][0] == "info"
+
+    # drawn: the 3-D canvas differs from the empty one
+    viewer.reset_view()
+    qtbot.wait(50)
+    shot = viewer.screenshot(canvas_only=True, flash=False)
+    changed = differing_pixels(shot, empty)
+    assert changed > 0.01 * shot.shape[0] * shot.shape[1], changed
+
+    # colour by pressure: one value per cell, the cells' pressures
+    w.color_combo.setCurrentText(_layers.PRESSURE)
+    assert [l for l in viewer.layers if isinstance(l, Surface)] == [w.surface_layer]
+    assert w.surface_layer.name == "doublet pressures (gauge/um)"
+    np.testing.assert_allclose(
+        np.unique(w.surface_layer.vertex_values), np.sort(w.tension_map.pressure)
+    )
+    w.color_combo.setCurrentText(_layers.TENSION)
+
+    # with a gauge tension: mN/m and kPa
+    w.gauge_edit.setText("0.5")
+    w.one_medium_check.setChecked(True)
+    w.run()
+    wait_run(qtbot, w)
+    assert w.last_error is None, w.last_error
+    assert w.tension_map.summary["tension_unit"] == "mN/m"
+    assert w.tension_map.summary["one_medium_tension"] is True
+    assert w.surface_layer.name == "doublet tensions (mN/m)"
+    assert w.table.horizontalHeaderItem(2).text() == "tension (mN/m)"
+    assert "tensions in mN/m, pressures in kPa" in w.result_label.text()
+    # a new run adds its layer; the first run's stays
+    assert [l.name for l in viewer.layers if isinstance(l, Surface)] == [
+        "doublet tensions (gauge)",
+        "doublet tensions (mN/m)",
+    ]
+    w.color_combo.setCurrentText(_layers.PRESSURE)  # redraws the last run's layer only
+    assert [l.name for l in viewer.layers if isinstance(l, Surface)] == [
+        "doublet tensions (gauge)",
+        "doublet pressures (kPa)",
+    ]
+    assert not any(level == "error" for level, _ in notes)
+    print(f"tension map in the widget: {w.last_run_seconds:.2f} s; {changed} surface pixels")
+
+
+def test_tension_widget_undetermined_grey(make_napari_viewer, qtbot, demo, notes, monkeypatch):
+    """Undetermined faces/cells in the widget: the real estimate with 100 faces of cell 1 and its
+    pressure set to NaN (the demo's estimate determines everything)."""
+    import dataclasses
+
+    real = tissuefit.tensions
+
+    def with_nan(*args, **kwargs):
+        tm = real(*args, **kwargs)
+        ft = [np.array(f, float) for f in tm.face_tension]
+        ft[0][:100] = np.nan
+        pressure = np.array(tm.pressure, float)
+        pressure[0] = np.nan
+        return dataclasses.replace(tm, face_tension=ft, pressure=pressure)
+
+    monkeypatch.setattr(tissuefit, "tensions", with_nan)
+    viewer = make_napari_viewer()
+    add_demo(viewer, demo)
+    w = dock(viewer, _widgets.TensionWidget)
+    w.run()
+    wait_run(qtbot, w)
+    assert w.last_error is None, w.last_error
+    grey = w.undetermined_layer
+    assert grey is not None and grey.name == "doublet tensions (gauge): undetermined"
+    assert len(grey.faces) == 100 and len(grey.vertices) == 300
+    assert np.all(np.isfinite(w.surface_layer.vertex_values))
+    n_faces = sum(len(c.faces) for c in w.tension_map.tissue.cells)
+    assert len(w.surface_layer.faces) == n_faces - 100
+    rgba = grey.colormap.map(np.array([0.5]))  # values 0.5 of contrast limits (0, 1)
+    assert tuple(grey.contrast_limits) == (0.0, 1.0) and set(np.unique(grey.vertex_values)) == {0.5}
+    np.testing.assert_allclose(rgba[0, :3], _layers.UNDETERMINED_RGB, atol=0.01)
+    w.color_combo.setCurrentText(_layers.PRESSURE)
+    cell1 = w.tension_map.tissue.cells[0]
+    assert w.undetermined_layer.name == "doublet pressures (gauge/um): undetermined"
+    assert len(w.undetermined_layer.faces) == len(cell1.faces)
+    assert len(w.surface_layer.faces) == len(w.tension_map.tissue.cells[1].faces)
+    assert len([l for l in viewer.layers if isinstance(l, Surface)]) == 2
+
+
+def test_tension_widget_errors(make_napari_viewer, qtbot, notes):
+    viewer = make_napari_viewer()
+    viewer.add_labels(np.ones((8, 8), np.uint16), name="flat")
+    w = dock(viewer, _widgets.TensionWidget)
+    w.run()
+    assert not w.running
+    assert notes[-1][0] == "error" and "3-D" in notes[-1][1]
+    assert "3-D" in w.status_label.text()
+
+    viewer.add_labels(np.zeros((8, 8, 8), np.uint16), scale=(0.31, 0.31, 0.31), name="empty")
+    w.layer_combo.setCurrentText("empty")
+    w.gauge_edit.setText("abc")
+    w.run()
+    assert not w.running and notes[-1][0] == "error" and "Gauge tension" in notes[-1][1]
+    w.gauge_edit.setText("")
+    n_errors = sum(level == "error" for level, _ in notes)
+    w.run()
+    wait_run(qtbot, w)
+    assert isinstance(w.last_error, tissuefit.TissuefitError), w.last_error
+    assert notes[-1][0] == "error" and notes[-1][1].startswith("tissuefit error: ")
+    assert sum(level == "error" for level, _ in notes) == n_errors + 1  # shown once
+    assert not [l for l in viewer.layers if isinstance(l, Surface)]
+    assert w.run_button.isEnabled()
 
 
 # ----------------------------------------------------------------------------- reader

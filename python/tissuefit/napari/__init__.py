@@ -1,14 +1,14 @@
 """napari plugin of tissuefit (npe2 manifest: napari.yaml).
 
-Widgets "Mesh labels" and "Fit tissue mechanics", and a reader for tissuefit tissue files (.vtp/.vtk)
-and run/fit folders. Needs napari (``pip install tissuefit[napari]``).
+Widgets "Mesh labels", "Fit tissue mechanics" and "Tension map (direct estimate)", and a reader for
+tissuefit tissue files (.vtp/.vtk) and run/fit folders. Needs napari (``pip install tissuefit[napari]``).
 """
 
-__all__ = ["FitWidget", "MeshWidget", "get_reader"]
+__all__ = ["FitWidget", "MeshWidget", "TensionWidget", "get_reader"]
 
 
 def __getattr__(name):  # lazy: importing tissuefit.napari must not import Qt
-    if name in ("FitWidget", "MeshWidget"):
+    if name in ("FitWidget", "MeshWidget", "TensionWidget"):
         from . import _widgets
 
         return getattr(_widgets, name)

@@ -349,3 +349,219 @@ def fit_config_for(path: str) -> tuple[Any, dict]:
     if isinstance(data["input"], dict) and "seed" in data["input"]:
         mesh["seed"] = int(data["input"]["seed"])
     return fit, mesh
+
+
+# ----------------------------------------------------------------------------- tension map
+#: Colour-by choices of the "Tension map" widget.
+TENSION = "interface tension"
+PRESSURE = "cell pressure"
+TENSION_CHOICES = (TENSION, PRESSURE)
+
+#: Colormap of the tension / pressure layer (no grey in it: grey means undetermined).
+TENSION_COLORMAP = "turbo"
+
+#: The undetermined faces / cells are a separate Surface layer of this uniform colour (RGB).
+UNDETERMINED_RGB = (0.5, 0.5, 0.5)
+
+
+def face_surface_data(
+    tissue: Any, face_values: Sequence[Any]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All cells as one napari Surface coloured per FACE: (vertices (z,y,x) µm, faces, vertex values).
+
+    napari's Surface values are per vertex, so the vertices are unshared: face f of the result has
+    its own three vertices ``3f, 3f+1, 3f+2``, each carrying the face's value. ``face_values[i]``
+    holds one value per face of ``tissue.cells[i]`` (NaN where undetermined; NaN is kept).
+    """
+    verts, vals = [], []
+    for cell, fv in zip(tissue.cells, face_values):
+        v = np.asarray(cell.vertices, dtype=np.float64)
+        f = np.asarray(cell.faces, dtype=np.int64)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 or len(f) == 0:
+            continue
+        fv = np.asarray(fv, dtype=np.float64).ravel()
+        if len(fv) != len(f):
+            raise ValueError(f"cell {cell.id}: {len(fv)} face values for {len(f)} faces")
+        verts.append(v[f.reshape(-1)][:, ::-1])  # (3·faces, 3), napari (z, y, x)
+        vals.append(np.repeat(fv, 3))
+    if not verts:
+        return (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64), np.zeros(0))
+    verts_all = np.concatenate(verts)
+    n_faces = len(verts_all) // 3
+    faces = np.arange(3 * n_faces, dtype=np.int64).reshape(n_faces, 3)
+    return (verts_all, faces, np.concatenate(vals))
+
+
+def split_undetermined(
+    data: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Splits a Surface (vertices, faces, vertex values) into (determined, undetermined) Surfaces.
+
+    A face is undetermined when any of its vertices' values is NaN. Each part keeps only the vertices
+    its faces use (renumbered); the undetermined part's values are all 0.5 (drawn grey by
+    :func:`tension_layer_data`), the determined part's are the finite values.
+    """
+    verts, faces, vals = data
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    vals = np.asarray(vals, dtype=np.float64)
+    nan_face = ~np.isfinite(vals[faces]).all(axis=1) if len(faces) else np.zeros(0, bool)
+
+    def part(mask: np.ndarray, values: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        sel = faces[mask]
+        if len(sel) == 0:
+            return (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64), np.zeros(0))
+        used, inverse = np.unique(sel.ravel(), return_inverse=True)
+        new_faces = inverse.reshape(-1, 3).astype(np.int64)
+        v = np.asarray(verts, dtype=np.float64)[used]
+        out_vals = np.full(len(used), 0.5) if values is None else values[used]
+        return (v, new_faces, out_vals)
+
+    return part(~nan_face, vals), part(nan_face, None)
+
+
+def robust_limits(values: Iterable[float], lo: float = 2.0, hi: float = 98.0) -> tuple[float, float]:
+    """Contrast limits from the ``lo``–``hi`` percentiles of the finite values (NaN ignored); a unit
+    span around a single value, (0, 1) when there is none."""
+    arr = np.asarray(list(values) if not isinstance(values, np.ndarray) else values, dtype=float)
+    arr = arr[np.isfinite(arr)]
+    if arr.size == 0:
+        return (0.0, 1.0)
+    a, b = (float(x) for x in np.percentile(arr, [lo, hi]))
+    if b <= a:
+        return contrast_limits(arr) if float(arr.max()) > float(arr.min()) else (a - 0.5, a + 0.5)
+    return (a, b)
+
+
+def tension_units(summary: Mapping[str, Any]) -> tuple[str, str]:
+    """(tension unit, pressure unit) of a TensionMap's summary ('gauge', 'gauge/um'; 'mN/m', 'kPa')."""
+    return (str(summary.get("tension_unit", "gauge")), str(summary.get("pressure_unit", "gauge/um")))
+
+
+def tension_layer_data(
+    tmap: Any,
+    name: str,
+    color_by: str = TENSION,
+    scale: Sequence[float] | None = None,
+    translate: Sequence[float] | None = None,
+) -> list[tuple[tuple[np.ndarray, np.ndarray, np.ndarray], dict, str]]:
+    """napari LayerData tuples for a TensionMap: the coloured Surface, then (only when some faces or
+    cells are undetermined) a uniform grey Surface ``"<name>: undetermined"`` of those.
+
+    ``color_by`` :data:`TENSION`: per face (unshared vertices, :func:`face_surface_data`), the
+    tension of the face's interface; :data:`PRESSURE`: per cell (shared vertices), the cell's
+    pressure. The coloured layer's contrast limits are the 2–98 percentiles of its values.
+    """
+    if color_by not in TENSION_CHOICES:
+        raise ValueError(f"colour by {color_by!r}: choose one of {TENSION_CHOICES}")
+    t_unit, p_unit = tension_units(tmap.summary)
+    tissue = tmap.tissue
+    if color_by == TENSION:
+        full = face_surface_data(tissue, tmap.face_tension)
+        unit = t_unit
+    else:
+        pressure = np.asarray(tmap.pressure, dtype=float)
+        values = {int(c.id): float(p) for c, p in zip(tissue.cells, pressure)}
+        full = surface_data(tissue, values)
+        unit = p_unit
+    determined, undetermined = split_undetermined(full)
+    placement: dict[str, Any] = {}
+    if scale is not None:
+        placement["scale"] = tuple(float(s) for s in scale)
+    if translate is not None:
+        placement["translate"] = tuple(float(t) for t in translate)
+    metadata = {
+        "tissuefit_color_by": color_by,
+        "tissuefit_unit": unit,
+        "tissuefit_cells": cell_ids(tissue),
+        "tissuefit_tensions_out": getattr(tmap, "out", None),
+    }
+    layers = [
+        (
+            determined,
+            {
+                "name": name,
+                "colormap": TENSION_COLORMAP,
+                "contrast_limits": robust_limits(determined[2]),
+                "metadata": metadata,
+                **placement,
+            },
+            "surface",
+        )
+    ]
+    if len(undetermined[1]):
+        layers.append(
+            (
+                undetermined,
+                {
+                    "name": f"{name}: undetermined",
+                    "colormap": "gray",
+                    "contrast_limits": (0.0, 1.0),  # values 0.5: RGB UNDETERMINED_RGB
+                    "metadata": {**metadata, "tissuefit_undetermined": True},
+                    **placement,
+                },
+                "surface",
+            )
+        )
+    return layers
+
+
+def interface_headers(summary: Mapping[str, Any]) -> tuple[str, ...]:
+    """Column headers of :func:`interface_rows`, with the tension unit."""
+    unit, _ = tension_units(summary)
+    return ("cell a", "cell b", f"tension ({unit})", "determined", "area (µm²)")
+
+
+def _num(x: Any) -> float:
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def interface_rows(tmap: Any) -> list[tuple[str, ...]]:
+    """Rows of the interfaces table: cell a, cell b (or "medium"), "tension ± sd" ("–" when
+    undetermined), determined (yes/no), area in µm²."""
+    cols = tmap.interfaces
+    n = len(np.asarray(cols.get("cell_a", [])))
+    rows = []
+    for i in range(n):
+        a = int(cols["cell_a"][i])
+        b = int(cols["cell_b"][i])
+        t = _num(cols["tension"][i]) if "tension" in cols else math.nan
+        sd = _num(cols["tension_sd"][i]) if "tension_sd" in cols else math.nan
+        det = bool(cols["determined"][i]) if "determined" in cols else math.isfinite(t)
+        area = _num(cols["area_um2"][i]) if "area_um2" in cols else math.nan
+        if det and math.isfinite(t):
+            tension = f"{t:.4g} ± {sd:.2g}" if math.isfinite(sd) else f"{t:.4g}"
+        else:
+            tension = "–"
+        rows.append(
+            (
+                str(a),
+                "medium" if b == 0 else str(b),
+                tension,
+                "yes" if det else "no",
+                f"{area:.4g}" if math.isfinite(area) else "–",
+            )
+        )
+    return rows
+
+
+def tension_status(summary: Mapping[str, Any]) -> str:
+    """One line: determined counts, the force-balance residual, the gauge and units."""
+    t_unit, p_unit = tension_units(summary)
+    parts = [
+        f"{summary.get('determined_interfaces', '?')}/{summary.get('interfaces', '?')} interface "
+        f"tensions, {summary.get('determined_pressures', '?')}/{summary.get('cells', '?')} pressures "
+        "determined"
+    ]
+    rms = summary.get("residual_rms")
+    if isinstance(rms, (int, float)):
+        parts.append(f"force-balance residual rms {rms:.3g} (units of the gauge)")
+    gauge = summary.get("gauge")
+    if gauge:
+        value = summary.get("gauge_value")
+        given = f" = {value:g} {t_unit}" if isinstance(value, (int, float)) else ""
+        parts.append(f"gauge: {gauge}{given}")
+    parts.append(f"tensions in {t_unit}, pressures in {p_unit}")
+    return "; ".join(parts)

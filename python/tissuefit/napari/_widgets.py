@@ -1,4 +1,4 @@
-"""napari dock widgets: "Mesh labels" and "Fit tissue mechanics".
+"""napari dock widgets: "Mesh labels", "Fit tissue mechanics" and "Tension map (direct estimate)".
 
 Only napari's public API (napari.layers, napari.qt.threading, napari.utils.notifications) and qtpy.
 The tissuefit calls run in a worker thread (they release the GIL); their progress callback forwards
@@ -20,6 +20,7 @@ from napari.utils.notifications import show_error, show_info, show_warning
 from qtpy.QtCore import QObject, Qt, Signal
 from qtpy.QtWidgets import (
     QAbstractItemView,
+    QCheckBox,
     QComboBox,
     QFileDialog,
     QFormLayout,
@@ -38,16 +39,23 @@ from qtpy.QtWidgets import (
 from ._layers import (
     CELL_ID,
     PARAMETER_HEADERS,
+    TENSION,
+    TENSION_CHOICES,
     color_choices,
     color_limits,
     fit_config_for,
     fit_status,
+    interface_headers,
+    interface_rows,
     labels_volume,
     parameter_rows,
     per_cell_columns,
     read_residuals,
     surface_data,
     surface_layer_data,
+    tension_layer_data,
+    tension_status,
+    tension_units,
     um_per_layer_unit,
     voxel_size_um,
 )
@@ -521,3 +529,166 @@ class FitWidget(_TissuefitWidget):
         layer.vertex_values = vals
         layer.contrast_limits = color_limits(vals, choice)
         layer.metadata["tissuefit_color_by"] = choice
+
+
+class TensionWidget(_TissuefitWidget):
+    """Tension map (direct estimate): ``tissuefit.tensions`` on a Labels layer → a Surface coloured by
+    each interface's tension (per face) or each cell's pressure, an interfaces table, a summary line.
+
+    Undetermined faces / cells are not in the coloured layer: they form a second, uniform grey Surface
+    layer ``"<name>: undetermined"`` (added only when there are some).
+    """
+
+    def __init__(self, napari_viewer: Any, parent: QWidget | None = None) -> None:
+        super().__init__(napari_viewer, parent)
+        self.run_button.setText("Run")
+        # tissuefit.tensions meshes a label volume itself (seed 0) and reports no progress: no seed
+        # choice, no Cancel (the call takes about a second)
+        self.form.labelForField(self.seed_spin).hide()
+        self.seed_spin.hide()
+        self.cancel_button.hide()
+
+        self.gauge_edit = QLineEdit()
+        self.gauge_edit.setPlaceholderText("empty: relative (gauge = 1)")
+        self.gauge_edit.setToolTip(
+            "The gauge's tension in mN/m, when known (the gauge is the mean cell–medium tension, or the "
+            "one medium tension): tensions are then in mN/m and pressures in kPa. Empty: relative to "
+            "the gauge (tensions in units of the gauge, pressures in gauge/µm)."
+        )
+        self.form.addRow("Gauge tension (mN/m)", self.gauge_edit)
+        self.one_medium_check = QCheckBox("one medium tension")
+        self.one_medium_check.setToolTip("One tension for every cell–medium interface.")
+        self.form.addRow("", self.one_medium_check)
+        self.color_combo = QComboBox()
+        self.color_combo.addItems(list(TENSION_CHOICES))
+        self.color_combo.setToolTip(
+            "interface tension: each face by the tension of its interface; cell pressure: each cell by "
+            "its pressure (relative to the medium). Grey (a separate layer): undetermined."
+        )
+        self.color_combo.currentTextChanged.connect(self._recolor)
+        self.form.addRow("Colour by", self.color_combo)
+
+        self.result_label = QLabel("")
+        self.result_label.setWordWrap(True)
+        self.result_label.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        self.table = QTableWidget(0, len(interface_headers({})))
+        self.table.setHorizontalHeaderLabels(list(interface_headers({})))
+        self.table.setEditTriggers(QAbstractItemView.NoEditTriggers)
+        self.table.verticalHeader().setVisible(False)
+        self.main_layout.addWidget(self.result_label)
+        self.main_layout.addWidget(self.table)
+        self.setMinimumWidth(480)
+
+        #: the TensionMap of the last successful run
+        self.tension_map: Any = None
+        #: the coloured Surface layer of the last run
+        self.surface_layer: Surface | None = None
+        #: the grey Surface layer of the undetermined faces/cells (None when all are determined)
+        self.undetermined_layer: Surface | None = None
+        self._source: Labels | None = None
+
+    def gauge_tension(self) -> float | None:
+        """The gauge tension in mN/m from the field (None when empty); ValueError when not a number > 0."""
+        text = self.gauge_edit.text().strip().replace(",", ".")
+        if not text:
+            return None
+        try:
+            value = float(text)
+        except ValueError:
+            raise ValueError(
+                f"Gauge tension {text!r} is not a number (mN/m), nor empty (relative)."
+            ) from None
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(
+                f"Gauge tension {text!r} must be a positive number of mN/m, or empty (relative)."
+            )
+        return value
+
+    def _inputs(self) -> dict | None:
+        try:
+            gauge = self.gauge_tension()
+        except ValueError as e:
+            self._fail_early(str(e))
+            return None
+        inputs = super()._inputs()
+        if inputs is None:
+            return None
+        inputs["gauge_tension"] = gauge
+        inputs["one_medium_tension"] = bool(self.one_medium_check.isChecked())
+        return inputs
+
+    def _work(self, inputs: dict) -> Any:
+        import tissuefit
+
+        return tissuefit.tensions(
+            inputs["labels"],
+            inputs["voxel"],
+            gauge_tension=inputs["gauge_tension"],
+            one_medium_tension=inputs["one_medium_tension"],
+            target_nodes=inputs["target_nodes"],
+        )
+
+    def _on_returned(self, inputs: dict, tmap: Any) -> None:
+        self.tension_map = tmap
+        self._source = inputs["layer"]
+        self._fill_table(tmap)
+        # a new run adds its own layers (the previous run's stay); Colour by redraws the last run's
+        self.surface_layer = self.undetermined_layer = None
+        self._show_layers()
+        self.last_run_seconds = time.perf_counter() - self._started
+        summary = tmap.summary
+        message = tension_status(summary)
+        warnings = [str(w) for w in (summary.get("warnings") or [])]
+        if warnings:
+            message += f"; {len(warnings)} warning(s): " + " | ".join(warnings)
+        self.result_label.setText(message)
+        self.result_label.setStyleSheet("color: orange;" if warnings else "")
+        self.status_label.setText(f"{self.last_run_seconds:.1f} s in the widget; files in {tmap.out}")
+        self.progress_bar.setFormat("done (see warnings)" if warnings else "done")
+        for w in warnings:
+            show_warning(f"tissuefit tensions: {w}")
+        if not warnings:
+            show_info(f"tissuefit tensions: {message}")
+
+    def _layer_name(self, color_by: str) -> str:
+        t_unit, p_unit = tension_units(self.tension_map.summary)
+        base = self._source.name if self._source is not None else "labels"
+        if color_by == TENSION:
+            return f"{base} tensions ({t_unit})"
+        return f"{base} pressures ({p_unit})"
+
+    def _show_layers(self) -> None:
+        """(Re)draws the last result for the current colour-by choice: replaces the last run's layers."""
+        if self.tension_map is None or self._source is None:
+            return
+        for old in (self.surface_layer, self.undetermined_layer):
+            if old is not None and old in self.viewer.layers:
+                self.viewer.layers.remove(old)
+        self.surface_layer = self.undetermined_layer = None
+        color_by = self.color_combo.currentText()
+        layers = tension_layer_data(
+            self.tension_map,
+            name=self._layer_name(color_by),
+            color_by=color_by,
+            **self._layer_placement(self._source),
+        )
+        (data, kwargs, _), rest = layers[0], layers[1:]
+        if rest:
+            grey_data, grey_kwargs, _ = rest[0]
+            self.undetermined_layer = self.viewer.add_surface(grey_data, **grey_kwargs)
+        self.surface_layer = self.viewer.add_surface(data, **kwargs)
+
+    def _recolor(self, choice: str) -> None:
+        if self.tension_map is not None and not self.running:
+            self._show_layers()
+
+    def _fill_table(self, tmap: Any) -> None:
+        headers = interface_headers(tmap.summary)
+        rows = interface_rows(tmap)
+        self.table.setColumnCount(len(headers))
+        self.table.setHorizontalHeaderLabels(list(headers))
+        self.table.setRowCount(len(rows))
+        for i, row in enumerate(rows):
+            for j, text in enumerate(row):
+                self.table.setItem(i, j, QTableWidgetItem(text))
+        self.table.resizeColumnsToContents()
