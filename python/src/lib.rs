@@ -19,10 +19,10 @@ use std::sync::{Arc, Mutex};
 use tissuefit::geometry::{Real, Vec3};
 use tissuefit::imaging::{BorderPolicy, LabelReadOptions, LabelVolume, read_labels as read_label_file};
 use tissuefit::inference::{FitConfig, FitOptions, InferenceError};
-use tissuefit::pipeline::PipelineConfig;
 use tissuefit::io::{LengthScale, OutputUnit, ReadOptions, Watch, read_tissue as read_tissue_file, write_tissue_in};
 use tissuefit::meshing::{LabelMeshingError, LabelMeshingOptions, mesh_labels_with_progress};
 use tissuefit::morphology::{LabelMeasureSettings, measure_labels, measure_tissue};
+use tissuefit::pipeline::PipelineConfig;
 use tissuefit::stages;
 use tissuefit::stages::measure::MeasureConfig;
 use tissuefit::stages::output_unit::{
@@ -440,16 +440,7 @@ fn fit_config(text: &str, base: &Path, origin: &str) -> PyResult<(FitConfig, boo
     }
     let mut config: FitConfig = toml::from_str(text).map_err(|e| error(format!("{origin}: {e}")))?;
     config.check_settings().map_err(|e| error(format!("{origin}: {e}")))?;
-    let fix = |p: &mut PathBuf| {
-        if p.is_relative() {
-            *p = base.join(&*p);
-        }
-    };
-    if let Some(observed) = &mut config.observed {
-        observed.tissue.as_mut().map(fix);
-        observed.labels.as_mut().map(fix);
-    }
-    config.model.as_mut().map(fix);
+    config.resolve_paths(base);
     Ok((config, false))
 }
 

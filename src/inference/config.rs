@@ -400,18 +400,22 @@ impl FitConfig {
         let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
             .map_err(|e| InferenceError::Config(format!("reading {}: {e}", path.display())))?;
         let mut config = Self::from_toml_str(&text, &path.display().to_string())?;
-        let base = path.parent().unwrap_or(Path::new("."));
+        config.resolve_paths(path.parent().unwrap_or(Path::new(".")));
+        Ok(config)
+    }
+
+    /// Makes the config's relative paths (observed tissue or labels, model) relative to `base`.
+    pub fn resolve_paths(&mut self, base: &Path) {
         let fix = |p: &mut PathBuf| {
             if p.is_relative() {
                 *p = base.join(&*p);
             }
         };
-        if let Some(observed) = &mut config.observed {
+        if let Some(observed) = &mut self.observed {
             observed.tissue.as_mut().map(fix);
             observed.labels.as_mut().map(fix);
         }
-        config.model.as_mut().map(fix);
-        Ok(config)
+        self.model.as_mut().map(fix);
     }
 
     /// Parses and checks TOML text; `origin` names it in errors.

@@ -325,33 +325,43 @@ def _toml_load(path: str) -> dict | None:
         return tomllib.load(fh)
 
 
-def fit_config_for(path: str) -> tuple[Any, dict]:
-    """(config for tissuefit.fit, mesh options) from a config file the user chose.
+def fit_config_for(path: str, seed: int, target_nodes: int | None) -> dict:
+    """The config for ``tissuefit.fit(labels, voxel_size, config=...)`` from a file the user chose.
 
-    A fit config file is passed on as its path (its relative paths stay relative to it). A pipeline
-    file (one with an ``[input]`` table) gives its ``[fit]`` table as a dict, with ``model`` made
-    absolute (relative to the pipeline file) and without ``[observed]`` (the widget meshes the
-    Labels layer), and its mesh options: ``[mesh]`` ``target_nodes`` and ``[input]`` ``seed``.
+    A fit config (``tissuefit fit --config``'s schema) or a pipeline file (one with an ``[input]``
+    table: its ``[fit]``, with its ``[mesh]`` as the observed meshing and its ``[input]`` seed as the
+    optimiser's, as ``tissuefit fit --config PIPELINE`` takes it). ``model`` is made absolute
+    (relative to the file), ``[observed]``'s files are dropped (the Labels layer is the observed
+    tissue, meshed and measured like a label file), and the widget's seed and nodes per cell (when
+    not "default") set ``[observed.meshing]``.
     """
     data = _toml_load(path)
-    if data is None or "input" not in data:
-        return path, {}
-    if "fit" not in data:
-        raise ValueError(f"{path} is a pipeline file without a [fit] table: nothing to fit")
-    fit = dict(data["fit"])
+    if data is None:
+        raise ValueError("reading a TOML file needs Python 3.11 or the tomli package (pip install tomli)")
+    if "input" in data:
+        if "fit" not in data:
+            raise ValueError(f"{path} is a pipeline file without a [fit] table: nothing to fit")
+        fit = dict(data["fit"])
+        meshing = dict(data.get("mesh") or {})
+        input_seed = data["input"].get("seed") if isinstance(data["input"], dict) else None
+        if input_seed is not None:
+            optimizer = dict(fit.get("optimizer") or {})
+            optimizer.setdefault("seed", int(input_seed))
+            fit["optimizer"] = optimizer
+    else:
+        fit = dict(data)
+        meshing = dict((fit.get("observed") or {}).get("meshing") or {})
     fit.pop("observed", None)
     model = fit.get("model")
     if isinstance(model, str) and not os.path.isabs(model):
         fit["model"] = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(path)), model))
-    mesh: dict = {}
-    if isinstance(data.get("mesh"), dict) and "target_nodes" in data["mesh"]:
-        mesh["target_nodes"] = int(data["mesh"]["target_nodes"])
-    if isinstance(data["input"], dict) and "seed" in data["input"]:
-        mesh["seed"] = int(data["input"]["seed"])
-    return fit, mesh
+    meshing["seed"] = int(seed)
+    if target_nodes is not None:
+        meshing["target_nodes"] = int(target_nodes)
+    fit["observed"] = {"meshing": meshing}
+    return fit
 
 
-# ----------------------------------------------------------------------------- tension map
 #: Colour-by choices of the "Tension map" widget.
 TENSION = "interface tension"
 PRESSURE = "cell pressure"

@@ -428,19 +428,17 @@ class FitWidget(_TissuefitWidget):
         if not os.path.isfile(config):
             self._fail_early(f"Fit config {config!r} is not a file.")
             return None
+        inputs = super()._inputs()
+        if inputs is None:
+            return None
         try:
-            fit_config, mesh_options = fit_config_for(config)
+            fit_config = fit_config_for(config, inputs["seed"], inputs["target_nodes"])
         except (ValueError, OSError) as e:
             self._fail_early(f"Fit config {config!r}: {e}")
             return None
         except Exception as e:  # a TOML syntax error: tissuefit would report it too
             self._fail_early(f"Fit config {config!r} is not valid TOML: {e}")
             return None
-        inputs = super()._inputs()
-        if inputs is None:
-            return None
-        if inputs["target_nodes"] is None and "target_nodes" in mesh_options:
-            inputs["target_nodes"] = mesh_options["target_nodes"]  # the pipeline file's [mesh]
         out = self.out_edit.text().strip()
         if not out:
             out = tempfile.mkdtemp(prefix="tissuefit-fit-")
@@ -452,15 +450,14 @@ class FitWidget(_TissuefitWidget):
     def _work(self, inputs: dict) -> dict:
         import tissuefit
 
-        tissue = tissuefit.mesh(
+        # The Labels layer is the observed tissue as a label file is for `tissuefit fit`: meshed with
+        # the config's [observed.meshing], and the simulations measured like it (on its voxels).
+        result = tissuefit.fit(
             inputs["labels"],
             inputs["voxel"],
-            seed=inputs["seed"],
-            target_nodes=inputs["target_nodes"],
+            config=inputs["config"],
+            out=inputs["out"],
             progress=self._progress_callback,
-        )
-        result = tissuefit.fit(
-            tissue, config=inputs["config"], out=inputs["out"], progress=self._progress_callback
         )
         measured: dict = {}
         if result.tissue is not None:
