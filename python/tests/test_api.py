@@ -306,4 +306,28 @@ def test_bad_configs_and_files_raise_tissuefit_errors_naming_them(demo, tmp_path
 def test_the_package_needs_no_rust_toolchain():
     # The wheel is self-contained: the extension module lies in the package.
     assert Path(tf._native.__file__).parent == Path(tf.__file__).parent
+    # Typed (PEP 561) and with its napari manifest.
+    assert (Path(tf.__file__).parent / "py.typed").exists()
+    assert (Path(tf.__file__).parent / "napari" / "napari.yaml").exists()
     assert shutil.which("cargo") is None or os.environ.get("TISSUEFIT_ALLOW_CARGO") == "1"
+
+
+ZARR = ROOT / "tests" / "data" / "python_zarr"
+
+
+def test_ome_zarr_v2_and_v3_stores_read_with_their_anisotropic_scale_and_levels():
+    # Fixtures written by the Python zarr/ome-zarr packages (tests/data/python_zarr/make.py).
+    v2, size2 = tf.read_labels(ZARR / "cells_v2.zarr")
+    v3, size3 = tf.read_labels(ZARR / "cells_v3.zarr")
+    np.testing.assert_array_equal(v2, v3)
+    assert v2.shape == (6, 10, 12)
+    assert size2 == pytest.approx((0.8, 0.25, 0.25)) and size3 == pytest.approx((0.8, 0.25, 0.25))
+    coarse, size = tf.read_labels(ZARR / "cells_v3.zarr", zarr_level=1)
+    assert coarse.shape == (6, 5, 6) and size == pytest.approx((0.8, 0.5, 0.5))
+    with pytest.raises(tf.TissuefitError, match="scale level 5"):
+        tf.read_labels(ZARR / "cells_v3.zarr", zarr_level=5)
+    with pytest.raises(tf.TissuefitError, match="OME-Zarr stores only"):
+        tf.read_labels(DEMO, zarr_level=1)
+    a = tf.measure(v2, size2, min_voxels=1)
+    b = tf.measure(v3, size3, min_voxels=1)
+    np.testing.assert_allclose(a.cells["volume_um3"], b.cells["volume_um3"], rtol=1e-12)
