@@ -38,4 +38,19 @@ if [ -f "$ovule" ]; then
 else
     echo "$ovule not found: the real-data tutorial's output is not regenerated" >&2
 fi
+"$bin" config presets > "$gen/presets.txt"
+embryo=../shared/data/real/DERIVED_cshaper_4cells_labels_from_mesh.tif
+if [ -f "$embryo" ]; then
+    "$bin" --threads 2 run pipelines/own-embryo.toml --out runs/own-embryo --force > "$gen/own-embryo-run.txt"
+    python3 - runs/own-embryo/fit/result.json > "$gen/own-embryo-metrics.txt" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+o, b = r["observed"], r["best_metrics"]
+print(f"observed:  sphericity {o['sphericity']:.3f}, contact fraction {o['contact_fraction']:.3f}")
+print(f"best fit:  sphericity {b['sphericity']:.3f}, contact fraction {b['contact_fraction']:.3f}")
+print(f"objective at the best point: {r['objective']:.2f}")
+PY
+else
+    echo "$embryo not found: the own-data tutorial's output is not regenerated" >&2
+fi
 echo "regenerated: $img/demo-*.png, objective.png, landscape.png, profile.png, $gen/*.txt"

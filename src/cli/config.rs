@@ -21,6 +21,13 @@ pub enum ConfigCommand {
         #[arg(long, value_name = "TISSUE")]
         tissue: Option<PathBuf>,
     },
+    /// List the presets for real data (`preset = "NAME"` in a pipeline file), each with what it is for.
+    Presets,
+    /// Print one preset's TOML (the keys a pipeline file naming it starts from, with comments).
+    Preset {
+        /// The preset's name (see `tissuefit config presets`).
+        name: String,
+    },
     /// Print the Markdown reference of every pipeline-file key (type, default, description) and of
     /// the model parameters, generated from the schemas (the docs book's reference/configuration.md is
     /// this output).
@@ -35,6 +42,20 @@ pub fn run(cmd: &ConfigCommand) -> anyhow::Result<Outcome> {
     match cmd {
         ConfigCommand::Defaults => {
             print!("{}", Parameters::default_toml_commented());
+            Ok(Outcome::Success)
+        }
+        ConfigCommand::Presets => {
+            for p in crate::pipeline::preset::PRESETS {
+                println!("{:<16}{}", p.name, p.summary);
+            }
+            println!(
+                "\nUse one with `preset = \"NAME\"` at the top of a pipeline file; `tissuefit config preset NAME` prints it."
+            );
+            Ok(Outcome::Success)
+        }
+        ConfigCommand::Preset { name } => {
+            let preset = crate::pipeline::preset::find(name).map_err(|e| anyhow::anyhow!(e))?;
+            print!("{}", preset.text);
             Ok(Outcome::Success)
         }
         ConfigCommand::Reference { section } => {

@@ -21,6 +21,12 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PipelineConfig {
+    /// A named starting point for real data (`compact-embryo`, `epithelium`; `tissuefit
+    /// config presets` lists them, `tissuefit config preset NAME` prints one): its `[mesh]`,
+    /// `[measure]` and `[fit]` are the base, and this file's keys are laid over them (tables merge,
+    /// other values replace; a section's `model = FILE` replaces the preset's model). Default: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preset: Option<String>,
     /// The segmented tissue.
     pub input: InputSection,
     /// Meshing of the label volume (the options of `tissuefit mesh`).
@@ -331,13 +337,43 @@ impl PipelineConfig {
 
     /// Parses and checks TOML text (paths as written); `origin` names the file in errors.
     pub fn from_toml_str(text: &str, origin: &Path) -> Result<Self, PipelineError> {
-        // Parsed from the text first, so that schema errors carry their place in the file…
-        toml::from_str::<Self>(text).map_err(|e| describe_toml_error(&e, text, origin))?;
-        // …then again with `input.seed` filled in where the sections leave their seeds out.
         let mut table: toml::Table = toml::from_str(text).map_err(|e| describe_toml_error(&e, text, origin))?;
-        inject_seed(&mut table);
-        let config: Self = table.try_into().map_err(|e: toml::de::Error| describe_toml_error(&e, text, origin))?;
-        config.check().map_err(|e| PipelineError::Config(format!("{}: {e}", origin.display())))?;
+        let preset =
+            super::preset::apply(&table).map_err(|e| PipelineError::Config(format!("{}: {e}", origin.display())))?;
+        let with_preset = preset.as_ref().map(|(p, _)| p.name);
+        let config: Self = match preset {
+            None => {
+                // Parsed from the text first, so that schema errors carry their place in the file…
+                toml::from_str::<Self>(text).map_err(|e| describe_toml_error(&e, text, origin))?;
+                // …then again with `input.seed` filled in where the sections leave their seeds out.
+                inject_seed(&mut table);
+                table.try_into().map_err(|e: toml::de::Error| describe_toml_error(&e, text, origin))?
+            }
+            Some((preset, mut merged)) => {
+                // The file laid over its preset: a schema error is found in the merged text and
+                // placed back in the file by its dotted key (the preset's own keys are valid).
+                inject_seed(&mut merged);
+                let merged_text = toml::to_string(&merged).map_err(|e| {
+                    PipelineError::Config(format!("{}: preset `{}`: {e}", origin.display(), preset.name))
+                })?;
+                toml::from_str(&merged_text).map_err(|e: toml::de::Error| {
+                    let key = e.span().and_then(|span| key_at(&merged_text, span.start));
+                    let line = key.as_deref().and_then(|k| line_of_key(text, k));
+                    let place = line.map_or(String::new(), |l| format!(":{l}"));
+                    let key = key.map_or(String::new(), |k| format!(" key `{k}`:"));
+                    PipelineError::Config(format!(
+                        "{}{place} (with preset `{}`):{key} {}",
+                        origin.display(),
+                        preset.name,
+                        schema_message(&e)
+                    ))
+                })?
+            }
+        };
+        config.check().map_err(|e| match with_preset {
+            Some(name) => PipelineError::Config(format!("{} with preset `{name}`: {e}", origin.display())),
+            None => PipelineError::Config(format!("{}: {e}", origin.display())),
+        })?;
         Ok(config)
     }
 
@@ -630,6 +666,18 @@ pub(crate) fn schema_message(e: &toml::de::Error) -> String {
         Some(best) => format!("{message}; did you mean `{best}`?"),
         None => message,
     }
+}
+
+/// The first line (1-based) of `text` whose dotted key ([`key_at`]) is `key`.
+fn line_of_key(text: &str, key: &str) -> Option<usize> {
+    let mut start = 0;
+    for (i, line) in text.split_inclusive('\n').enumerate() {
+        if key_at(text, start).as_deref() == Some(key) && !line.trim().is_empty() {
+            return Some(i + 1);
+        }
+        start += line.len();
+    }
+    None
 }
 
 /// The dotted key of the `key = value` line holding byte `at` (its `[table]` header prepended).

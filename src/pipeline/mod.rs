@@ -24,6 +24,7 @@
 mod config;
 pub mod lock;
 mod manifest;
+pub mod preset;
 mod reference;
 mod run;
 mod stages;

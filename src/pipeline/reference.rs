@@ -15,6 +15,7 @@ use std::fmt::Write as _;
 pub const REFERENCE_SECTIONS: [&str; 8] = ["input", "mesh", "measure", "simulate", "fit", "output", "demo", "model"];
 
 /// One key of a table.
+#[derive(Clone)]
 struct Row {
     key: String,
     kind: String,
@@ -23,6 +24,7 @@ struct Row {
 }
 
 /// A table of the config and its keys, in the order they are documented.
+#[derive(Clone)]
 struct Table {
     header: String,
     description: String,
@@ -62,8 +64,18 @@ pub fn config_reference(section: Option<&str>) -> Result<String, String> {
         walk_table(&schema, "", &defs, root, &mut tables)?;
         let top = |t: &Table| t.header.trim_matches(['[', ']']).split('.').next().unwrap_or_default().to_string();
         // Sections in pipeline order (stable: each section's sub-tables keep their order).
-        tables.sort_by_key(|t| REFERENCE_SECTIONS.iter().position(|s| *s == top(t)).unwrap_or(usize::MAX));
-        for t in tables.iter().filter(|t| !t.header.is_empty()) {
+        tables.sort_by_key(|t| match t.header.is_empty() {
+            true => 0,
+            false => 1 + REFERENCE_SECTIONS.iter().position(|s| *s == top(t)).unwrap_or(usize::MAX - 1),
+        });
+        for t in &tables {
+            if t.header.is_empty() {
+                // The keys at the top of the file (`preset`), before every table.
+                if section.is_none() && !t.rows.is_empty() {
+                    write_table(&mut out, &Table { header: "(top level)".into(), ..t.clone() });
+                }
+                continue;
+            }
             if section.is_some_and(|s| s != top(t)) {
                 continue;
             }

@@ -38,6 +38,7 @@ mod morphology_labels;
 mod output_units;
 mod pipeline;
 mod polarity;
+mod presets;
 mod real_data;
 mod relaxation;
 mod remesh_properties;
