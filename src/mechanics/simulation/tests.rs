@@ -246,3 +246,42 @@ fn a_cell_below_its_minimum_volume_is_removed() {
     assert_eq!(sim.cell_data.last_good[0].len(), sim.tissue().cells()[0].mesh().node_count());
     sim.time_step().unwrap();
 }
+
+/// A cell squeezed flat or through itself (volume ≤ 0) gets a non-finite pressure force, which
+/// coupled contacts share with the nodes of the cells it touches. The health check must name that
+/// cell and its volume, not the first cell in the list with a non-finite force (on the PlantSeg
+/// ovule crop that was a neighbour, blamed on "the contact term"); and a cell whose own term is
+/// non-finite before one that only received non-finite contact forces.
+#[test]
+fn the_health_check_names_the_cell_that_broke_down_not_the_neighbour_its_forces_reached() {
+    let (tissue, mut p) = pressed_doublet();
+    p.numerics.contact_model = crate::mechanics::ContactModel::Coupling;
+    let mut sim = Simulation::new(tissue, &p).unwrap();
+    sim.evaluate().expect("the pressed doublet is healthy");
+    // As after the coupling shared cell 2's breakdown: a non-finite force on cell 1, cell 2 flat.
+    sim.work.forces.cells[0].forces[0] = Vec3::new(Real::NAN, 0.0, 0.0);
+    sim.work.forces.cells[1].geometry.volume = -1e-23;
+    match sim.check_health() {
+        Err(SimulationError::Unhealthy { cell, what, .. }) => {
+            assert_eq!(cell, CellId(2), "{what}");
+            assert!(what.contains("volume turned non-positive"), "{what}");
+        }
+        other => panic!("a flattened cell must stop the run: {other:?}"),
+    }
+    // Volumes fine: cell 2's own bending force is non-finite (all its nodes on one point), cell 1
+    // only got a non-finite force: cell 2 and its term are named.
+    sim.evaluate().expect("healthy again");
+    let flat = sim.tissue.cells()[1].mesh().positions()[0];
+    for q in sim.tissue.cells_mut()[1].positions_mut() {
+        *q = flat;
+    }
+    sim.work.forces.cells[0].forces[0] = Vec3::new(Real::NAN, 0.0, 0.0);
+    sim.work.forces.cells[1].forces[0] = Vec3::new(Real::NAN, 0.0, 0.0);
+    match sim.check_health() {
+        Err(SimulationError::Unhealthy { cell, what, .. }) => {
+            assert_eq!(cell, CellId(2), "{what}");
+            assert!(what.contains("non-finite force") && !what.contains("contact"), "{what}");
+        }
+        other => panic!("a cell with a non-finite term must stop the run: {other:?}"),
+    }
+}
