@@ -338,18 +338,6 @@ fn measure_labels_json(
     morphology_json(&m.morphology)
 }
 
-/// `layer`'s keys into `base`, tables merged key by key.
-fn merge_tables(base: &mut toml::Table, layer: toml::Table) {
-    for (key, value) in layer {
-        match (base.get_mut(&key), value) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(l)) => merge_tables(b, l),
-            (_, value) => {
-                base.insert(key, value);
-            }
-        }
-    }
-}
-
 /// TOML text → table, naming `what` in errors.
 fn toml_table(text: &str, what: &str) -> PyResult<toml::Table> {
     toml::from_str(text).map_err(|e| error(format!("{what}: {e}")))
@@ -373,7 +361,7 @@ fn simulate(
     for (i, text) in overrides.iter().enumerate() {
         let layer = toml_table(text, &format!("model keys (layer {})", i + 1))?;
         match &mut merged {
-            Some(m) => merge_tables(m, layer),
+            Some(m) => tissuefit::pipeline::preset::merge(m, layer),
             None => merged = Some(layer),
         }
     }

@@ -64,8 +64,9 @@ pub fn apply(user: &toml::Table) -> Result<Option<(&'static Preset, toml::Table)
     Ok(Some((preset, base)))
 }
 
-/// `over` laid over `base`: tables merge recursively, every other value replaces.
-fn merge(base: &mut toml::Table, over: toml::Table) {
+/// `over` laid over `base`: tables merge recursively, every other value (arrays included) replaces.
+/// How a preset is laid under a pipeline file; the Python API lays its config overrides the same way.
+pub fn merge(base: &mut toml::Table, over: toml::Table) {
     for (key, value) in over {
         match (base.get_mut(&key), value) {
             (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
