@@ -7,7 +7,10 @@
 #   docs/src/generated/evolver-fits.md   `tissuefit run` fits of the label volumes (validation/evolver/
 #                                        run_fits.py; minutes to an hour: RESOLUTIONS, CLUSTERS narrow it)
 #   docs/src/generated/evolver-heldout.md the same for the held-out clusters (heldout_*; about 40 min)
-# Usage: docs/scripts/evolver.sh [relax|fits|heldout|all]   (default all)
+#   docs/src/generated/noise-fits.md     fits of the doublet and held-out triplet at 10 voxels per
+#                                        diameter with a voxel of boundary noise (`tissuefit generate
+#                                        noise`), without and with `mesh.denoise_voxels` (about 20 min)
+# Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|all]   (default all)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 what=${1:-all}
@@ -31,4 +34,37 @@ if [ "$what" = heldout ] || [ "$what" = all ]; then
     work=$(mktemp -d)
     python3 validation/evolver/run_fits.py --only heldout_triplet,heldout_ball8 \
         --resolutions "${RESOLUTIONS:-10,20,40}" --work "$work" --markdown "$out/evolver-heldout.md"
+fi
+if [ "$what" = noise ] || [ "$what" = all ]; then
+    cargo build --release
+    work=$(mktemp -d)
+    fixtures=validation/evolver/fixtures
+    sed 's/^target_nodes = 400 .*/&\ndenoise_voxels = 1.5/' validation/evolver/fit-template.toml > "$work/denoise.toml"
+    grep -q '^denoise_voxels = 1.5' "$work/denoise.toml"
+    : > "$out/noise-fits.md"
+    for noise in clean 0 1.5; do
+        for c in doublet heldout_triplet; do
+            mkdir -p "$work/$noise/$c"
+            cp "$fixtures/$c/truth.json" "$work/$noise/$c/"
+            if [ "$noise" = clean ]; then
+                cp "$fixtures/$c/labels_10.tif" "$work/$noise/$c/"
+            else
+                target/release/tissuefit generate noise "$fixtures/$c/labels_10.tif" --amplitude 1 \
+                    --correlation "$noise" --seed 1 --out "$work/$noise/$c/labels_10.tif" > /dev/null
+            fi
+        done
+        for meshing in default denoise; do
+            template=validation/evolver/fit-template.toml
+            [ "$meshing" = denoise ] && template="$work/denoise.toml"
+            python3 validation/evolver/run_fits.py --clusters "$work/$noise" --resolutions 10 \
+                --template "$template" --work "$work/runs-$noise-$meshing" --markdown "$work/$noise-$meshing.md"
+            case $noise in
+                clean) what_noise="clean mask" ;;
+                0) what_noise="1 voxel RMS of salt-and-pepper noise (--correlation 0)" ;;
+                *) what_noise="1 voxel RMS of wavy noise (--correlation $noise)" ;;
+            esac
+            [ "$meshing" = denoise ] && how="mesh.denoise_voxels = 1.5" || how="default meshing"
+            { echo "**$what_noise, $how**"; echo; cat "$work/$noise-$meshing.md"; echo; } >> "$out/noise-fits.md"
+        done
+    done
 fi

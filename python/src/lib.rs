@@ -207,7 +207,7 @@ fn border_policy(border: &str) -> PyResult<BorderPolicy> {
 
 /// Meshes every label of a volume (`tissuefit mesh`'s meshing).
 #[pyfunction]
-#[pyo3(signature = (labels, voxel_size_m, origin_m = None, *, seed = 0, target_nodes = None, l_min_um = None, border = "keep", min_voxels = None, progress = None))]
+#[pyo3(signature = (labels, voxel_size_m, origin_m = None, *, seed = 0, target_nodes = None, l_min_um = None, border = "keep", min_voxels = None, denoise_voxels = None, progress = None))]
 #[allow(clippy::too_many_arguments)]
 fn mesh(
     py: Python<'_>,
@@ -219,10 +219,12 @@ fn mesh(
     l_min_um: Option<Real>,
     border: &str,
     min_voxels: Option<u64>,
+    denoise_voxels: Option<Real>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<PyTissue> {
     let volume = volume_from(labels, voxel_size_m, origin_m)?;
-    let mut options = LabelMeshingOptions { seed, border: border_policy(border)?, ..Default::default() };
+    let mut options =
+        LabelMeshingOptions { seed, border: border_policy(border)?, denoise_voxels, ..Default::default() };
     if let Some(n) = target_nodes {
         options.target_nodes = n;
     }

@@ -107,6 +107,19 @@ def test_mesh_is_the_cli_mesh_bit_for_bit(demo, tmp_path):
         assert np.all(c.vertices >= lo) and np.all(c.vertices <= hi)
 
 
+def test_mesh_denoised_is_the_cli_mesh_denoised_and_a_bad_sigma_is_refused(demo, tmp_path):
+    labels, voxel_size = demo
+    tissue = tf.mesh(labels, voxel_size, target_nodes=200, denoise_voxels=1.5)
+    cli("mesh", str(DEMO), "--out", str(tmp_path / "d.vtp"), "--target-nodes", "200", "--denoise-voxels", "1.5")
+    written = tf.read_tissue(tmp_path / "d.vtp")
+    plain = tf.mesh(labels, voxel_size, target_nodes=200)
+    for a, b, c in zip(tissue.cells, written.cells, plain.cells):
+        np.testing.assert_array_equal(a.vertices, b.vertices)
+        assert a.vertices.shape != c.vertices.shape or not np.array_equal(a.vertices, c.vertices)
+    with pytest.raises(Exception, match="denoise_voxels"):
+        tf.mesh(labels, voxel_size, denoise_voxels=-1.0)
+
+
 def test_a_saved_tissue_reads_back_the_same_in_micrometres(demo, tmp_path):
     labels, voxel_size = demo
     tissue = tf.mesh(labels, voxel_size, target_nodes=200)

@@ -222,6 +222,7 @@ def mesh(
     l_min: Optional[float] = None,
     border: str = "keep",
     min_voxels: Optional[int] = None,
+    denoise_voxels: Optional[float] = None,
     progress: Optional[Progress] = None,
 ) -> Tissue:
     """Meshes every label into a closed cell surface, as ``tissuefit mesh`` does.
@@ -229,8 +230,10 @@ def mesh(
     ``labels``: an integer array [z, y, x] (0 = background); ``voxel_size``: µm, one number or
     (z, y, x). ``target_nodes``: nodes per median cell (sets l_min; default the CLI's);
     ``l_min``: the minimum edge length in µm instead; ``border``: what to do with labels touching
-    the volume's border, "keep", "static" or "drop"; ``min_voxels``: smaller labels are debris.
-    The per-label outcome is ``Tissue.report``."""
+    the volume's border, "keep", "static" or "drop"; ``min_voxels``: smaller labels are debris;
+    ``denoise_voxels``: first a Gaussian-weighted label vote of that σ in voxels (about 1.5 for
+    masks whose boundaries are off by a voxel; ``--denoise-voxels``). The per-label outcome is
+    ``Tissue.report``."""
     return Tissue(
         _native.mesh(
             _labels_u32(labels),
@@ -241,6 +244,7 @@ def mesh(
             l_min_um=l_min,
             border=border,
             min_voxels=min_voxels,
+            denoise_voxels=denoise_voxels,
             progress=progress,
         )
     )

@@ -41,7 +41,7 @@ pub struct MeshArgs {
         value_name = "PIPELINE.toml",
         conflicts_with_all = [
             "voxel_size", "l_min", "target_nodes", "min_voxels", "border", "lumen_labels", "nuclei",
-            "max_refinements", "length_unit", "seed", "report", "zarr_level", "output_unit",
+            "max_refinements", "length_unit", "seed", "report", "zarr_level", "output_unit", "denoise_voxels",
         ]
     )]
     pub config: Option<PathBuf>,
@@ -81,6 +81,10 @@ pub struct MeshArgs {
     /// Retries of a cell that cannot be made valid at the shared l_min, each at half the previous l_min.
     #[arg(long, default_value_t = DEFAULT_MAX_REFINEMENTS)]
     pub max_refinements: u32,
+    /// Denoise the labels before meshing: a Gaussian-weighted vote of σ = this many voxels (about 1
+    /// for masks whose boundaries are off by a voxel). Default: none.
+    #[arg(long, value_name = "VOXELS")]
+    pub denoise_voxels: Option<Real>,
     /// Mesh input only: length unit of its coordinates (m default, um, or the x,y,z voxel size for
     /// meshes in voxel coordinates, e.g. 0.15,0.15,0.235um).
     #[arg(long, value_name = "UNIT")]
@@ -146,6 +150,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<Outcome> {
             lumen_labels: args.lumen_labels.clone(),
             seed: args.seed,
             max_refinements: args.max_refinements,
+            denoise_voxels: args.denoise_voxels,
         },
         voxel_size: args.voxel_size,
         zarr_level: args.zarr_level,

@@ -13,7 +13,8 @@
 //!   `image-label.properties` (`zarr_properties.rs`), for `tissuefit measure --zarr-properties`.
 //! - [`voxelize`]: closed cell surfaces → labels, by exact ray–triangle crossings along x.
 //! - [`label_overlap`]: per-label IoU and χ = 1 − IoU of two label volumes on one grid.
-//! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate).
+//! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate);
+//!   [`perturb_boundaries`]: segmentation-like noise on a volume's boundaries (`noise.rs`).
 //! - [`BorderPolicy`], [`DEFAULT_MIN_VOXELS`]: which labels count as cells (debris, cut cells at
 //!   the border), the same for meshing a label volume and for measuring it (`label_filter.rs`).
 //! - [`check_voxel_memory`]: the one memory limit every dense voxel array is checked against before
@@ -26,6 +27,7 @@ mod label_filter;
 mod labels;
 mod limits;
 mod metadata;
+mod noise;
 mod npy_read;
 mod overlap;
 mod tiff_read;
@@ -44,6 +46,7 @@ pub use labels::{
 };
 pub use limits::{DEFAULT_MEMORY_LIMIT, MEMORY_LIMIT_ENV, check_voxel_memory, format_bytes, memory_limit, parse_bytes};
 pub use metadata::VoxelSizeSource;
+pub use noise::{BoundaryNoise, NoiseStats, denoise_labels, gaussian_blur, perturb_boundaries};
 pub use overlap::{LabelOverlap, label_overlap};
 pub use tiff_read::{
     FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff, read_label_tiff_bytes,

@@ -64,7 +64,18 @@ pub struct LabelMeshingOptions {
     /// Retries, each at half the previous l_min, of a cell that cannot be made valid at the shared
     /// l_min. Default 2 (down to l_min/4).
     pub max_refinements: u32,
+    /// Denoise the label volume before meshing: each voxel takes the label with the largest
+    /// Gaussian-weighted vote within 2σ, σ = this many voxels (of the largest edge). For masks whose
+    /// boundaries are off by about a voxel (a segmentation's noise), 1.5 votes the bumps away while
+    /// cells in contact stay in contact. A fit measures its simulated tissues through the same filter
+    /// (`forward.measure_like_data`), so its own rounding of the cells cancels. Default: none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub denoise_voxels: Option<Real>,
 }
+
+/// Largest [`LabelMeshingOptions::denoise_voxels`]: beyond a few voxels the vote rounds cells of 10
+/// voxels across into spheres.
+pub const MAX_DENOISE_VOXELS: Real = 5.0;
 
 /// Default of [`LabelMeshingOptions::max_refinements`].
 pub const DEFAULT_MAX_REFINEMENTS: u32 = 2;
@@ -79,6 +90,7 @@ impl Default for LabelMeshingOptions {
             lumen_labels: Vec::new(),
             seed: 0,
             max_refinements: DEFAULT_MAX_REFINEMENTS,
+            denoise_voxels: None,
         }
     }
 }
@@ -90,6 +102,13 @@ pub enum LabelMeshingError {
     InvalidLMin { l_min: Real },
     #[error("target_nodes must be at least 1")]
     InvalidTargetNodes,
+    #[error(
+        "denoise_voxels = {value} must lie in [0, {MAX_DENOISE_VOXELS}] (voxels; 1 for masks with about a voxel of \
+         boundary noise)"
+    )]
+    InvalidDenoise { value: Real },
+    #[error("denoising the labels: {0}")]
+    Denoise(crate::imaging::ImagingError),
     #[error("the volume has no labels (every voxel is background, 0)")]
     NoLabels,
     #[error(
@@ -245,6 +264,17 @@ pub fn mesh_cells_and_nuclei(
     if options.l_min.is_none() && options.target_nodes == 0 {
         return Err(LabelMeshingError::InvalidTargetNodes);
     }
+    let denoised;
+    let volume = match options.denoise_voxels {
+        Some(value) if !(value.is_finite() && (0.0..=MAX_DENOISE_VOXELS).contains(&value)) => {
+            return Err(LabelMeshingError::InvalidDenoise { value });
+        }
+        Some(value) if value > 0.0 => {
+            denoised = crate::imaging::denoise_labels(volume, value).map_err(LabelMeshingError::Denoise)?.0;
+            &denoised
+        }
+        _ => volume,
+    };
     volume.grid().check_anisotropy()?;
     if let Some(n) = nuclei {
         check_same_grid(volume, n)?;

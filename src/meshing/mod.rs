@@ -63,7 +63,7 @@ pub use generate::{
 };
 pub use labels::{
     DEFAULT_MAX_REFINEMENTS, LabelMeshing, LabelMeshingError, LabelMeshingOptions, LabelReport, LabelStatus,
-    MASK_MARGIN, label_seed, mesh_cells_and_nuclei, mesh_labels, mesh_labels_with_progress,
+    MASK_MARGIN, MAX_DENOISE_VOXELS, label_seed, mesh_cells_and_nuclei, mesh_labels, mesh_labels_with_progress,
 };
 // Which labels count as cells is `imaging`'s (measuring a label volume applies the same rules);
 // re-exported here next to the meshing options that use it.

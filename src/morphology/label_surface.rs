@@ -34,8 +34,8 @@
 //! order (z, y, x; then the six directions), so the result is independent of threads.
 
 use crate::geometry::{Mat3, Real, Vec3};
-use crate::imaging::{LabelInfo, VoxelGrid};
-use ndarray::{Array3, Axis, Zip};
+use crate::imaging::{LabelInfo, VoxelGrid, gaussian_blur};
+use ndarray::Array3;
 use std::collections::BTreeMap;
 
 /// What one label's voxels give.
@@ -152,56 +152,5 @@ pub(crate) fn measure_label_surface(
         covariance,
         area: toward.iter().fold(0.0, |s, t| s + t.1),
         toward,
-    }
-}
-
-/// Separable Gaussian blur of standard deviation `sigma` (m) on a grid of voxel size `size` (z, y, x),
-/// kernel truncated at 3σ, zero outside the array, and never longer than the axis (taps beyond it
-/// never meet a voxel; an unbounded kernel on a strongly anisotropic grid did not fit in memory).
-/// `sigma = 0` returns the field unchanged.
-fn gaussian_blur(mut field: Array3<Real>, size: [Real; 3], sigma: Real) -> Array3<Real> {
-    if sigma.is_nan() || sigma <= 0.0 {
-        return field;
-    }
-    for (a, s) in size.iter().enumerate() {
-        let longest = field.len_of(Axis(a)).saturating_sub(1) as Real;
-        let radius = (3.0 * sigma / s).ceil().min(longest).max(0.0) as isize;
-        let kernel: Vec<Real> =
-            (-radius..=radius).map(|k| (-(k as Real * s).powi(2) / (2.0 * sigma * sigma)).exp()).collect();
-        let total: Real = kernel.iter().sum();
-        let kernel: Vec<Real> = kernel.iter().map(|w| w / total).collect();
-        let mut out = Array3::<Real>::zeros(field.dim());
-        Zip::from(out.lanes_mut(Axis(a))).and(field.lanes(Axis(a))).for_each(|mut o, f| {
-            let n = f.len() as isize;
-            for x in 0..n {
-                let mut acc = 0.0;
-                for (w, k) in kernel.iter().zip(-radius..=radius) {
-                    let y = x + k;
-                    if (0..n).contains(&y) {
-                        acc += w * f[y as usize];
-                    }
-                }
-                o[x as usize] = acc;
-            }
-        });
-        field = out;
-    }
-    field
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn blur_preserves_mass_away_from_the_edges_and_zero_sigma_is_identity() {
-        // Kernel radii: 3 voxels along z and y, 5 along x (3σ/s rounded up).
-        let mut f = Array3::<Real>::zeros((13, 13, 13));
-        f[[6, 6, 6]] = 1.0;
-        let b = gaussian_blur(f.clone(), [1.0, 1.0, 0.5], 0.7);
-        assert!((b.sum() - 1.0).abs() < 1e-12);
-        assert!(b[[6, 6, 6]] < 1.0 && b[[6, 6, 7]] > b[[6, 7, 6]]);
-        assert_eq!((b[[6, 6, 12]], b[[6, 10, 6]]), (0.0, 0.0));
-        assert_eq!(gaussian_blur(f.clone(), [1.0; 3], 0.0), f);
     }
 }

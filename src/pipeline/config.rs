@@ -388,6 +388,15 @@ impl PipelineConfig {
         {
             return Err(format!("mesh.l_min: must be a length > 0 (m); got {l}"));
         }
+        if let Some(v) = self.mesh.denoise_voxels
+            && !(v.is_finite() && (0.0..=crate::meshing::MAX_DENOISE_VOXELS).contains(&v))
+        {
+            return Err(format!(
+                "mesh.denoise_voxels: must lie in [0, {}] (σ in voxels; about 1.5 for masks whose boundaries are off \
+                 by a voxel); got {v}",
+                crate::meshing::MAX_DENOISE_VOXELS
+            ));
+        }
         if let Some(v) = self.simulate.as_ref().and_then(|s| s.chi_voxel_size)
             && !(v.is_finite() && v > 0.0)
         {
@@ -744,6 +753,17 @@ mod tests {
         assert!(e.contains("p.toml:5"), "{e}");
         assert!(e.contains("mesh.target_node"), "{e}");
         assert!(e.contains("did you mean `target_nodes`"), "{e}");
+    }
+
+    #[test]
+    fn a_denoising_width_out_of_range_is_refused_naming_the_key() {
+        let ok = "[input]\nlabels = \"x.tif\"\n\n[mesh]\ndenoise_voxels = 1.5\n";
+        assert_eq!(PipelineConfig::from_toml_str(ok, Path::new("p.toml")).unwrap().mesh.denoise_voxels, Some(1.5));
+        for bad in ["-1.0", "nan", "9.0"] {
+            let text = format!("[input]\nlabels = \"x.tif\"\n\n[mesh]\ndenoise_voxels = {bad}\n");
+            let e = PipelineConfig::from_toml_str(&text, Path::new("p.toml")).unwrap_err().to_string();
+            assert!(e.contains("mesh.denoise_voxels"), "{e}");
+        }
     }
 
     #[test]

@@ -536,6 +536,45 @@ fn generate_labels_writes_a_seeded_aggregate_with_its_lumen() {
 }
 
 #[test]
+fn generate_noise_perturbs_boundaries_on_the_same_grid_and_refuses_bad_amplitudes() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = dir.path().join("clean.tif");
+    let (noisy, again) = (dir.path().join("noisy.tif"), dir.path().join("again.tif"));
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    ok(&tissuefit(&[
+        "generate",
+        "labels",
+        "--kind",
+        "aggregate",
+        "--cells",
+        "6",
+        "--shape",
+        "40",
+        "--out",
+        &s(&clean),
+    ]));
+    let noise = |out: &Path, amplitude: &str| {
+        tissuefit(&["generate", "noise", &s(&clean), "--amplitude", amplitude, "--seed", "2", "--out", &s(out)])
+    };
+    let stdout = ok(&noise(&noisy, "1"));
+    assert!(stdout.contains("noisy.tif") && stdout.contains("changed label"), "{stdout}");
+    ok(&noise(&again, "1"));
+    assert_eq!(std::fs::read(&noisy).unwrap(), std::fs::read(&again).unwrap(), "same seed, same file");
+    let (a, b) = (
+        read_label_tiff(&clean, &LabelReadOptions::default()).unwrap().volume,
+        read_label_tiff(&noisy, &LabelReadOptions::default()).unwrap().volume,
+    );
+    assert_eq!((a.shape(), a.voxel_size()), (b.shape(), b.voxel_size()));
+    let changed = a.labels().iter().zip(b.labels()).filter(|(x, y)| x != y).count();
+    assert!(changed > 100 && changed < a.labels().len() / 5, "{changed} voxels changed");
+    let bad = dir.path().join("bad.tif");
+    let out = noise(&bad, "50");
+    assert_ne!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("amplitude"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!bad.exists());
+}
+
+#[test]
 fn voxelize_command_matches_mesh_volumes_and_reproduces_a_grid_with_like() {
     let dir = tempfile::tempdir().unwrap();
     let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/demo/cell_quartet.vtk");
