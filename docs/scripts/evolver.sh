@@ -9,7 +9,7 @@
 #   docs/src/generated/evolver-heldout.md the same for the held-out clusters (heldout_*; about 40 min)
 #   docs/src/generated/noise-fits.md     fits of the doublet and held-out triplet at 10 voxels per
 #                                        diameter with a voxel of boundary noise (`tissuefit generate
-#                                        noise`), without and with `mesh.denoise_voxels` (about 20 min)
+#                                        noise`), without and with `mesh.denoise_voxels` 1.5 and 2 (about 30 min)
 # Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|all]   (default all)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -39,8 +39,10 @@ if [ "$what" = noise ] || [ "$what" = all ]; then
     cargo build --release
     work=$(mktemp -d)
     fixtures=validation/evolver/fixtures
-    sed 's/^target_nodes = 400 .*/&\ndenoise_voxels = 1.5/' validation/evolver/fit-template.toml > "$work/denoise.toml"
-    grep -q '^denoise_voxels = 1.5' "$work/denoise.toml"
+    for s in 1.5 2; do
+        sed "s/^target_nodes = 400 .*/&\\ndenoise_voxels = $s/" validation/evolver/fit-template.toml > "$work/denoise-$s.toml"
+        grep -q "^denoise_voxels = $s" "$work/denoise-$s.toml"
+    done
     : > "$out/noise-fits.md"
     for noise in clean 0 1.5; do
         for c in doublet heldout_triplet; do
@@ -53,17 +55,20 @@ if [ "$what" = noise ] || [ "$what" = all ]; then
                     --correlation "$noise" --seed 1 --out "$work/$noise/$c/labels_10.tif" > /dev/null
             fi
         done
-        for meshing in default denoise; do
+        case $noise in
+            clean) what_noise="clean mask" ;;
+            0) what_noise="1 voxel RMS of salt-and-pepper noise (--correlation 0)" ;;
+            *) what_noise="1 voxel RMS of wavy noise (--correlation $noise)" ;;
+        esac
+        for meshing in default 1.5 2; do
             template=validation/evolver/fit-template.toml
-            [ "$meshing" = denoise ] && template="$work/denoise.toml"
+            how="default meshing"
+            if [ "$meshing" != default ]; then
+                template="$work/denoise-$meshing.toml"
+                how="mesh.denoise_voxels = $meshing"
+            fi
             python3 validation/evolver/run_fits.py --clusters "$work/$noise" --resolutions 10 \
                 --template "$template" --work "$work/runs-$noise-$meshing" --markdown "$work/$noise-$meshing.md"
-            case $noise in
-                clean) what_noise="clean mask" ;;
-                0) what_noise="1 voxel RMS of salt-and-pepper noise (--correlation 0)" ;;
-                *) what_noise="1 voxel RMS of wavy noise (--correlation $noise)" ;;
-            esac
-            [ "$meshing" = denoise ] && how="mesh.denoise_voxels = 1.5" || how="default meshing"
             { echo "**$what_noise, $how**"; echo; cat "$work/$noise-$meshing.md"; echo; } >> "$out/noise-fits.md"
         done
     done

@@ -231,7 +231,7 @@ def mesh(
     (z, y, x). ``target_nodes``: nodes per median cell (sets l_min; default the CLI's);
     ``l_min``: the minimum edge length in µm instead; ``border``: what to do with labels touching
     the volume's border, "keep", "static" or "drop"; ``min_voxels``: smaller labels are debris;
-    ``denoise_voxels``: first a Gaussian-weighted label vote of that σ in voxels (about 1.5 for
+    ``denoise_voxels``: first a Gaussian-weighted label vote of that σ in voxels (about 2 for
     masks whose boundaries are off by a voxel; ``--denoise-voxels``). The per-label outcome is
     ``Tissue.report``."""
     return Tissue(

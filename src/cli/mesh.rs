@@ -81,7 +81,7 @@ pub struct MeshArgs {
     /// Retries of a cell that cannot be made valid at the shared l_min, each at half the previous l_min.
     #[arg(long, default_value_t = DEFAULT_MAX_REFINEMENTS)]
     pub max_refinements: u32,
-    /// Denoise the labels before meshing: a Gaussian-weighted vote of σ = this many voxels (about 1
+    /// Denoise the labels before meshing: a Gaussian-weighted vote of σ = this many voxels (about 2
     /// for masks whose boundaries are off by a voxel). Default: none.
     #[arg(long, value_name = "VOXELS")]
     pub denoise_voxels: Option<Real>,

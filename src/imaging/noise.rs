@@ -120,7 +120,7 @@ pub fn perturb_boundaries(
 pub fn denoise_labels(volume: &LabelVolume, sigma_voxels: Real) -> Result<(LabelVolume, usize), ImagingError> {
     if !(sigma_voxels.is_finite() && (0.0..=5.0).contains(&sigma_voxels)) {
         return Err(ImagingError::Generate(format!(
-            "the denoising σ {sigma_voxels} voxels must lie in [0, 5] (about 1 for a voxel of boundary noise)"
+            "the denoising σ {sigma_voxels} voxels must lie in [0, 5] (about 2 for a voxel of boundary noise)"
         )));
     }
     let labels = volume.labels();

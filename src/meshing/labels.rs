@@ -66,7 +66,7 @@ pub struct LabelMeshingOptions {
     pub max_refinements: u32,
     /// Denoise the label volume before meshing: each voxel takes the label with the largest
     /// Gaussian-weighted vote within 2σ, σ = this many voxels (of the largest edge). For masks whose
-    /// boundaries are off by about a voxel (a segmentation's noise), 1.5 votes the bumps away while
+    /// boundaries are off by about a voxel (a segmentation's noise), 2 votes the bumps away while
     /// cells in contact stay in contact. A fit measures its simulated tissues through the same filter
     /// (`forward.measure_like_data`), so its own rounding of the cells cancels. Default: none.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -103,7 +103,7 @@ pub enum LabelMeshingError {
     #[error("target_nodes must be at least 1")]
     InvalidTargetNodes,
     #[error(
-        "denoise_voxels = {value} must lie in [0, {MAX_DENOISE_VOXELS}] (voxels; 1 for masks with about a voxel of \
+        "denoise_voxels = {value} must lie in [0, {MAX_DENOISE_VOXELS}] (voxels; 2 for masks with about a voxel of \
          boundary noise)"
     )]
     InvalidDenoise { value: Real },

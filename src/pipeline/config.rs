@@ -392,7 +392,7 @@ impl PipelineConfig {
             && !(v.is_finite() && (0.0..=crate::meshing::MAX_DENOISE_VOXELS).contains(&v))
         {
             return Err(format!(
-                "mesh.denoise_voxels: must lie in [0, {}] (σ in voxels; about 1.5 for masks whose boundaries are off \
+                "mesh.denoise_voxels: must lie in [0, {}] (σ in voxels; about 2 for masks whose boundaries are off \
                  by a voxel); got {v}",
                 crate::meshing::MAX_DENOISE_VOXELS
             ));
