@@ -10,7 +10,10 @@
 #   docs/src/generated/noise-fits.md     fits of the doublet and held-out triplet at 10 voxels per
 #                                        diameter with a voxel of boundary noise (`tissuefit generate
 #                                        noise`), without and with `mesh.denoise_voxels` 1.5 and 2 (about 30 min)
-# Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|all]   (default all)
+#   docs/src/generated/noise-scatter.md  what the noise does to the measured shape before any fit: the same
+#                                        two masks meshed with denoise_voxels = 2 and measured, clean and
+#                                        over 6 noise seeds of each kind (mean ± SD; seconds)
+# Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|noise-scatter|all]   (default all)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 what=${1:-all}
@@ -72,4 +75,51 @@ if [ "$what" = noise ] || [ "$what" = all ]; then
             { echo "**$what_noise, $how**"; echo; cat "$work/$noise-$meshing.md"; echo; } >> "$out/noise-fits.md"
         done
     done
+fi
+if [ "$what" = noise-scatter ] || [ "$what" = all ]; then
+    cargo build --release
+    work=$(mktemp -d)
+    fixtures=validation/evolver/fixtures
+    seeds="1 2 3 4 5 6"
+    # One mask: meshed as the fit template meshes the observed volume (400 nodes per cell), with the
+    # documented denoise_voxels = 2, and measured; prints the cells' mean sphericity, mean contact
+    # fraction and total volume (µm³).
+    shape() {
+        target/release/tissuefit -q mesh "$1" --target-nodes 400 --denoise-voxels 2 --out "$1.vtp" > /dev/null
+        target/release/tissuefit -q measure "$1.vtp" --out "$1.measured" > /dev/null
+        python3 -c 'import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+mean = lambda k: sum(float(r[k]) for r in rows) / len(rows)
+print(mean("sphericity"), mean("contact_fraction"), sum(float(r["volume"]) for r in rows) * 1e18)' "$1.measured/cells.csv"
+    }
+    for c in doublet heldout_triplet; do
+        cp "$fixtures/$c/labels_10.tif" "$work/$c-clean.tif"
+        echo "$c clean $(shape "$work/$c-clean.tif")" >> "$work/shapes.txt"
+        for noise in 0 1.5; do
+            for seed in $seeds; do
+                target/release/tissuefit -q generate noise "$fixtures/$c/labels_10.tif" --amplitude 1 \
+                    --correlation "$noise" --seed "$seed" --out "$work/$c-$noise-$seed.tif" > /dev/null
+                echo "$c $noise $(shape "$work/$c-$noise-$seed.tif")" >> "$work/shapes.txt"
+            done
+        done
+    done
+    python3 - "$work/shapes.txt" > "$out/noise-scatter.md" <<'PY'
+import collections, statistics, sys
+rows = collections.defaultdict(list)
+for line in open(sys.argv[1]):
+    cluster, noise, psi, phi, volume = line.split()
+    rows[cluster, noise].append((float(psi), float(phi), float(volume)))
+names = {"clean": "clean", "0": "salt-and-pepper (correlation 0)", "1.5": "wavy (correlation 1.5)"}
+print("| cluster | mask (1 voxel RMS) | masks | mean sphericity | mean contact fraction | total volume vs clean |")
+print("|---|---|---|---|---|---|")
+for (cluster, noise), values in rows.items():
+    clean_volume = rows[cluster, "clean"][0][2]
+    def cell(i, digits, relative=False):
+        xs = [v[i] / clean_volume * 100 - 100 if relative else v[i] for v in values]
+        sign = "+" if relative else ""
+        if len(xs) == 1:
+            return "—" if relative else f"{xs[0]:.{digits}f}"
+        return f"{statistics.mean(xs):{sign}.{digits}f} ± {statistics.stdev(xs):.{digits}f}" + (" %" if relative else "")
+    print(f"| {cluster} | {names[noise]} | {len(values)} | {cell(0, 3)} | {cell(1, 3)} | {cell(2, 1, True)} |")
+PY
 fi
