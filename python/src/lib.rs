@@ -417,7 +417,8 @@ fn simulate(
 /// left out (the observed tissue is given in Python). A pipeline file (it has `[input]`) gives its
 /// `[fit]` with `[input]` and `[mesh]` as `tissuefit fit --config PIPELINE` takes it; the second
 /// value says so (its `[input]` then gives way to an observed tissue given in Python).
-fn fit_config(text: &str, base: &Path, origin: &str) -> PyResult<(FitConfig, bool)> {
+/// A fit config, or a pipeline's `[fit]` with the pipeline's output unit (`Some` = a pipeline).
+fn fit_config(text: &str, base: &Path, origin: &str) -> PyResult<(FitConfig, Option<OutputUnit>)> {
     let table: toml::Table = toml::from_str(text).map_err(|e| error(format!("{origin}: {e}")))?;
     if table.contains_key("input") {
         let name = Path::new(origin).file_name().map_or_else(|| "pipeline.toml".into(), |n| n.to_os_string());
@@ -426,12 +427,13 @@ fn fit_config(text: &str, base: &Path, origin: &str) -> PyResult<(FitConfig, boo
             .fit
             .as_ref()
             .ok_or_else(|| error(format!("{origin}: the pipeline has no [fit] section; add one to fit")))?;
-        return Ok((tissuefit::pipeline::fit_config(fit, &pipeline.input, &pipeline.mesh), true));
+        let config = tissuefit::pipeline::fit_config(fit, &pipeline.input, &pipeline.mesh);
+        return Ok((config, Some(pipeline.output.length_unit)));
     }
     let mut config: FitConfig = toml::from_str(text).map_err(|e| error(format!("{origin}: {e}")))?;
     config.check_settings().map_err(|e| error(format!("{origin}: {e}")))?;
     config.resolve_paths(base);
-    Ok((config, false))
+    Ok((config, None))
 }
 
 /// Runs the fit stage into `out` on the observed tissue: a label volume (meshed with the config's
@@ -453,7 +455,8 @@ fn fit(
     resume: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
-    let (mut config, pipeline) = fit_config(config, &base, origin)?;
+    let (mut config, pipeline_unit) = fit_config(config, &base, origin)?;
+    let pipeline = pipeline_unit.is_some();
     let volume = match (labels, voxel_size_m) {
         (Some(l), Some(v)) => Some(volume_from(l, v, origin_m)?),
         (Some(_), None) => return Err(error("labels need their voxel_size (z, y, x) in µm")),
@@ -489,7 +492,13 @@ fn fit(
         (Some(_), Some(_)) => return Err(error("give labels or a tissue to fit, not both")),
     };
     let call = CallWatch::new(progress);
-    let options = FitOptions { resume, progress: false, plots: true, watch: call.watch.clone() };
+    let options = FitOptions {
+        resume,
+        progress: false,
+        plots: true,
+        watch: call.watch.clone(),
+        output_unit: pipeline_unit.unwrap_or_default(),
+    };
     py.detach(|| stages::fit::run(&config, observed, &out, &options)).map_err(|e| {
         if call.watch.stopped() {
             call.fail(format!("{}; the fit folder is {}", InferenceError::Stopped, out.display()))

@@ -192,6 +192,8 @@ def test_the_demo_fit_gives_the_cli_numbers_bit_for_bit(demo, tmp_path):
     for name in ("best.vtp", "residuals.csv", "fit.toml", "objective.png"):
         assert (tmp_path / "py" / name).exists(), name
     assert list(result.residuals["cell"]) == [1, 2]
+    # The best tissue in the pipeline's unit (demo.toml has no [output]: metres), as the CLI writes it.
+    assert (tmp_path / "py" / "best.vtp").read_bytes() == (tmp_path / "cli" / "best.vtp").read_bytes()
 
 
 def test_an_unconverged_fit_warns_and_says_so(demo, tmp_path):

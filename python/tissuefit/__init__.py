@@ -571,7 +571,8 @@ def fit(
     ``pipelines/demo.toml``) gives its ``[fit]`` with its ``[mesh]`` settings and seed, as
     ``tissuefit fit --config PIPELINE`` takes it; an observed tissue given here replaces its
     ``[input]``. ``out``: the fit folder (default
-    a new temporary folder) with trace.csv, result.json, best.vtp, the plots. ``resume``: go on from
+    a new temporary folder) with trace.csv, result.json, best.vtp (in µm when a pipeline's ``[output]
+    length_unit`` is ``"um"``; :attr:`FitResult.tissue` is read back in metres), the plots. ``resume``: go on from
     ``out``'s trace. A fit in which no evaluation succeeded raises :class:`TissuefitError`; a fit
     that ran but did not converge returns with ``converged == False`` (check :attr:`FitResult.ok`)."""
     if config is None:

@@ -2,7 +2,7 @@
 
 use super::Outcome;
 use crate::inference::{FitConfig, FitOptions};
-use crate::io::OutputPolicy;
+use crate::io::{OutputPolicy, OutputUnit};
 use crate::pipeline::PipelineConfig;
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -29,23 +29,29 @@ pub struct FitArgs {
     /// Overrides optimizer.seed.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Length unit of best.vtp: m (SI) or um (ParaView's axes read µm; the file records its unit and
+    /// tissuefit reads it back in metres). Default: a pipeline file's `[output] length_unit`, else m.
+    /// residuals.csv has both units; trace.csv, result.json and the models are SI.
+    #[arg(long, value_name = "UNIT")]
+    pub output_unit: Option<OutputUnit>,
 }
 
-/// A fit config, or the fit of a pipeline file (recognised by its `[input]` table).
-fn load_config(path: &Path) -> anyhow::Result<FitConfig> {
+/// A fit config, or the fit of a pipeline file (recognised by its `[input]` table) with the
+/// pipeline's output unit.
+fn load_config(path: &Path) -> anyhow::Result<(FitConfig, Option<OutputUnit>)> {
     if !crate::pipeline::is_pipeline_file(path) {
-        return Ok(FitConfig::load(path)?);
+        return Ok((FitConfig::load(path)?, None));
     }
     let pipeline = PipelineConfig::load(path)?;
     let fit = pipeline
         .fit
         .as_ref()
         .ok_or_else(|| anyhow::anyhow!("{}: the pipeline has no [fit] section; add one to fit", path.display()))?;
-    Ok(crate::pipeline::fit_config(fit, &pipeline.input, &pipeline.mesh))
+    Ok((crate::pipeline::fit_config(fit, &pipeline.input, &pipeline.mesh), Some(pipeline.output.length_unit)))
 }
 
 pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
-    let mut config = load_config(&args.config)?;
+    let (mut config, pipeline_unit) = load_config(&args.config)?;
     let observed = config.observed().ok();
     OutputPolicy::new()
         .input("--config", &args.config)
@@ -59,7 +65,13 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
     if let Some(s) = args.seed {
         config.optimizer.seed = s;
     }
-    let options = FitOptions { resume: args.resume, progress: true, plots: true, ..Default::default() };
+    let options = FitOptions {
+        resume: args.resume,
+        progress: true,
+        plots: true,
+        output_unit: args.output_unit.or(pipeline_unit).unwrap_or_default(),
+        ..Default::default()
+    };
     let result = crate::stages::fit::run(&config, crate::stages::fit::Observed::Config, &args.out, &options)
         .with_context(|| format!("fitting {}", args.config.display()))?;
     eprintln!(

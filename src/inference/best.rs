@@ -1,6 +1,7 @@
-//! The fit's best point as files: `best.vtp` (the relaxed tissue at the best parameters),
-//! `best.toml` (the whole model at the best parameters) and `residuals.csv` (observed vs simulated
-//! per moving cell).
+//! The fit's best point as files: `best.vtp` (the relaxed tissue at the best parameters, in the
+//! fit's output unit: metres, or µm with the unit recorded so that it reads back in metres),
+//! `best.toml` (the whole model at the best parameters, SI like every model file) and
+//! `residuals.csv` (observed vs simulated per moving cell; lengths in both units, named so).
 //!
 //! The trace keeps an evaluation's metrics, not its tissue, so the best point is relaxed once more
 //! after the fit, exactly as an evaluation of the fit is ([`ForwardModel::evaluate`]: a cold start
@@ -26,7 +27,7 @@
 use super::InferenceError;
 use super::forward::{Evaluation, ForwardModel, Status};
 use crate::geometry::Real;
-use crate::io::{write_bytes_atomically, write_tissue};
+use crate::io::{OutputUnit, write_bytes_atomically, write_tissue_in};
 use crate::morphology::{CellMorphology, MeasureSettings, measure_tissue};
 use serde::Serialize;
 use std::collections::HashMap;
@@ -102,6 +103,9 @@ struct ResidualRow {
     free_area_m2_observed: Real,
     free_area_m2_simulated: Option<Real>,
     free_area_m2_difference: Option<Real>,
+    free_area_um2_observed: Real,
+    free_area_um2_simulated: Option<Real>,
+    free_area_um2_difference: Option<Real>,
     neighbours_observed: usize,
     neighbours_simulated: Option<usize>,
     neighbours_difference: Option<i64>,
@@ -139,6 +143,9 @@ fn residual_row(o: &CellMorphology, s: Option<&CellMorphology>) -> ResidualRow {
         free_area_m2_observed: o.free_area,
         free_area_m2_simulated: sim(|c| c.free_area),
         free_area_m2_difference: diff(|c| c.free_area),
+        free_area_um2_observed: o.free_area * M2_TO_UM2,
+        free_area_um2_simulated: sim(|c| c.free_area * M2_TO_UM2),
+        free_area_um2_difference: diff(|c| c.free_area * M2_TO_UM2),
         neighbours_observed: o.neighbours,
         neighbours_simulated: s.map(|s| s.neighbours),
         neighbours_difference: s.map(|s| s.neighbours as i64 - o.neighbours as i64),
@@ -177,13 +184,14 @@ fn measure_simulated(model: &ForwardModel, tissue: &crate::mesh::Tissue) -> Resu
 }
 
 /// Relaxes the best point once more as an evaluation of the fit does and writes `best.vtp`,
-/// `best.toml` and `residuals.csv` into `out` (see the module doc). A failed relaxation is
+/// `best.toml` and `residuals.csv` into `out` (see the module doc; `best.vtp` in `unit`). A failed relaxation is
 /// reported in the returned [`BestRelaxation`] (and logged), not as an error; errors are files that
 /// could not be written.
 pub fn write_best_outputs(
     model: &ForwardModel,
     best: &Evaluation,
     out: &Path,
+    unit: OutputUnit,
 ) -> Result<BestRelaxation, InferenceError> {
     let output_err = |p: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", p.display()));
     let params = model.space.apply(&model.base, &best.x);
@@ -195,7 +203,7 @@ pub fn write_best_outputs(
     let tissue_path = out.join(BEST_TISSUE_FILE);
     let tissue_written = match &tissue {
         Some(t) if evaluation.status.usable() => {
-            write_tissue(&tissue_path, t, &[]).map_err(|e| output_err(&tissue_path, &e))?;
+            write_tissue_in(&tissue_path, t, &[], unit).map_err(|e| output_err(&tissue_path, &e))?;
             true
         }
         _ => {

@@ -11,7 +11,9 @@ use super::trace::{read_trace, write_trace};
 use super::{InferenceError, plot};
 use crate::geometry::Real;
 use crate::imaging::{LabelVolume, read_labels};
-use crate::io::{Heartbeat, LengthScale, Progress, ReadOptions, Watch, read_tissue, write_bytes_atomically};
+use crate::io::{
+    Heartbeat, LengthScale, OutputUnit, Progress, ReadOptions, Watch, read_tissue, write_bytes_atomically,
+};
 use crate::mechanics::{ContactModel, Polarity};
 use crate::mesh::{CellKind, FaceType};
 use crate::meshing::{LabelMeshingOptions, mesh_labels, retriangulate};
@@ -35,6 +37,9 @@ pub struct FitOptions {
     /// A caller's listener and stop request (the Python API): hears each evaluation; stopping it
     /// ends the fit with [`InferenceError::Stopped`] after the trace is written.
     pub watch: Watch,
+    /// Length unit of `best.vtp` (metres by default; µm records its unit and reads back in metres).
+    /// The files the fit reads back (trace, result, models) are SI whatever it is.
+    pub output_unit: OutputUnit,
 }
 
 /// Reads the observed input (meshing a label volume first) and measures it.
@@ -211,7 +216,7 @@ pub fn run_fit_observed(
         return Err(e);
     }
     // The best point relaxed once more for its tissue (best.vtp), with its model and residuals.
-    let best_relaxation = write_best_outputs(&model, &best, out)?;
+    let best_relaxation = write_best_outputs(&model, &best, out, options.output_unit)?;
     if model.watch.stopped() {
         return Err(InferenceError::Stopped);
     }

@@ -63,8 +63,9 @@ pub struct OutputSection {
     /// `centroid_x_um`, …), morphology summaries (`length_unit = "um"`, keys renamed likewise) and
     /// ParaView files (`final.vtp`, frames; the unit recorded in each) in micrometres. The files the
     /// stages read from each other stay in metres: `mesh/tissue.vtp` (read by measure, simulate and
-    /// fit), `mesh/report.json`, `simulate/summary.json`, `simulate/final.vtk`; the fit's files are
-    /// SI. Default "m".
+    /// fit), `mesh/report.json`, `simulate/summary.json`, `simulate/final.vtk`. The fit writes
+    /// `fit/best.vtp` in this unit; its `residuals.csv` has both units, and its trace, result and
+    /// models stay SI. Default "m".
     #[serde(default)]
     pub length_unit: OutputUnit,
 }

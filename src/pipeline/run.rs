@@ -286,10 +286,16 @@ fn run_locked(
         // The fit starts from the mesh stage's tissue and measures simulations on the labels' grid.
         let key = stage_key("fit", &text, &[&input_hash, &tissue_hash, &fit_model_hash]);
         let mesh_dir = out.join("mesh");
+        let output_unit = config.output.length_unit;
         runner.stage("fit", key, Some(Resumable::Trace), |dir, resume| {
             let config = super::fit_config(section, &config.input, &config.mesh);
-            let options =
-                crate::inference::FitOptions { resume, progress: options.progress, plots: true, ..Default::default() };
+            let options = crate::inference::FitOptions {
+                resume,
+                progress: options.progress,
+                plots: true,
+                output_unit,
+                ..Default::default()
+            };
             let r =
                 crate::stages::fit::run(&config, crate::stages::fit::Observed::MeshStage(&mesh_dir), dir, &options)?;
             let line = r.summary_line();

@@ -203,3 +203,58 @@ fn a_pipeline_in_micrometres_writes_micrometre_outputs_and_its_stages_read_si() 
         assert_eq!(u["energy_total"], s["energy_total"]);
     }
 }
+
+/// The fit's best tissue follows the output unit: a pipeline with `[output] length_unit = "um"`
+/// writes `fit/best.vtp` in µm (the unit recorded, read back as the SI fit's tissue), `tissuefit fit
+/// --config` of that pipeline takes its unit (the same bytes), `--output-unit m` overrides it back to
+/// the SI file, and the files the fit reads back (trace, result, best model) do not change.
+#[test]
+fn a_fit_in_micrometres_writes_its_best_tissue_in_micrometres_and_the_rest_si() {
+    let tmp = tempfile::tempdir().unwrap();
+    let labels = repo().join("data/demo/doublet.tif");
+    let model = repo().join("data/demo/doublet_truth.toml");
+    // The stage-parity fit: a few evaluations of short relaxations (neither need converge).
+    let body = format!(
+        "[input]\nlabels = {labels:?}\nseed = 5\n\n[mesh]\ntarget_nodes = 60\n\n[fit]\nmodel = {model:?}\n\
+         [fit.model_overrides.simulation]\nmax_steps = 150\n\
+         [fit.parameters.surface_tension]\nvalue = 1e-3\n\
+         [fit.parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\ninitial = 8e-4\n\
+         [fit.objective]\nsphericity = 1.0\ncontact_fraction = 0.0\ncoordination = 0.0\ncontact_angle = 0.0\n\
+         [fit.optimizer]\nmethod = \"nelder_mead\"\nmax_evaluations = 2\n\
+         [fit.forward]\naccept_residual = 1e9\n[fit.profile]\npoints = 1\nnoise_replicates = 1\n",
+        labels = labels.display().to_string(),
+        model = model.display().to_string()
+    );
+    let (p_si, p_um) = (tmp.path().join("si.toml"), tmp.path().join("um.toml"));
+    std::fs::write(&p_si, &body).unwrap();
+    std::fs::write(&p_um, format!("{body}\n[output]\nlength_unit = \"um\"\n")).unwrap();
+    let (r_si, r_um) = (tmp.path().join("run_si"), tmp.path().join("run_um"));
+    for (p, r) in [(&p_si, &r_si), (&p_um, &r_um)] {
+        let o = tissuefit(&["run", p.to_str().unwrap(), "--out", r.to_str().unwrap()]);
+        assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (best_si, best_um) = (r_si.join("fit/best.vtp"), r_um.join("fit/best.vtp"));
+    assert_same_tissue(&read(&best_um), &read(&best_si));
+    let (lo, hi) = bbox(&read(&best_si));
+    let (lo_um, hi_um) = bbox(&raw(&best_um));
+    assert!(close(lo_um.x, lo.x * 1e6) && close(hi_um.z, hi.z * 1e6), "{lo_um} vs {lo}");
+    for file in ["fit/trace.csv", "fit/best.toml", "fit/residuals.csv"] {
+        assert_eq!(normalised_hash(&r_si.join(file)), normalised_hash(&r_um.join(file)), "{file}");
+    }
+    let (h, rows) = table(&r_um.join("fit/residuals.csv"));
+    assert!(h.iter().any(|c| c == "free_area_um2_observed"), "{h:?}");
+    for row in &rows {
+        assert!(close(row["free_area_um2_observed"], row["free_area_m2_observed"] * 1e12));
+        assert!(close(row["volume_um3_observed"], row["volume_m3_observed"] * 1e18));
+    }
+    // `tissuefit fit --config PIPELINE` takes the pipeline's unit; --output-unit overrides it.
+    let cli = |dir: &str, extra: &[&str]| {
+        let out = tmp.path().join(dir);
+        let args = [&["fit", "--config", p_um.to_str().unwrap(), "--out", out.to_str().unwrap()][..], extra].concat();
+        let o = tissuefit(&args);
+        assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(out.join("best.vtp")).unwrap()
+    };
+    assert_eq!(cli("cli_um", &[]), std::fs::read(&best_um).unwrap());
+    assert_eq!(cli("cli_m", &["--output-unit", "m"]), std::fs::read(&best_si).unwrap());
+}
