@@ -513,6 +513,13 @@ fn outside_sign(
     if q.distance > tie && folded_feature(topo, t, f, q.region, normals) {
         return if mesh.winding_number(p) > 0.5 { -1.0 } else { 1.0 };
     }
+    let separation = p - q.point;
+    if separation == Vec3::zeros() {
+        // On the feature itself (a coupled node tied to the other cell's node): the product below is
+        // 0 whatever the pseudo-normal, so +1 without computing it (a vertex's costs one atan2 per
+        // face around it, and with coupling contacts nearly every closest feature is such a vertex).
+        return 1.0;
+    }
     let pseudo = match q.region {
         TriangleRegion::Face => normals[f as usize],
         TriangleRegion::Edge(s) => {
@@ -521,7 +528,7 @@ fn outside_sign(
         }
         TriangleRegion::Vertex(v) => vertex_pseudo_normal(mesh, topo, t[v as usize], normals),
     };
-    if (p - q.point).dot(&pseudo) < 0.0 { -1.0 } else { 1.0 }
+    if separation.dot(&pseudo) < 0.0 { -1.0 } else { 1.0 }
 }
 
 /// Below this fraction of the cutoff a node counts as on the other surface for [`outside_sign`]
