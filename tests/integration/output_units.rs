@@ -4,9 +4,9 @@
 //! `.vtp` reads back as the SI tissue. Tolerance 1e-12 relative: scaling by 1e6 and back by 1e-6 is
 //! two roundings (~2e-16 each); anything near 1e-12 would be a wrong factor or a lost unit.
 
-use crate::support::cli::{ok, repo, tissuefit};
+use crate::support::cli::{ok, repo, short_demo_fit_pipeline, tissuefit};
 use crate::support::run_dirs::{normalised_hash, read_json};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use tissuefit::geometry::{Vec3, bounding_box};
 use tissuefit::io::{LENGTH_UNIT_FIELD, ReadOptions, read_tissue, read_tissue_bytes};
 use tissuefit::mesh::Tissue;
@@ -143,6 +143,21 @@ fn mesh_and_measure_in_micrometres_write_the_si_numbers_scaled_and_read_back_in_
 /// in metres (the same file as without the key), so measure and simulate get the SI tissue: their
 /// numbers are the SI run's × the unit's powers, and the simulation itself (its SI `summary.json`)
 /// is the same.
+/// Runs the pipeline `body` into `dir/run_si`, and with `[output] length_unit = "um"` added (written
+/// to `dir/um.toml`) into `dir/run_um`; either may end unconverged (exit 1), not fail. Returns both
+/// run folders and the µm pipeline file.
+fn run_in_metres_and_micrometres(dir: &Path, body: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let (p_si, p_um) = (dir.join("si.toml"), dir.join("um.toml"));
+    std::fs::write(&p_si, body).unwrap();
+    std::fs::write(&p_um, format!("{body}\n[output]\nlength_unit = \"um\"\n")).unwrap();
+    let (r_si, r_um) = (dir.join("run_si"), dir.join("run_um"));
+    for (p, r) in [(&p_si, &r_si), (&p_um, &r_um)] {
+        let o = tissuefit(&["run", p.to_str().unwrap(), "--out", r.to_str().unwrap()]);
+        assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    (r_si, r_um, p_um)
+}
+
 #[test]
 fn a_pipeline_in_micrometres_writes_micrometre_outputs_and_its_stages_read_si() {
     let tmp = tempfile::tempdir().unwrap();
@@ -154,14 +169,7 @@ fn a_pipeline_in_micrometres_writes_micrometre_outputs_and_its_stages_read_si() 
         labels = labels.display().to_string(),
         model = model.display().to_string()
     );
-    let (p_si, p_um) = (tmp.path().join("si.toml"), tmp.path().join("um.toml"));
-    std::fs::write(&p_si, &body).unwrap();
-    std::fs::write(&p_um, format!("{body}\n[output]\nlength_unit = \"um\"\n")).unwrap();
-    let (r_si, r_um) = (tmp.path().join("run_si"), tmp.path().join("run_um"));
-    for (p, r) in [(&p_si, &r_si), (&p_um, &r_um)] {
-        let o = tissuefit(&["run", p.to_str().unwrap(), "--out", r.to_str().unwrap()]);
-        assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
-    }
+    let (r_si, r_um, _) = run_in_metres_and_micrometres(tmp.path(), &body);
     // The stage-to-stage files are SI and identical; the µm copy is for people.
     for file in ["mesh/tissue.vtp", "mesh/report.json", "simulate/summary.json", "simulate/final.vtk"] {
         assert_eq!(normalised_hash(&r_si.join(file)), normalised_hash(&r_um.join(file)), "{file}");
@@ -211,28 +219,8 @@ fn a_pipeline_in_micrometres_writes_micrometre_outputs_and_its_stages_read_si() 
 #[test]
 fn a_fit_in_micrometres_writes_its_best_tissue_in_micrometres_and_the_rest_si() {
     let tmp = tempfile::tempdir().unwrap();
-    let labels = repo().join("data/demo/doublet.tif");
-    let model = repo().join("data/demo/doublet_truth.toml");
-    // The stage-parity fit: a few evaluations of short relaxations (neither need converge).
-    let body = format!(
-        "[input]\nlabels = {labels:?}\nseed = 5\n\n[mesh]\ntarget_nodes = 60\n\n[fit]\nmodel = {model:?}\n\
-         [fit.model_overrides.simulation]\nmax_steps = 150\n\
-         [fit.parameters.surface_tension]\nvalue = 1e-3\n\
-         [fit.parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\ninitial = 8e-4\n\
-         [fit.objective]\nsphericity = 1.0\ncontact_fraction = 0.0\ncoordination = 0.0\ncontact_angle = 0.0\n\
-         [fit.optimizer]\nmethod = \"nelder_mead\"\nmax_evaluations = 2\n\
-         [fit.forward]\naccept_residual = 1e9\n[fit.profile]\npoints = 1\nnoise_replicates = 1\n",
-        labels = labels.display().to_string(),
-        model = model.display().to_string()
-    );
-    let (p_si, p_um) = (tmp.path().join("si.toml"), tmp.path().join("um.toml"));
-    std::fs::write(&p_si, &body).unwrap();
-    std::fs::write(&p_um, format!("{body}\n[output]\nlength_unit = \"um\"\n")).unwrap();
-    let (r_si, r_um) = (tmp.path().join("run_si"), tmp.path().join("run_um"));
-    for (p, r) in [(&p_si, &r_si), (&p_um, &r_um)] {
-        let o = tissuefit(&["run", p.to_str().unwrap(), "--out", r.to_str().unwrap()]);
-        assert!(o.status.code().is_some_and(|c| c <= 1), "{}", String::from_utf8_lossy(&o.stderr));
-    }
+    let body = short_demo_fit_pipeline(5, 8e-4, 2);
+    let (r_si, r_um, p_um) = run_in_metres_and_micrometres(tmp.path(), &body);
     let (best_si, best_um) = (r_si.join("fit/best.vtp"), r_um.join("fit/best.vtp"));
     assert_same_tissue(&read(&best_um), &read(&best_si));
     let (lo, hi) = bbox(&read(&best_si));

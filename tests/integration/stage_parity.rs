@@ -2,7 +2,7 @@
 //! model file, and `tissuefit run` with the same settings in a pipeline file write the same files (byte for byte, the wall-time fields
 //! `wall_seconds` and `threads` aside), because both call `tissuefit::stages`.
 
-use crate::support::cli::{ok, repo, tissuefit};
+use crate::support::cli::{ok, repo, short_demo_fit_pipeline, tissuefit};
 use crate::support::run_dirs::{normalised_hash, stage_hashes};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -228,24 +228,8 @@ fn simulate_writes_the_same_files_from_the_cli_and_from_a_pipeline() {
 #[test]
 fn fit_writes_the_same_files_from_the_cli_and_from_a_pipeline() {
     let tmp = tempfile::tempdir().unwrap();
-    let labels = repo().join("data/demo/doublet.tif");
-    let model = repo().join("data/demo/doublet_truth.toml");
     let pipeline = tmp.path().join("p.toml");
-    std::fs::write(
-        &pipeline,
-        format!(
-            "[input]\nlabels = {labels:?}\nseed = 5\n\n[mesh]\ntarget_nodes = 60\n\n[fit]\nmodel = {model:?}\n\
-             [fit.model_overrides.simulation]\nmax_steps = 150\n\
-             [fit.parameters.surface_tension]\nvalue = 1e-3\n\
-             [fit.parameters.surface_tension_lateral]\nbounds = [2e-4, 1e-3]\ninitial = 8e-4\n\
-             [fit.objective]\nsphericity = 1.0\ncontact_fraction = 0.0\ncoordination = 0.0\ncontact_angle = 0.0\n\
-             [fit.optimizer]\nmethod = \"nelder_mead\"\nmax_evaluations = 3\n\
-             [fit.forward]\naccept_residual = 1e9\n[fit.profile]\npoints = 1\nnoise_replicates = 1\n",
-            labels = labels.display().to_string(),
-            model = model.display().to_string()
-        ),
-    )
-    .unwrap();
+    std::fs::write(&pipeline, short_demo_fit_pipeline(5, 8e-4, 3)).unwrap();
     // A short budget: neither may converge (exit code 1), but both must finish and write a result.
     let run = tmp.path().join("run");
     let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", run.to_str().unwrap()]);
