@@ -416,8 +416,8 @@ fn simulate(
 /// The fit config of TOML text whose relative paths are relative to `base`; `[observed]` may be
 /// left out (the observed tissue is given in Python). A pipeline file (it has `[input]`) gives its
 /// `[fit]` with `[input]` and `[mesh]` as `tissuefit fit --config PIPELINE` takes it; the second
-/// value says so (its `[input]` then gives way to an observed tissue given in Python).
-/// A fit config, or a pipeline's `[fit]` with the pipeline's output unit (`Some` = a pipeline).
+/// value is then the pipeline's `[output] length_unit` (for `best.vtp`), and `None` for a fit config
+/// (a pipeline's `[input]` gives way to an observed tissue given in Python).
 fn fit_config(text: &str, base: &Path, origin: &str) -> PyResult<(FitConfig, Option<OutputUnit>)> {
     let table: toml::Table = toml::from_str(text).map_err(|e| error(format!("{origin}: {e}")))?;
     if table.contains_key("input") {
