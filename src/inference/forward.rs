@@ -527,7 +527,7 @@ impl ForwardModel {
                 if !cell.kind().is_cell() || cell.kind().is_immobile() {
                     continue;
                 }
-                let p = cell_params[c];
+                let p = &cell_params[c];
                 let observed = observed.mesh().signed_volume();
                 let target = if pass == 0 {
                     laplace_start(cell, p, observed)

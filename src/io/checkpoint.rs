@@ -29,8 +29,9 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 /// [`RunSettings`] added, and the relaxation's lowest-residual state; 4: the mesh-derived numerics of
 /// a simulate run, and coupling ties are groups: parameters written without
 /// `numerics.coupling_junctions` would resume with other physics; 5:
-/// `simulation.remesh_below_edge_fraction` and the count of out-of-turn remeshing passes).
-pub const CHECKPOINT_VERSION: u32 = 5;
+/// `simulation.remesh_below_edge_fraction` and the count of out-of-turn remeshing passes; 6: each
+/// cell's own tensions and adhesions, [`crate::mesh::CellOverrides`]).
+pub const CHECKPOINT_VERSION: u32 = 6;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;
 
@@ -186,10 +187,10 @@ mod tests {
         CellData, CellForcesState, CellState, EnergyTerms, Phase, RunProgress, SimulationState, TopologyEvent,
         TopologyEventKind, TopologyStats,
     };
-    use crate::mesh::{CellId, CellKind, FaceType};
+    use crate::mesh::{CellId, CellKind, CellOverrides, FaceType};
     use serde::{Deserialize, Serialize};
 
-    /// [`SimulationState`] as format 5 first laid it out, every field at the top level.
+    /// [`SimulationState`] as format 5 first laid it out (its cells as format 6 has them), every field at the top level.
     #[derive(Serialize, Deserialize)]
     struct FlatFormat5 {
         cells: Vec<CellState>,
@@ -224,6 +225,7 @@ mod tests {
             positions: vec![x(1.0), x(2.0), x(3.0), x(4.0)],
             triangles: vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]],
             face_types: vec![FaceType::Apical, FaceType::Lateral, FaceType::Basal, FaceType::Lateral],
+            overrides: CellOverrides { surface_tension: [None, Some(2.5e-4), None], adhesion: [Some(3e9), None, None] },
         };
         let energy = EnergyTerms { pressure: 1.5, area_elasticity: -2.0, tension: 3e-12, bending: 0.0, contact: 7.25 };
         SimulationState {

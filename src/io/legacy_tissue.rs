@@ -12,7 +12,7 @@
 use super::IoError;
 use super::legacy_parse::{DataArray, LegacyGrid, polyhedron_faces};
 use crate::geometry::Vec3;
-use crate::mesh::{Cell, CellId, CellKind, CellMesh, FaceType, Tissue};
+use crate::mesh::{Cell, CellId, CellKind, CellMesh, CellOverrides, FaceType, Tissue};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -130,6 +130,9 @@ fn polyhedra(path: &Path, g: &LegacyGrid, warnings: &mut Vec<String>) -> Result<
     let is_static = g.array("cell_is_static");
     let kinds = g.array("cell_kind");
     let targets = g.array("cell_target_volume");
+    let override_arrays: Vec<_> = CellOverrides::array_names()
+        .filter_map(|(name, q, t)| g.array(&format!("cell_{name}")).map(|a| (name, q, t, a)))
+        .collect();
     // SimuCell3D reads cell_type_id as an index into its parameter file's cell types; its default
     // list is 0..4 = epithelial, ECM, lumen, nucleus, static. Some files store per-cell ids there
     // instead (0..15 in embryo_1): then no value can be trusted as a kind, and all cells are epithelial.
@@ -176,6 +179,23 @@ fn polyhedra(path: &Path, g: &LegacyGrid, warnings: &mut Vec<String>) -> Result<
         let mut cell = Cell::new(id, kind, cell_type, mesh);
         if let Some(a) = targets {
             cell = cell.with_target_volume(a.values[c * a.components]);
+        }
+        for &(name, q, t, a) in &override_arrays {
+            // −1 (as written) or NaN: the cell keeps its type's value.
+            let v = a.values[c * a.components];
+            if v == -1.0 || v.is_nan() {
+                continue;
+            }
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(IoError::parse(
+                    path,
+                    Some(a.line),
+                    format!(
+                        "cell_{name} of cell {c} is {v}: a cell's own value must be a finite number ≥ 0 (−1: none)"
+                    ),
+                ));
+            }
+            cell.overrides_mut().values_mut(q)[t.code() as usize] = Some(v);
         }
         tissue.push(cell).map_err(|source| IoError::Tissue { path: path.into(), source })?;
     }

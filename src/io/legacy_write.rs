@@ -4,12 +4,15 @@
 //!
 //! Fields: SimuCell3D's `cell_id`, `cell_type_id` (the cell's parameter-set index, as the reference
 //! reads it), `cell_area`, `cell_volume`, `cell_is_static`, plus `cell_kind` and `cell_target_volume`
-//! (ignored by the reference, read back by tissuefit) and any extra per-cell field, prefixed `cell_`.
+//! (ignored by the reference, read back by tissuefit), when some cell has its own tensions or
+//! adhesions `cell_surface_tension_apical|lateral|basal` (N/m) and `cell_adhesion_apical|lateral|basal`
+//! (Pa/m), −1 where the cell keeps its type's value ([`crate::mesh::CellOverrides`]), and any extra
+//! per-cell field, prefixed `cell_`.
 //! Coordinates are written with the shortest representation that parses back to the same `f64`,
 //! so a write → read round trip is exact (the reference keeps only 5 significant digits).
 
 use super::{CellField, IoError, write_atomically};
-use crate::mesh::{CellKind, Tissue};
+use crate::mesh::{CellKind, CellOverrides, Tissue};
 use std::io::Write;
 use std::path::Path;
 
@@ -48,8 +51,10 @@ pub fn write_simucell3d(path: &Path, tissue: &Tissue, extra: &[CellField<'_>]) -
         for _ in 0..n {
             writeln!(w, "42")?;
         }
-        writeln!(w, "\nCELL_DATA {n}\nFIELD FieldData {}", 7 + extra.len())?;
         let cells = tissue.cells();
+        let overrides = cells.iter().any(|c| !c.overrides().is_empty());
+        let arrays = 7 + extra.len() + if overrides { 6 } else { 0 };
+        writeln!(w, "\nCELL_DATA {n}\nFIELD FieldData {arrays}")?;
         let int_field = |w: &mut dyn Write, name: &str, v: &dyn Fn(usize) -> u32| -> std::io::Result<()> {
             writeln!(w, "{name} 1 {n} int")?;
             for i in 0..n {
@@ -71,6 +76,13 @@ pub fn write_simucell3d(path: &Path, tissue: &Tissue, extra: &[CellField<'_>]) -
         int_field(w, "cell_is_static", &|i| u32::from(cells[i].kind() == CellKind::Static))?;
         int_field(w, "cell_kind", &|i| cells[i].kind().code())?;
         real_field(w, "cell_target_volume", &|i| cells[i].target_volume())?;
+        if overrides {
+            // -1 where the cell keeps its type's value: a NaN would stop VTK's ASCII reader.
+            for (name, q, t) in CellOverrides::array_names() {
+                let value = |i: usize| cells[i].overrides().values(q)[t.code() as usize].unwrap_or(-1.0);
+                real_field(w, &format!("cell_{name}"), &value)?;
+            }
+        }
         for f in extra {
             let name = if f.name.starts_with("cell_") { f.name.to_string() } else { format!("cell_{}", f.name) };
             real_field(w, &name, &|i| f.values[i])?;

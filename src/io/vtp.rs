@@ -11,7 +11,9 @@
 //! `cell_volume` (m³), `cell_area` (m²), `target_volume` (m³) and any extra per-cell fields, each
 //! repeated on the cell's faces so that ParaView can colour by them; `interface_label` (Int64, the
 //! id of the body on the face's other side, 0 = the medium) when every cell carries interface labels
-//! ([`Cell::interface_labels`], a multi-material input). An optional dataset-level `TimeValue` field
+//! ([`Cell::interface_labels`], a multi-material input); `surface_tension_apical|lateral|basal` (N/m)
+//! and `adhesion_apical|lateral|basal` (Pa/m), NaN where the cell keeps its type's value, when some
+//! cell has its own ([`CellOverrides`]). An optional dataset-level `TimeValue` field
 //! carries the simulated time (s).
 //!
 //! Lengths are metres unless the dataset-level field data holds a `length_unit` string array (VTK's
@@ -29,7 +31,7 @@
 use super::units::metres_per_unit;
 use super::{IoError, OutputUnit, write_atomically};
 use crate::geometry::{Real, Vec3};
-use crate::mesh::{Cell, CellId, CellKind, CellMesh, FaceType, Tissue};
+use crate::mesh::{Cell, CellId, CellKind, CellMesh, CellOverrides, FaceType, Tissue};
 use roxmltree::Node;
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -122,7 +124,10 @@ fn vtp_header(
                 tissue.face_count()
             )));
         }
-        if STANDARD_FIELDS.contains(&field.name) || extra[..k].iter().any(|f| f.name == field.name) {
+        if STANDARD_FIELDS.contains(&field.name)
+            || CellOverrides::ARRAY_NAMES.iter().flatten().any(|n| *n == field.name)
+            || extra[..k].iter().any(|f| f.name == field.name)
+        {
             return Err(invalid(format!("extra field name '{}' is used twice", field.name)));
         }
     }
@@ -158,6 +163,9 @@ fn arrays<'a>(tissue: &Tissue, extra: &[CellField<'a>]) -> Vec<Array<'a>> {
     ];
     if !tissue.is_empty() && tissue.cells().iter().all(|c| c.interface_labels().is_some()) {
         arrays.push(Array::InterfaceLabel);
+    }
+    if tissue.cells().iter().any(|c| !c.overrides().is_empty()) {
+        arrays.extend((0..2).flat_map(|q| (0..3).map(move |t| Array::Override(q, t))));
     }
     arrays.extend(extra.iter().map(|f| Array::Extra(f.name, f.values)));
     arrays
@@ -200,6 +208,9 @@ enum Array<'a> {
     CellArea,
     TargetVolume,
     InterfaceLabel,
+    /// A per-cell override ([`CellOverrides`]): quantity index and face type code; NaN where the
+    /// cell keeps its type's value.
+    Override(usize, usize),
     Extra(&'a str, &'a [Real]),
 }
 
@@ -218,6 +229,7 @@ impl Array<'_> {
             Array::CellArea => "cell_area",
             Array::TargetVolume => "target_volume",
             Array::InterfaceLabel => "interface_label",
+            Array::Override(q, t) => CellOverrides::ARRAY_NAMES[*q][*t],
             Array::Extra(name, _) => name,
         }
     }
@@ -308,6 +320,7 @@ impl Array<'_> {
                     buf.extend_from_slice(&i64::from(l).to_le_bytes());
                 }
             }
+            Array::Override(q, t) => per_cell_f64(buf, &|_, c| c.overrides().values(*q)[*t].unwrap_or(Real::NAN)),
             Array::Extra(_, values) if values.len() == cells.len() => per_cell_f64(buf, &|i, _| values[i]),
             Array::Extra(_, values) => {
                 for v in values.iter() {
@@ -937,6 +950,15 @@ impl ArrayReader<'_> {
             }
             None => faces.interface_label.resize(faces.cell_id.len(), None),
         }
+        for (k, name) in CellOverrides::ARRAY_NAMES.iter().flatten().enumerate() {
+            match field(name) {
+                Some(node) => {
+                    let values = self.read_array(node, 1, n_cells)?.into_f64();
+                    faces.overrides[k].extend(values.iter().skip(skip).map(|&v| (!v.is_nan()).then_some(v)));
+                }
+                None => faces.overrides[k].resize(faces.cell_id.len(), None),
+            }
+        }
         Ok(())
     }
 }
@@ -955,6 +977,9 @@ struct Faces {
     target_volume: Vec<Option<Real>>,
     /// Per face, the body on its other side (`interface_label`), where the file has it.
     interface_label: Vec<Option<u32>>,
+    /// Per face, the cell's overrides ([`CellOverrides::ARRAY_NAMES`] flattened; `None`: NaN or no
+    /// array).
+    overrides: [Vec<Option<Real>>; 6],
 }
 
 impl Faces {
@@ -1030,6 +1055,27 @@ impl Faces {
             if let Some(v) = self.target_volume[first] {
                 cell = cell.with_target_volume(v);
             }
+            let mut overrides = CellOverrides::default();
+            for (k, values) in self.overrides.iter().enumerate() {
+                let value = values[first];
+                let name = CellOverrides::ARRAY_NAMES[k / 3][k % 3];
+                if let Some(f) = faces.iter().find(|&&f| values[f].map(Real::to_bits) != value.map(Real::to_bits)) {
+                    return Err(IoError::parse(
+                        path,
+                        None,
+                        format!("face {f}: cell {id} has {name} {:?} here but {value:?} on face {first}", values[*f]),
+                    ));
+                }
+                overrides.values_mut(k / 3)[k % 3] = value;
+            }
+            if let Some((name, v)) = overrides.invalid() {
+                return Err(IoError::parse(
+                    path,
+                    None,
+                    format!("cell {id}: {name} = {v}: a cell's own tension or adhesion must be a finite number ≥ 0"),
+                ));
+            }
+            cell = cell.with_overrides(overrides);
             let labels: Option<Vec<u32>> = source.iter().map(|&p| self.interface_label[faces[p as usize]]).collect();
             if let Some(labels) = labels {
                 cell = cell
@@ -1103,6 +1149,36 @@ mod tests {
         assert!(!doc.descendants().any(|n| n.attribute("Name") == Some("TimeValue")));
         // No temporary left behind.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// Per-cell tensions and adhesions travel through both tissue formats (NaN in a `.vtp`, −1 in a
+    /// legacy file where the cell keeps its type's value), and files without them stay as before.
+    #[test]
+    fn per_cell_overrides_round_trip_through_vtp_and_legacy_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut tissue = two_cells();
+        let plain = vtp_bytes(Path::new("plain.vtp"), &tissue, &[], None).unwrap();
+        assert!(!String::from_utf8_lossy(&plain).contains("surface_tension_apical"));
+        tissue.cells_mut()[0].overrides_mut().surface_tension = [Some(7.5e-4), None, Some(1.25e-3)];
+        tissue.cells_mut()[0].overrides_mut().adhesion[1] = Some(0.0);
+        let options = crate::io::ReadOptions::default();
+        for name in ["t.vtp", "t.vtk"] {
+            let path = dir.path().join(name);
+            crate::io::write_tissue(&path, &tissue, &[]).unwrap();
+            let back = crate::io::read_tissue(&path, &options).unwrap().tissue;
+            assert_eq!(back.cells()[0].overrides(), tissue.cells()[0].overrides(), "{name}");
+            assert!(back.cells()[1].overrides().is_empty(), "{name}");
+        }
+        // A negative value in a file is refused naming the cell and the array.
+        let path = dir.path().join("bad.vtk");
+        tissue.cells_mut()[1].overrides_mut().adhesion[2] = Some(-5.0);
+        crate::io::write_tissue(&path, &tissue, &[]).unwrap();
+        let error = crate::io::read_tissue(&path, &options).unwrap_err().to_string();
+        assert!(error.contains("cell_adhesion_basal of cell 1 is -5"), "{error}");
+        let path = dir.path().join("bad.vtp");
+        crate::io::write_tissue(&path, &tissue, &[]).unwrap();
+        let error = crate::io::read_tissue(&path, &options).unwrap_err().to_string();
+        assert!(error.contains("cell 3: adhesion_basal = -5"), "{error}");
     }
 
     #[test]

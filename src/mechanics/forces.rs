@@ -298,20 +298,20 @@ pub struct UnknownCellType {
     pub defined: usize,
 }
 
-/// The parameter set of every cell, in tissue order; errors on a cell whose type is undefined.
-pub fn cell_parameters<'p>(
-    tissue: &Tissue,
-    params: &'p Parameters,
-) -> Result<Vec<&'p CellTypeParams>, UnknownCellType> {
+/// The parameter set of every cell, in tissue order: its cell type's, with the cell's own tensions
+/// and adhesions ([`crate::mesh::CellOverrides`]) in place of the type's; errors on a cell whose
+/// type is undefined.
+pub fn cell_parameters(tissue: &Tissue, params: &Parameters) -> Result<Vec<CellTypeParams>, UnknownCellType> {
     tissue
         .cells()
         .iter()
         .map(|c| {
-            params.cell_type(c.cell_type()).ok_or(UnknownCellType {
+            let base = params.cell_type(c.cell_type()).ok_or(UnknownCellType {
                 cell: c.id(),
                 cell_type: c.cell_type(),
                 defined: params.cell_types.len(),
-            })
+            })?;
+            Ok(base.with_overrides(c.overrides()))
         })
         .collect()
 }
@@ -352,7 +352,7 @@ pub fn apply_configured_kinds(tissue: &mut Tissue, params: &Parameters) -> Vec<S
 impl TissueForces {
     /// Computes every cell's internal forces in parallel (each cell independently, so the result
     /// does not depend on the thread count). `cell_params[i]` is the parameter set of cell i.
-    pub fn compute(&mut self, tissue: &Tissue, cell_params: &[&CellTypeParams], terms: TermSet) {
+    pub fn compute(&mut self, tissue: &Tissue, cell_params: &[CellTypeParams], terms: TermSet) {
         self.cells.resize_with(tissue.len(), CellForces::default);
         self.cells
             .par_iter_mut()

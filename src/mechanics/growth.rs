@@ -62,12 +62,12 @@ pub fn division_seed(seed: u64, cell: CellId, attempt: u32) -> u64 {
 }
 
 /// The growth rate (m³/s) of every cell, in tissue order.
-pub fn draw_growth_rates(tissue: &Tissue, cell_params: &[&CellTypeParams], seed: u64) -> Vec<Real> {
+pub fn draw_growth_rates(tissue: &Tissue, cell_params: &[CellTypeParams], seed: u64) -> Vec<Real> {
     tissue.cells().iter().zip(cell_params).map(|(cell, p)| draw_growth_rate(p, seed, cell.id())).collect()
 }
 
 /// The division volume (m³) of every cell, in tissue order.
-pub fn draw_division_volumes(tissue: &Tissue, cell_params: &[&CellTypeParams], seed: u64) -> Vec<Real> {
+pub fn draw_division_volumes(tissue: &Tissue, cell_params: &[CellTypeParams], seed: u64) -> Vec<Real> {
     tissue.cells().iter().zip(cell_params).map(|(cell, p)| draw_division_volume(p, seed, cell.id())).collect()
 }
 
@@ -94,7 +94,7 @@ mod tests {
         params.cell_types[0].growth_rate_std = 2e-12;
         let ids: Vec<u32> = (0..400).collect();
         let t = tissue(&ids);
-        let p: Vec<_> = t.cells().iter().map(|_| &params.cell_types[0]).collect();
+        let p: Vec<_> = t.cells().iter().map(|_| params.cell_types[0].clone()).collect();
         let a = draw_growth_rates(&t, &p, 7);
         assert!(a.iter().all(|g| (g - 1e-11).abs() <= 6e-12));
         let mean = a.iter().sum::<f64>() / a.len() as f64;

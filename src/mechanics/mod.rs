@@ -36,9 +36,10 @@ pub use forces::{
 pub use growth::{division_seed, draw_division_volume, draw_division_volumes, draw_growth_rate, draw_growth_rates};
 pub use motion::integrate_step;
 pub use params::{
-    CellTypeParams, ContactModel, ContactQuadrature, DerivedValue, DivisionPlaneRule, Dynamics, ExplicitNumerics,
-    FaceParams, FaceTypeParams, MEAN_EDGE_PER_MIN_EDGE, MIN_CUTOFF_FRACTION, MIN_EDGE_MISMATCH, MeshFit, MeshScale,
-    Numerics, ParamError, Parameters, Polarity, SPHERE_ISOPERIMETRIC_RATIO, TimeStepLimit,
+    CellOverrideConfig, CellTypeParams, ContactModel, ContactQuadrature, DerivedValue, DivisionPlaneRule, Dynamics,
+    ExplicitNumerics, FaceParams, FaceTypeParams, MEAN_EDGE_PER_MIN_EDGE, MIN_CUTOFF_FRACTION, MIN_EDGE_MISMATCH,
+    MeshFit, MeshScale, Numerics, ParamError, Parameters, PerFaceType, Polarity, SPHERE_ISOPERIMETRIC_RATIO,
+    TimeStepLimit, UnknownOverrideCell,
 };
 pub use passage::{CellInside, cells_inside_others, passage_warning};
 pub use polarity::{

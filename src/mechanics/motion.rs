@@ -17,7 +17,7 @@ use rayon::prelude::*;
 pub fn integrate_step(
     tissue: &mut Tissue,
     forces: &[CellForces],
-    cell_params: &[&CellTypeParams],
+    cell_params: &[CellTypeParams],
     momenta: &mut [Vec<Vec3>],
     numerics: &Numerics,
 ) {

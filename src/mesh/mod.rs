@@ -25,7 +25,7 @@ pub use divide::{
 pub use ids::{CellId, FaceId, NodeId};
 pub use measures::{EdgeLengthStats, PrincipalAxes, sphericity};
 pub use summary::CellSummary;
-pub use tissue::{Cell, CellKind, FaceType, Tissue, TissueError};
+pub use tissue::{Cell, CellKind, CellOverrides, FaceType, Tissue, TissueError};
 pub use validate::MeshDefect;
 
 /// Errors building a mesh from raw arrays.

@@ -116,6 +116,59 @@ pub enum TissueError {
     InterfaceLabelCount { cell: CellId, labels: usize, faces: usize },
 }
 
+/// Per-cell values that replace its cell type's, per face type (code order: apical, lateral,
+/// basal); `None` keeps the type's value. What a per-cell map of tensions and adhesions sets: the
+/// simulation runs each cell with its type's parameters overridden by these, tissue files carry
+/// them (`surface_tension_apical` … `adhesion_basal` cell arrays), and daughters inherit them.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CellOverrides {
+    /// Surface tension γ per face type. Unit: N/m.
+    pub surface_tension: [Option<Real>; 3],
+    /// Spring adhesion strength ω per face type. Unit: Pa/m.
+    pub adhesion: [Option<Real>; 3],
+}
+
+impl CellOverrides {
+    /// The quantities a cell may override, with their units: the names of their file arrays are
+    /// `NAME_FACETYPE` (e.g. `surface_tension_lateral`).
+    pub const QUANTITIES: [(&'static str, &'static str); 2] = [("surface_tension", "N/m"), ("adhesion", "Pa/m")];
+
+    /// Whether nothing is overridden.
+    pub fn is_empty(&self) -> bool {
+        self.surface_tension.iter().chain(&self.adhesion).all(Option::is_none)
+    }
+
+    /// The values of quantity `q` (an index into [`Self::QUANTITIES`]), per face type.
+    pub fn values(&self, q: usize) -> &[Option<Real>; 3] {
+        if q == 0 { &self.surface_tension } else { &self.adhesion }
+    }
+
+    /// Mutable values of quantity `q` (an index into [`Self::QUANTITIES`]), per face type.
+    pub fn values_mut(&mut self, q: usize) -> &mut [Option<Real>; 3] {
+        if q == 0 { &mut self.surface_tension } else { &mut self.adhesion }
+    }
+
+    /// The names of the cell arrays a tissue file carries them in, per quantity (as
+    /// [`Self::QUANTITIES`]) and face type (code order).
+    pub const ARRAY_NAMES: [[&'static str; 3]; 2] = [
+        ["surface_tension_apical", "surface_tension_lateral", "surface_tension_basal"],
+        ["adhesion_apical", "adhesion_lateral", "adhesion_basal"],
+    ];
+
+    /// Every (array name, quantity index, face type) a tissue file may carry, e.g.
+    /// (`surface_tension_lateral`, 0, Lateral).
+    pub fn array_names() -> impl Iterator<Item = (&'static str, usize, FaceType)> {
+        (0..2).flat_map(|q| FaceType::ALL.into_iter().map(move |t| (Self::ARRAY_NAMES[q][t.code() as usize], q, t)))
+    }
+
+    /// The first value that is not a finite number ≥ 0, as (array name, value).
+    pub fn invalid(&self) -> Option<(&'static str, Real)> {
+        Self::array_names().find_map(|(name, q, t)| {
+            self.values(q)[t.code() as usize].filter(|v| !(v.is_finite() && *v >= 0.0)).map(|v| (name, v))
+        })
+    }
+}
+
 /// One cell: its surface and what it is.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Cell {
@@ -131,6 +184,8 @@ pub struct Cell {
     /// meshes whose faces carry both materials (multi-material meshes). `None` when the file said
     /// nothing or the surface has moved or been remeshed since (see [`Cell::interface_labels`]).
     interface_labels: Option<Vec<u32>>,
+    /// Its own tensions and adhesions, on top of its cell type's.
+    overrides: CellOverrides,
 }
 
 impl Cell {
@@ -139,7 +194,17 @@ impl Cell {
     pub fn new(id: CellId, kind: CellKind, cell_type: u32, mesh: CellMesh) -> Self {
         let face_types = vec![FaceType::default(); mesh.face_count()];
         let target_volume = mesh.signed_volume();
-        Self { id, kind, cell_type, mesh, face_types, target_volume, parent: None, interface_labels: None }
+        Self {
+            id,
+            kind,
+            cell_type,
+            mesh,
+            face_types,
+            target_volume,
+            parent: None,
+            interface_labels: None,
+            overrides: CellOverrides::default(),
+        }
     }
 
     /// Records, per face, the id of the body on the face's other side (0 = the medium), as a
@@ -168,6 +233,22 @@ impl Cell {
     pub fn with_parent(mut self, parent: CellId) -> Self {
         self.parent = Some(parent);
         self
+    }
+
+    /// Gives the cell its own tensions and adhesions on top of its cell type's.
+    pub fn with_overrides(mut self, overrides: CellOverrides) -> Self {
+        self.overrides = overrides;
+        self
+    }
+
+    /// The cell's own tensions and adhesions, on top of its cell type's.
+    pub fn overrides(&self) -> &CellOverrides {
+        &self.overrides
+    }
+
+    /// Mutable per-cell tensions and adhesions.
+    pub fn overrides_mut(&mut self) -> &mut CellOverrides {
+        &mut self.overrides
     }
 
     /// The mother cell this one was born from by division; `None` for founders.

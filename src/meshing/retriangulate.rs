@@ -100,7 +100,8 @@ pub fn retriangulate(
         if let Some(old) = tissue.cell(cell.id()) {
             let volume = cell.mesh().signed_volume();
             *cell = crate::mesh::Cell::new(cell.id(), old.kind(), old.cell_type(), cell.mesh().clone())
-                .with_target_volume(volume);
+                .with_target_volume(volume)
+                .with_overrides(*old.overrides());
         }
     }
     for r in &mut meshing.report {

@@ -7,7 +7,7 @@ use tissuefit::mechanics::{
     SimulationSummary,
 };
 use tissuefit::mesh::shapes::icosphere;
-use tissuefit::mesh::{Cell, CellId, CellKind, FaceType, Tissue};
+use tissuefit::mesh::{Cell, CellId, CellKind, CellOverrides, FaceType, Tissue};
 
 /// Cells of radius `r` (subdivided icospheres) centred at `centres`, every face basal (free).
 fn cells(r: Real, subdivisions: u32, centres: &[Vec3]) -> Tissue {
@@ -332,4 +332,68 @@ fn a_growing_cell_stays_inside_the_ecm_shell() {
     assert!(vc < widened, "the cell ({vc:e} m³) outgrew the ECM shell ({ve:e} m³, {widened:e} widened by c)");
     assert!(deepest > -p.numerics.contact_cutoff, "a cell node is {deepest:e} m outside the ECM");
     cell.mesh().validate().unwrap();
+}
+
+/// The point of sphere (c, r) nearest `x`, and the unit tangent there in the plane of `x`, `c`
+/// and `towards` that points from the sphere's point towards `towards` (a point of the surface
+/// patch, on the doublet's axis).
+fn tangent_towards(c: Vec3, r: Real, x: Vec3, towards: Vec3) -> Vec3 {
+    let n = (x - c).normalize();
+    let d = towards - (c + r * n);
+    (d - n * n.dot(&d)).normalize()
+}
+
+/// Issue 25, per-cell parameters: a coupled doublet whose second cell has its own free and lateral
+/// tensions ([`CellOverrides`], on top of the cell type's) meets its neighbour at the angles of
+/// Neumann's triangle of the three tensions γ₁ (free, cell 1), γ₂ (free, cell 2) and T = γ_l1 + γ_l2
+/// (the coupled interface), which differ from the type's alone (γ₂ = γ₁ there). The angles between
+/// the three surfaces' tangents at the rim, from sphere fits of the two free caps and the interface:
+/// cos(t₁, t₂) = (T² − γ₁² − γ₂²)/(2γ₁γ₂) and cyclically. ±3°, as for the symmetric doublets above
+/// (the same mesh, 642 nodes per cell, and relaxation).
+#[test]
+fn a_doublet_with_per_cell_tensions_meets_at_neumann_angles() {
+    let r = 2e-6;
+    let (g1, g2, gl1, gl2) = (1e-3, 0.8e-3, 0.6e-3, 0.4e-3);
+    let mut tissue = cells(r, 3, &[Vec3::new(-r - 5e-8, 0.0, 0.0), Vec3::new(r + 5e-8, 0.0, 0.0)]);
+    let own = CellOverrides { surface_tension: [Some(g2), Some(gl2), Some(g2)], adhesion: [None; 3] };
+    tissue.cells_mut()[1] = tissue.cells()[1].clone().with_overrides(own);
+    let (t, s) = relax(tissue, &coupling_params(g1, gl1));
+    for c in t.cells() {
+        c.mesh().validate().unwrap();
+    }
+    assert_eq!(t.cells()[1].overrides(), &own, "the relaxed tissue keeps the cell's own tensions");
+    let [a, b] = [&t.cells()[0], &t.cells()[1]];
+    let (free_a, free_b, interface) =
+        (nodes_of_type(a, FaceType::Basal), nodes_of_type(b, FaceType::Basal), nodes_of_type(a, FaceType::Lateral));
+    assert!(interface.len() > 10, "no contact interface formed ({} lateral nodes)", interface.len());
+    let (ca, ra) = fit_sphere(&free_a);
+    let (cb, rb) = fit_sphere(&free_b);
+    let (ci, ri) = fit_sphere(&interface);
+    // A rim point: on the circle where the two free caps' spheres meet.
+    let axis = (cb - ca).normalize();
+    let d = (cb - ca).norm();
+    let along = (d * d + ra * ra - rb * rb) / (2.0 * d);
+    let side = axis.cross(&Vec3::z()).normalize();
+    let x = ca + along * axis + (ra * ra - along * along).sqrt() * side;
+    let mean = |p: &[Vec3]| p.iter().sum::<Vec3>() / p.len() as Real;
+    let t1 = tangent_towards(ca, ra, x, mean(&free_a));
+    let t2 = tangent_towards(cb, rb, x, mean(&free_b));
+    let t12 = tangent_towards(ci, ri, x, mean(&interface));
+    let tension = g1.max(g2);
+    let balance = (g1 * t1 + g2 * t2 + (gl1 + gl2) * t12).norm() / tension;
+    let t = gl1 + gl2;
+    let neumann =
+        |opposite: Real, p: Real, q: Real| ((opposite * opposite - p * p - q * q) / (2.0 * p * q)).acos().to_degrees();
+    for (name, measured, expected) in [
+        ("medium (t1, t2)", t1.angle(&t2).to_degrees(), neumann(t, g1, g2)),
+        ("cell 1 (t1, t12)", t1.angle(&t12).to_degrees(), neumann(g2, g1, t)),
+        ("cell 2 (t2, t12)", t2.angle(&t12).to_degrees(), neumann(g1, g2, t)),
+    ] {
+        eprintln!("{name}: {measured:.2}° (Neumann {expected:.2}°); force balance residual {balance:.3} γ; {s:?}");
+        assert!((measured - expected).abs() < 3.0, "{name}: {measured:.2}°, Neumann {expected:.2}°");
+    }
+    // Without the cell's own tensions the doublet would be symmetric, each cell's angle between its
+    // free cap and the interface acos(−(2γ_l1)/(2γ₁)) = 126.9°: cell 2's is 13° off that.
+    let type_only = neumann(g1, g1, 2.0 * gl1);
+    assert!((t2.angle(&t12).to_degrees() - type_only).abs() > 10.0, "type-only angle {type_only:.2}°");
 }

@@ -123,7 +123,7 @@ impl CouplingWorkspace {
     pub fn couple(
         &mut self,
         tissue: &mut Tissue,
-        cell_params: &[&CellTypeParams],
+        cell_params: &[CellTypeParams],
         cutoff: Real,
         junctions: bool,
     ) -> usize {

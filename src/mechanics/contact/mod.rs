@@ -630,7 +630,7 @@ impl ContactWorkspace {
     pub fn add_contacts(
         &mut self,
         tissue: &Tissue,
-        cell_params: &[&CellTypeParams],
+        cell_params: &[CellTypeParams],
         cutoff: Real,
         forces: &mut [CellForces],
     ) -> Real {
@@ -802,7 +802,7 @@ impl ContactWorkspace {
                     } else {
                         *node_terms.get_or_insert_with(|| {
                             let faces_a = topology[a].faces_of(node as u32);
-                            let (omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), cell_params[a]);
+                            let (omega, xi) = node_contact_parameters(faces_a, cell_a.face_types(), &cell_params[a]);
                             let area =
                                 faces_a.iter().map(|&g| forces_ro[a].geometry.areas[g as usize]).sum::<Real>() / 3.0;
                             (area, omega, xi)
@@ -838,7 +838,7 @@ impl ContactWorkspace {
                 |(a, (pairs, density))| {
                     face_quadrature::assemble(
                         &cells[a],
-                        cell_params[a],
+                        &cell_params[a],
                         &forces_ro[a].geometry.areas,
                         &topology[a],
                         cutoff,

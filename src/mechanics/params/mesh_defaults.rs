@@ -333,7 +333,8 @@ impl Parameters {
             }
             let Some(p) = self.cell_types.get(cell.cell_type() as usize) else { continue };
             let radius = (3.0 * cell.mesh().signed_volume() / (4.0 * std::f64::consts::PI)).cbrt();
-            let pressure = (2.0 * p.mean_tension(cell) / radius).min(p.max_pressure);
+            let tension = p.with_overrides(&self.overrides_of(cell)).mean_tension(cell);
+            let pressure = (2.0 * tension / radius).min(p.max_pressure);
             if !(pressure.is_finite() && pressure > 0.0) {
                 continue;
             }

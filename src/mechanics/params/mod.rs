@@ -72,6 +72,114 @@ pub struct Parameters {
     ///
     /// Defaults: [`SimulationSettings::default`].
     pub simulation: SimulationSettings,
+    /// Per-cell tensions and adhesions in place of their cell type's, one `[[cell_overrides]]` entry
+    /// per cell: `id` (the cell's id, its label in a label volume) and `surface_tension` and/or
+    /// `adhesion` tables with `apical`, `lateral`, `basal` values (face types left out keep the
+    /// value of the cell type or of the tissue file). They win over the per-cell values a tissue
+    /// file carries; daughters inherit them.
+    ///
+    /// Default: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub cell_overrides: Vec<CellOverrideConfig>,
+}
+
+/// One cell's own tensions and adhesions (`[[cell_overrides]]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CellOverrideConfig {
+    /// The cell's id (its label in a label volume, `cell_id` in a tissue file).
+    pub id: u32,
+    /// Surface tension γ per face type in place of the cell type's. Unit: N/m.
+    #[serde(default)]
+    pub surface_tension: PerFaceType,
+    /// Spring adhesion strength ω per face type in place of the cell type's. Unit: Pa/m.
+    #[serde(default)]
+    pub adhesion: PerFaceType,
+}
+
+/// An optional value per face type.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PerFaceType {
+    /// Apical faces.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub apical: Option<Real>,
+    /// Lateral faces.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lateral: Option<Real>,
+    /// Basal faces.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub basal: Option<Real>,
+}
+
+impl PerFaceType {
+    /// The three values in face-type code order.
+    pub fn to_array(self) -> [Option<Real>; 3] {
+        [self.apical, self.lateral, self.basal]
+    }
+}
+
+impl CellOverrideConfig {
+    /// Lays this entry's values over `overrides` (values it leaves out keep theirs).
+    pub fn apply_to(&self, overrides: &mut crate::mesh::CellOverrides) {
+        for (q, given) in [self.surface_tension, self.adhesion].into_iter().enumerate() {
+            for (slot, value) in overrides.values_mut(q).iter_mut().zip(given.to_array()) {
+                if value.is_some() {
+                    *slot = value;
+                }
+            }
+        }
+    }
+}
+
+/// A `[[cell_overrides]]` entry names a cell the tissue does not have.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error(
+    "cell_overrides[{index}]: the tissue has no cell with id {id} (its ids: {ids}); use the cell's label in the label volume (cell_id in a tissue file)"
+)]
+pub struct UnknownOverrideCell {
+    pub index: usize,
+    pub id: u32,
+    pub ids: String,
+}
+
+impl Parameters {
+    /// A cell's own tensions and adhesions: the tissue file's, with this config's
+    /// `[[cell_overrides]]` entry for its id laid over them.
+    pub fn overrides_of(&self, cell: &crate::mesh::Cell) -> crate::mesh::CellOverrides {
+        let mut overrides = *cell.overrides();
+        for entry in self.cell_overrides.iter().filter(|e| e.id == cell.id().0) {
+            entry.apply_to(&mut overrides);
+        }
+        overrides
+    }
+
+    /// Gives every cell named in `[[cell_overrides]]` its values ([`Self::overrides_of`]); errors on an
+    /// entry whose id is not a cell of `tissue`. Returns how many cells it changed.
+    pub fn apply_cell_overrides(&self, tissue: &mut crate::mesh::Tissue) -> Result<usize, UnknownOverrideCell> {
+        for (index, entry) in self.cell_overrides.iter().enumerate() {
+            if tissue.cell(crate::mesh::CellId(entry.id)).is_none() {
+                let mut ids: Vec<u32> = tissue.cells().iter().map(|c| c.id().0).collect();
+                ids.sort_unstable();
+                let ids = match ids.as_slice() {
+                    [] => "none".to_owned(),
+                    [one] => one.to_string(),
+                    [first, .., last] if ids.len() > 8 => format!("{first}..{last}, {} cells", ids.len()),
+                    all => all.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
+                };
+                return Err(UnknownOverrideCell { index, id: entry.id, ids });
+            }
+        }
+        let mut changed = 0;
+        for cell in tissue.cells_mut() {
+            let overrides = self.overrides_of(cell);
+            if overrides != *cell.overrides() {
+                *cell.overrides_mut() = overrides;
+                changed += 1;
+            }
+        }
+        Ok(changed)
+    }
 }
 
 /// How nodes move.
@@ -436,6 +544,22 @@ impl CellTypeParams {
         }
     }
 
+    /// This parameter set with a cell's own tensions and adhesions in place of its values.
+    pub fn with_overrides(&self, overrides: &crate::mesh::CellOverrides) -> Self {
+        let mut p = self.clone();
+        for t in FaceType::ALL {
+            let face = p.faces.get_mut(t);
+            let i = t.code() as usize;
+            if let Some(g) = overrides.surface_tension[i] {
+                face.surface_tension = g;
+            }
+            if let Some(w) = overrides.adhesion[i] {
+                face.adhesion = w;
+            }
+        }
+        p
+    }
+
     /// Pressure p = min(−K ln(V/V0), p_max) [Pa] of a cell of volume `volume` and target volume
     /// `target_volume` (both m³, > 0): the paper's pressure with its cap.
     pub fn pressure(&self, volume: Real, target_volume: Real) -> Real {
@@ -596,6 +720,7 @@ impl Default for Parameters {
             numerics: Numerics::default(),
             cell_types: CellKind::ALL.into_iter().map(CellTypeParams::default_for).collect(),
             simulation: SimulationSettings::default(),
+            cell_overrides: Vec::new(),
         }
     }
 }

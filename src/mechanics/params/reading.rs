@@ -67,8 +67,32 @@ pub(super) fn resolve(mut user: Table) -> Result<Parameters, Vec<String>> {
         overlay(&mut simulation, user_simulation, "simulation", &mut problems);
     }
 
+    let cell_overrides = match user.remove("cell_overrides") {
+        None => None,
+        Some(Value::Array(entries)) => {
+            for (index, entry) in entries.iter().enumerate() {
+                if let Err(error) = entry.clone().try_into::<CellOverrideConfig>() {
+                    let error = error.to_string().replace('\n', " ");
+                    problems.push(format!("cell_overrides[{index}]: {}", error.trim()));
+                }
+            }
+            Some(Value::Array(entries))
+        }
+        Some(other) => {
+            problems.push(format!(
+                "cell_overrides = {}: expected an array of tables (write each entry as a [[cell_overrides]] section)",
+                show(&other)
+            ));
+            None
+        }
+    };
+
     for key in user.keys() {
-        problems.push(unknown_field(key, "at the top level", ["cell_types", "numerics", "simulation"].iter().copied()));
+        problems.push(unknown_field(
+            key,
+            "at the top level",
+            ["cell_types", "numerics", "simulation", "cell_overrides"].iter().copied(),
+        ));
     }
     if !problems.is_empty() {
         return Err(problems);
@@ -77,6 +101,9 @@ pub(super) fn resolve(mut user: Table) -> Result<Parameters, Vec<String>> {
     merged.insert("numerics".to_owned(), numerics);
     merged.insert("cell_types".to_owned(), cell_types);
     merged.insert("simulation".to_owned(), simulation);
+    if let Some(cell_overrides) = cell_overrides {
+        merged.insert("cell_overrides".to_owned(), cell_overrides);
+    }
     // Every schema problem was caught above; this is the backstop (deny_unknown_fields included).
     Value::Table(merged).try_into().map_err(|error: toml::de::Error| vec![error.to_string().replace('\n', " ")])
 }

@@ -452,3 +452,73 @@ fn spring_repulsion_is_derived_from_the_laplace_pressure_unless_the_config_sets_
         assert_eq!(params, before);
     }
 }
+
+#[test]
+fn cell_overrides_read_validate_and_apply_to_the_cells_they_name() {
+    let params = load(
+        "[[cell_overrides]]\n\
+         id = 2\n\
+         surface_tension = { lateral = 4e-4, basal = 2e-3 }\n\
+         [[cell_overrides]]\n\
+         id = 5\n\
+         adhesion.apical = 0\n",
+    )
+    .expect("loads");
+    assert_eq!(params.cell_overrides.len(), 2);
+    assert_eq!(params.cell_overrides[0].surface_tension.to_array(), [None, Some(4e-4), Some(2e-3)]);
+    assert_eq!(params.cell_overrides[1].adhesion.apical, Some(0.0));
+    // Written and read back as it is; the commented defaults show an example, commented out.
+    assert_eq!(load(&params.to_toml_string()).expect("round trip"), params);
+    assert!(Parameters::default_toml_commented().contains("# [[cell_overrides]]"));
+
+    let sphere = |id: u32| {
+        crate::mesh::Cell::new(
+            crate::mesh::CellId(id),
+            CellKind::Epithelial,
+            0,
+            crate::mesh::shapes::icosphere(1e-6, 1, crate::geometry::Vec3::zeros()),
+        )
+    };
+    // The config wins over the file's values for the face types it names; the others stay.
+    let from_file =
+        crate::mesh::CellOverrides { surface_tension: [Some(7e-4), Some(9e-4), None], ..Default::default() };
+    let mut tissue =
+        crate::mesh::Tissue::from_cells(vec![sphere(2).with_overrides(from_file), sphere(5), sphere(6)]).unwrap();
+    assert_eq!(params.apply_cell_overrides(&mut tissue), Ok(2));
+    let [two, five, six] = [2, 5, 6].map(|id| *tissue.cell(crate::mesh::CellId(id)).unwrap().overrides());
+    assert_eq!(two.surface_tension, [Some(7e-4), Some(4e-4), Some(2e-3)]);
+    assert_eq!(five.adhesion, [Some(0.0), None, None]);
+    assert!(six.is_empty());
+    // The effective parameters of cell 2: its values, the type's elsewhere.
+    let effective = params.cell_types[0].with_overrides(&two);
+    assert_eq!(effective.faces.lateral.surface_tension, 4e-4);
+    assert_eq!(effective.faces.apical.adhesion, params.cell_types[0].faces.apical.adhesion);
+
+    // An id that is not a cell names the entry and the ids there are.
+    let mut other = crate::mesh::Tissue::from_cells(vec![sphere(1), sphere(3)]).unwrap();
+    let error = params.apply_cell_overrides(&mut other).unwrap_err().to_string();
+    assert!(
+        error.contains("cell_overrides[0]") && error.contains("no cell with id 2") && error.contains("1, 3"),
+        "{error}"
+    );
+
+    // Bad values, repeated ids and misspelt keys are refused naming the entry.
+    let negative = rejection("[[cell_overrides]]\nid = 1\nsurface_tension = { lateral = -1e-3 }\n");
+    assert!(
+        negative.contains("cell_overrides[0].surface_tension.lateral = -0.001: must be a finite number ≥ 0"),
+        "{negative}"
+    );
+    let twice = rejection("[[cell_overrides]]\nid = 1\n[[cell_overrides]]\nid = 1\n");
+    assert!(twice.contains("cell_overrides[1].id = 1: cell_overrides[0] already names this cell"), "{twice}");
+    let misspelt = rejection("[[cell_overrides]]\nid = 1\nsurface_tension = { lateal = 1e-3 }\n");
+    assert!(misspelt.contains("cell_overrides[0]") && misspelt.contains("lateal"), "{misspelt}");
+    let not_a_list = rejection("cell_overrides = 3\n");
+    assert!(not_a_list.contains("[[cell_overrides]]"), "{not_a_list}");
+    // A value far above every type's is allowed with a warning about the time step.
+    let strong = load("[[cell_overrides]]\nid = 1\nsurface_tension = { basal = 1e-2 }\n").unwrap();
+    let warnings = strong.validate().unwrap();
+    assert!(
+        warnings.iter().any(|w| w.contains("cell_overrides[0].surface_tension.basal") && w.contains("time_step")),
+        "{warnings:?}"
+    );
+}

@@ -163,6 +163,8 @@ impl Parameters {
             type_valid.push(report.errors.len() == errors_before);
         }
 
+        self.check_cell_overrides(&mut report);
+
         // The stability estimate is meaningless with invalid inputs, and would only add noise.
         if numerics_valid {
             for limit in self.time_step_limits() {
@@ -194,6 +196,55 @@ impl Parameters {
             }
         }
         (report.errors, report.warnings)
+    }
+}
+
+impl Parameters {
+    /// `[[cell_overrides]]`: unique ids, finite values ≥ 0, plausible tensions; a warning when a
+    /// value is far above every moving cell type's (the time-step estimate is the types').
+    fn check_cell_overrides(&self, report: &mut Report) {
+        let mut seen: HashMap<u32, usize> = HashMap::new();
+        let moving = || self.cell_types.iter().filter(|t| !t.kind.is_immobile());
+        let largest = [
+            moving().flat_map(|t| t.faces.iter().map(|(_, f)| f.surface_tension)).fold(0.0, Real::max),
+            moving().flat_map(|t| t.faces.iter().map(|(_, f)| f.adhesion)).fold(0.0, Real::max),
+        ];
+        for (index, entry) in self.cell_overrides.iter().enumerate() {
+            if let Some(first) = seen.insert(entry.id, index) {
+                report.errors.push(format!(
+                    "cell_overrides[{index}].id = {}: cell_overrides[{first}] already names this cell; give each \
+                     cell one entry",
+                    entry.id
+                ));
+            }
+            for (q, values) in [entry.surface_tension, entry.adhesion].into_iter().enumerate() {
+                let (quantity, unit) = crate::mesh::CellOverrides::QUANTITIES[q];
+                for (face_type, value) in FaceType::ALL.into_iter().zip(values.to_array()) {
+                    let Some(value) = value else { continue };
+                    let key = format!("cell_overrides[{index}].{quantity}.{}", face_type.name());
+                    if !(value.is_finite() && value >= 0.0) {
+                        report
+                            .errors
+                            .push(format!("{key} = {}: must be a finite number ≥ 0 ({unit})", fmt_real(value)));
+                        continue;
+                    }
+                    if q == 0
+                        && let Some(w) = crate::files::implausible_tension(&key, value)
+                    {
+                        report.warnings.push(w);
+                    }
+                    if largest[q] > 0.0 && value > 4.0 * largest[q] {
+                        report.warnings.push(format!(
+                            "{key} = {} {unit} is over 4 × the largest {quantity} of the moving cell types ({} \
+                             {unit}); the time-step estimate uses the types' values, so lower numerics.time_step \
+                             if the run turns unstable",
+                            fmt_real(value),
+                            fmt_real(largest[q])
+                        ));
+                    }
+                }
+            }
+        }
     }
 }
 

@@ -203,7 +203,22 @@ pub(super) fn write_toml(params: &Parameters, comments: bool) -> String {
         write_comment(&mut out, HEADER);
     }
     write_table(&mut out, &root, "", "", None, comments);
+    if comments && params.cell_overrides.is_empty() {
+        write_override_example(&mut out);
+    }
     out.trim_start().to_owned()
+}
+
+/// The `[[cell_overrides]]` section, which has no default entries, as a commented-out example.
+fn write_override_example(out: &mut String) {
+    let doc = |path: &str| field_doc(path).map_or("(undocumented)", |doc| doc.text.as_str());
+    out.push('\n');
+    write_comment(out, doc("cell_overrides"));
+    write_comment(out, "Example (remove the leading `# ` to use it):");
+    let _ = writeln!(out, "# [[cell_overrides]]");
+    let _ = writeln!(out, "# id = 3  # {}", doc("cell_overrides.id"));
+    let _ = writeln!(out, "# surface_tension = {{ apical = 1.2e-3, lateral = 4e-4 }}  # N/m");
+    let _ = writeln!(out, "# adhesion = {{ basal = 0.0 }}  # Pa/m");
 }
 
 /// Writes a table's plain fields, then its sub-tables and arrays of tables.
@@ -254,11 +269,13 @@ fn write_table(out: &mut String, table: &Table, doc_path: &str, header: &str, ki
                         if index == 0 {
                             write_comment(out, section_doc);
                         }
-                        let kind_note = item_kind.map(|kind| format!(", kind {kind}")).unwrap_or_default();
-                        write_comment(
-                            out,
-                            &format!("{key}[{index}]{kind_note}: used by cells with cell_type = {index}."),
-                        );
+                        if key == "cell_types" {
+                            let kind_note = item_kind.map(|kind| format!(", kind {kind}")).unwrap_or_default();
+                            write_comment(
+                                out,
+                                &format!("{key}[{index}]{kind_note}: used by cells with cell_type = {index}."),
+                            );
+                        }
                     }
                     let _ = writeln!(out, "[[{section}]]");
                     write_table(out, item, &path, &section, item_kind, comments);

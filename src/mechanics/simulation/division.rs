@@ -127,9 +127,10 @@ impl<'p> Simulation<'p> {
     /// Replaces cell `c` by daughter `a` and appends daughter `b`, keeping every per-cell array aligned.
     fn apply_division(&mut self, c: usize, a: Daughter, b: Daughter) -> Result<(), SimulationError> {
         let seed = self.params.numerics.seed;
-        let p = self.cell_params[c];
+        let p = self.cell_params[c].clone();
         let mother = &self.tissue.cells()[c];
-        let (mother_id, kind, cell_type) = (mother.id(), mother.kind(), mother.cell_type());
+        let (mother_id, kind, cell_type, overrides) =
+            (mother.id(), mother.kind(), mother.cell_type(), *mother.overrides());
         let v0 = 0.5 * mother.target_volume();
         let volume = mother.mesh().signed_volume();
         let daughter_volumes = [a.mesh.signed_volume(), b.mesh.signed_volume()];
@@ -148,7 +149,7 @@ impl<'p> Simulation<'p> {
         let to_cell = |id: CellId, d: Daughter| {
             Cell::new(id, kind, cell_type, d.mesh)
                 .with_face_types(d.face_types)
-                .map(|cell| cell.with_target_volume(v0).with_parent(mother_id))
+                .map(|cell| cell.with_target_volume(v0).with_parent(mother_id).with_overrides(overrides))
                 .map_err(|e| SimulationError::Topology {
                     step: self.progress.step,
                     cell: mother_id,
@@ -166,10 +167,10 @@ impl<'p> Simulation<'p> {
         let [ma, mb] = momenta;
         self.cell_data.momenta[c] = ma;
         self.cell_data.momenta.push(mb);
-        self.cell_data.growth_rates[c] = draw_growth_rate(p, seed, ids[0]);
-        self.cell_data.growth_rates.push(draw_growth_rate(p, seed, ids[1]));
-        self.cell_data.division_volumes[c] = draw_division_volume(p, seed, ids[0]);
-        self.cell_data.division_volumes.push(draw_division_volume(p, seed, ids[1]));
+        self.cell_data.growth_rates[c] = draw_growth_rate(&p, seed, ids[0]);
+        self.cell_data.growth_rates.push(draw_growth_rate(&p, seed, ids[1]));
+        self.cell_data.division_volumes[c] = draw_division_volume(&p, seed, ids[0]);
+        self.cell_data.division_volumes.push(draw_division_volume(&p, seed, ids[1]));
         self.cell_data.remesh_idle[c] = 0;
         self.cell_data.remesh_idle.push(0);
         self.cell_params.push(p);

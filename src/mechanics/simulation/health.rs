@@ -69,7 +69,7 @@ impl<'p> Simulation<'p> {
         let cell = &self.tissue.cells()[c];
         CellTerm::ALL.into_iter().find_map(|term| {
             let mut work = CellForces::default();
-            work.compute(cell, self.cell_params[c], TermSet::only(term));
+            work.compute(cell, &self.cell_params[c], TermSet::only(term));
             (!work.all_finite() || !work.energy.total().is_finite()).then(|| term.name())
         })
     }
@@ -80,7 +80,7 @@ impl<'p> Simulation<'p> {
     fn hint(&self, c: usize) -> String {
         let cutoff = self.params.numerics.contact_cutoff;
         let cell_type = self.tissue.cells()[c].cell_type();
-        let p = self.cell_params[c];
+        let p = &self.cell_params[c];
         match p.faces.iter().find(|(_, f)| f.adhesion_outweighs_tension(cutoff)) {
             Some((face_type, f)) => format!(
                 "Its type {:?} has adhesion energy ωc²/4 = {:.3e} J/m² on {} faces (ω = {:e} Pa/m, \

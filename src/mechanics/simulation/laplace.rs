@@ -8,7 +8,7 @@ use crate::mesh::Tissue;
 /// balances its tension as a free sphere of its current volume ([`CellTypeParams::laplace_volume`]).
 pub(super) fn set_laplace_target_volumes(
     tissue: &mut Tissue,
-    cell_params: &[&CellTypeParams],
+    cell_params: &[CellTypeParams],
 ) -> Result<(), SimulationError> {
     for (cell, p) in tissue.cells_mut().iter_mut().zip(cell_params) {
         if !p.laplace_target_volume {

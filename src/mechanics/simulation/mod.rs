@@ -120,6 +120,8 @@ impl SimulationSummary {
 pub enum SimulationError {
     #[error(transparent)]
     UnknownCellType(#[from] UnknownCellType),
+    #[error(transparent)]
+    UnknownOverrideCell(#[from] crate::mechanics::UnknownOverrideCell),
     #[error("the tissue has no moving cell: nothing to simulate")]
     NothingMoves,
     #[error(
@@ -149,7 +151,7 @@ pub enum SimulationError {
 
 /// Typical tension γ̄ (N/m): the mean surface tension over the faces of moving cells; falls back to
 /// the largest tension of any type, then to 1e-3 N/m, so the force scale is never zero.
-fn tension_scale(tissue: &Tissue, cell_params: &[&CellTypeParams]) -> Real {
+fn tension_scale(tissue: &Tissue, cell_params: &[CellTypeParams]) -> Real {
     let (mut sum, mut count) = (0.0, 0usize);
     for (cell, p) in tissue.cells().iter().zip(cell_params) {
         if cell.kind().is_immobile() {
@@ -175,7 +177,7 @@ pub struct Simulation<'p> {
     tissue: Tissue,
     params: &'p Parameters,
     /// The parameters of every cell's type, in tissue order (derived from the tissue and `params`).
-    cell_params: Vec<&'p CellTypeParams>,
+    cell_params: Vec<CellTypeParams>,
     /// Per-cell data beside the meshes (momenta, growth rates, division volumes, remeshing back-off,
     /// the last good positions).
     cell_data: CellData,
@@ -207,9 +209,12 @@ pub struct Simulation<'p> {
 impl<'p> Simulation<'p> {
     /// Prepares a simulation; checks that every cell has a parameter set.
     /// Every cell runs as the kind its cell type declares ([`apply_configured_kinds`]; a warning
-    /// names each type whose cells changed kind).
+    /// names each type whose cells changed kind), with the config's `[[cell_overrides]]` laid over
+    /// its own tensions and adhesions ([`Parameters::apply_cell_overrides`]; the tissue it hands back
+    /// carries them).
     pub fn new(tissue: Tissue, params: &'p Parameters) -> Result<Self, SimulationError> {
         let mut tissue = tissue;
+        params.apply_cell_overrides(&mut tissue)?;
         let cell_params = cell_parameters(&tissue, params)?;
         for line in apply_configured_kinds(&mut tissue, params) {
             tracing::warn!("{line}");

@@ -168,7 +168,7 @@ impl<'p> Simulation<'p> {
                 extra.clear();
             };
             let mut current = None;
-            for (node, direction, k) in self.work.contacts.pair_stiffnesses(c, cell, self.cell_params[c], areas) {
+            for (node, direction, k) in self.work.contacts.pair_stiffnesses(c, cell, &self.cell_params[c], areas) {
                 if current != Some(node) {
                     flush(current, &mut extra);
                     current = Some(node);

@@ -22,6 +22,8 @@ pub struct CellState {
     pub positions: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
     pub face_types: Vec<FaceType>,
+    /// The cell's own tensions and adhesions (since checkpoint format 6).
+    pub overrides: crate::mesh::CellOverrides,
 }
 
 /// The forces, pressure and energies of one cell at the last evaluation (the geometry is recomputed
@@ -123,7 +125,8 @@ fn cell_from_state(cs: CellState) -> Result<Cell, String> {
     let mut cell = Cell::new(cs.id, cs.kind, cs.cell_type, mesh)
         .with_face_types(cs.face_types)
         .map_err(|e| e.to_string())?
-        .with_target_volume(cs.target_volume);
+        .with_target_volume(cs.target_volume)
+        .with_overrides(cs.overrides);
     if let Some(p) = cs.parent {
         cell = cell.with_parent(p);
     }
@@ -144,6 +147,7 @@ impl<'p> Simulation<'p> {
                 positions: c.mesh().positions().to_vec(),
                 triangles: c.mesh().triangles().to_vec(),
                 face_types: c.face_types().to_vec(),
+                overrides: *c.overrides(),
             })
             .collect()
     }
