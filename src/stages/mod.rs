@@ -8,6 +8,7 @@
 pub mod fit;
 pub mod measure;
 pub mod mesh;
+pub mod model_tables;
 pub mod output_unit;
 pub mod simulate;
 pub mod tensions;

@@ -2,7 +2,9 @@
 //! into a ParaView series (`frames.pvd` + `frames/`), `stats.csv`, `events.csv`, the final tissue
 //! (`final.vtp`, and `final.vtk` in SimuCell3D's legacy format, both with each cell's pressure), the
 //! run summary `summary.json` (DESIGN.md §2), the resolved model `config.toml`, and the final tissue
-//! measured as the measure stage measures (`cells.csv`, `contacts.csv`, `morphology.json`).
+//! measured as the measure stage measures (`cells.csv`, `contacts.csv`, `morphology.json`), and the
+//! model's own parameters, pressures and interface tensions at the final state (`model_cells.csv`,
+//! `model_interfaces.csv`, [`super::model_tables`]).
 //! Checkpoints (`checkpoint.bin`) are saved while it runs and a run continues from one with
 //! [`resume`]. `tissuefit simulate` and the pipeline's `[simulate]` both run [`run`].
 
@@ -33,7 +35,7 @@ pub const FRAMES_DIR: &str = "frames";
 
 /// The files the stage may write into its folder (besides [`FRAMES_DIR`]); an earlier run's are
 /// replaced only with `force`.
-pub const OUTPUT_FILES: [&str; 14] = [
+pub const OUTPUT_FILES: [&str; 16] = [
     CHECKPOINT_FILE,
     "frames.pvd",
     "stats.csv",
@@ -44,6 +46,8 @@ pub const OUTPUT_FILES: [&str; 14] = [
     MORPHOLOGY_FILE,
     "cells.csv",
     "contacts.csv",
+    "model_cells.csv",
+    "model_interfaces.csv",
     "reference.vtp",
     "config.toml",
     "last_good.vtk",
@@ -691,6 +695,11 @@ fn drive(
     // holds a complete run.
     let mut group = OutputGroup::new();
     super::measure::write_tables(&mut group, out, &morphology, unit).map_err(io)?;
+    let (model_cells, model_interfaces) =
+        super::model_tables::model_tables(sim.tissue(), params, &pressure, &morphology);
+    super::write_csv(&mut group, &out.join("model_cells.csv"), &model_cells, &Default::default()).map_err(io)?;
+    super::write_csv(&mut group, &out.join("model_interfaces.csv"), &model_interfaces, &Default::default())
+        .map_err(io)?;
     super::measure::write_summary(&mut group, &out.join(MORPHOLOGY_FILE), &morphology.summary, unit).map_err(io)?;
     write_json(&mut group, &out.join(SUMMARY_FILE), &run_summary).map_err(io)?;
     group.commit().map_err(io)?;

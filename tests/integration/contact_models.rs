@@ -8,6 +8,7 @@ use tissuefit::mechanics::{
 };
 use tissuefit::mesh::shapes::icosphere;
 use tissuefit::mesh::{Cell, CellId, CellKind, CellOverrides, FaceType, Tissue};
+use tissuefit::morphology::tensions::{TensionSettings, estimate_tensions};
 
 /// Cells of radius `r` (subdivided icospheres) centred at `centres`, every face basal (free).
 fn cells(r: Real, subdivisions: u32, centres: &[Vec3]) -> Tissue {
@@ -357,12 +358,12 @@ fn a_doublet_with_per_cell_tensions_meets_at_neumann_angles() {
     let mut tissue = cells(r, 3, &[Vec3::new(-r - 5e-8, 0.0, 0.0), Vec3::new(r + 5e-8, 0.0, 0.0)]);
     let own = CellOverrides { surface_tension: [Some(g2), Some(gl2), Some(g2)], adhesion: [None; 3] };
     tissue.cells_mut()[1] = tissue.cells()[1].clone().with_overrides(own);
-    let (t, s) = relax(tissue, &coupling_params(g1, gl1));
-    for c in t.cells() {
+    let (relaxed, s) = relax(tissue, &coupling_params(g1, gl1));
+    for c in relaxed.cells() {
         c.mesh().validate().unwrap();
     }
-    assert_eq!(t.cells()[1].overrides(), &own, "the relaxed tissue keeps the cell's own tensions");
-    let [a, b] = [&t.cells()[0], &t.cells()[1]];
+    assert_eq!(relaxed.cells()[1].overrides(), &own, "the relaxed tissue keeps the cell's own tensions");
+    let [a, b] = [&relaxed.cells()[0], &relaxed.cells()[1]];
     let (free_a, free_b, interface) =
         (nodes_of_type(a, FaceType::Basal), nodes_of_type(b, FaceType::Basal), nodes_of_type(a, FaceType::Lateral));
     assert!(interface.len() > 10, "no contact interface formed ({} lateral nodes)", interface.len());
@@ -381,13 +382,13 @@ fn a_doublet_with_per_cell_tensions_meets_at_neumann_angles() {
     let t12 = tangent_towards(ci, ri, x, mean(&interface));
     let tension = g1.max(g2);
     let balance = (g1 * t1 + g2 * t2 + (gl1 + gl2) * t12).norm() / tension;
-    let t = gl1 + gl2;
+    let tension_12 = gl1 + gl2;
     let neumann =
         |opposite: Real, p: Real, q: Real| ((opposite * opposite - p * p - q * q) / (2.0 * p * q)).acos().to_degrees();
     for (name, measured, expected) in [
-        ("medium (t1, t2)", t1.angle(&t2).to_degrees(), neumann(t, g1, g2)),
-        ("cell 1 (t1, t12)", t1.angle(&t12).to_degrees(), neumann(g2, g1, t)),
-        ("cell 2 (t2, t12)", t2.angle(&t12).to_degrees(), neumann(g1, g2, t)),
+        ("medium (t1, t2)", t1.angle(&t2).to_degrees(), neumann(tension_12, g1, g2)),
+        ("cell 1 (t1, t12)", t1.angle(&t12).to_degrees(), neumann(g2, g1, tension_12)),
+        ("cell 2 (t2, t12)", t2.angle(&t12).to_degrees(), neumann(g1, g2, tension_12)),
     ] {
         eprintln!("{name}: {measured:.2}° (Neumann {expected:.2}°); force balance residual {balance:.3} γ; {s:?}");
         assert!((measured - expected).abs() < 3.0, "{name}: {measured:.2}°, Neumann {expected:.2}°");
@@ -396,4 +397,17 @@ fn a_doublet_with_per_cell_tensions_meets_at_neumann_angles() {
     // free cap and the interface acos(−(2γ_l1)/(2γ₁)) = 126.9°: cell 2's is 13° off that.
     let type_only = neumann(g1, g1, 2.0 * gl1);
     assert!((t2.angle(&t12).to_degrees() - type_only).abs() > 10.0, "type-only angle {type_only:.2}°");
+
+    // The direct estimate (`tissuefit tensions`) reads the three tensions back from the shapes alone,
+    // in units of the mean free-surface tension (γ₁ + γ₂)/2. Measured: 0.9999, 0.8001 and 1.0101
+    // mN/m for 1, 0.8 and 1 mN/m; ±2 % (the estimate is within 1 % on exact doublets, and this
+    // relaxation stops at a residual of 0.006 γ·l_min).
+    let map = estimate_tensions(&relaxed, &TensionSettings::default()).unwrap();
+    let gauge = 0.5 * (g1 + g2);
+    for ((a, b), truth) in [((1, 0), g1), ((2, 0), g2), ((1, 2), gl1 + gl2)] {
+        let f = map.interfaces.iter().find(|f| (f.cell_a, f.cell_b) == (a, b)).unwrap();
+        let estimate = f.tension.unwrap() * gauge;
+        eprintln!("interface {a}-{b}: direct estimate {:.4} mN/m, model {:.4} mN/m", estimate * 1e3, truth * 1e3);
+        assert!((estimate / truth - 1.0).abs() < 0.02, "interface {a}-{b}: {estimate} N/m, model {truth} N/m");
+    }
 }

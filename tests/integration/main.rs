@@ -9,6 +9,7 @@ mod support;
 
 mod application2;
 mod bad_input;
+mod cell_overrides;
 mod checkpoint;
 mod cli;
 mod cli_reference;
