@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 use tissuefit::geometry::{Real, Vec3};
 use tissuefit::io::{LengthScale, ReadOptions, read_tissue};
-use tissuefit::mechanics::{NoObserver, Parameters, Simulation};
+use tissuefit::mechanics::{CellOverrideConfig, NoObserver, Parameters, PerFaceType, Simulation};
 use tissuefit::mesh::Tissue;
 use tissuefit::morphology::{MeasureSettings, Morphology, measure_tissue};
 
@@ -18,10 +18,13 @@ fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/evolver/fixtures").join(name)
 }
 
-fn truth_ratio(name: &str) -> Real {
+fn truth(name: &str) -> serde_json::Value {
     let text = std::fs::read_to_string(fixture(name).join("truth.json")).unwrap();
-    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    v["lateral_over_apical"].as_f64().unwrap()
+    serde_json::from_str(&text).unwrap()
+}
+
+fn truth_ratio(name: &str) -> Real {
+    truth(name)["lateral_over_apical"].as_f64().unwrap()
 }
 
 fn evolver_tissue(name: &str) -> Tissue {
@@ -60,7 +63,9 @@ fn validation_params(name: &str, steps: u64, change: impl FnOnce(&mut Parameters
     params.numerics.min_edge_length = 3e-7;
     params.numerics.contact_cutoff = 3e-7;
     params.simulation.max_steps = steps;
-    params.cell_types[0].faces.lateral.surface_tension = truth_ratio(name) * 1e-3;
+    if let Some(ratio) = truth(name)["lateral_over_apical"].as_f64() {
+        params.cell_types[0].faces.lateral.surface_tension = ratio * 1e-3;
+    }
     change(&mut params);
     params
 }
@@ -118,6 +123,80 @@ fn tetrahedral_cluster_stays_at_the_evolver_equilibrium_only_with_junction_group
     let p = differences(&evolver, &pairs);
     report("tetrahedral, 0.60, one partner per node (`coupling_junctions = false`)", &p, residual);
     assert!(p[1] > 15.0 && p[2] > 0.05, "one partner per node no longer opens the junctions: {p:?}");
+}
+
+/// Relaxes an Evolver equilibrium whose cells have different pressures (3000 steps, l_min = c =
+/// 0.2 µm). Evolver holds
+/// the volumes fixed, its pressures are their Lagrange multipliers; our cells are compressible
+/// (p = −K ln(V/V0)), so each cell's rest volume is set to where the pressure Evolver found holds
+/// its volume, V0 = V·exp(p/K) (with V0 = V every cell would shrink by its own p/K, ≈ 18 %, and
+/// unequally: another equilibrium than Evolver's).
+fn relax_at_evolver_pressures(name: &str, change: impl FnOnce(&mut Parameters)) -> (Morphology, Morphology, Real) {
+    let mut tissue = evolver_tissue(name);
+    let evolver = measure(&tissue);
+    let mut params = validation_params(name, 3000, change);
+    // A finer mesh than the other clusters' 0.3 µm: its smallest contact (5.9 µm², T/2γ = 0.85, near
+    // detachment) is a few edges across, and at 0.3 µm it shrank by 17 % in 3,000 steps (0.2 µm: 2.9 %).
+    params.numerics.min_edge_length = 2e-7;
+    params.numerics.contact_cutoff = 2e-7;
+    let truth = truth(name);
+    // Evolver's pressure is in units of its tension (1 = γ_a = 1 mN/m) per its length unit.
+    let per_length = 1e-3 / (truth["evolver_length_to_um"].as_f64().unwrap() * 1e-6);
+    let k = params.cell_types[0].bulk_modulus;
+    for cell in tissue.cells_mut() {
+        let p = truth["pressures"][cell.id().0.to_string()].as_f64().unwrap() * per_length;
+        let v = cell.mesh().signed_volume();
+        cell.set_target_volume(v * (p / k).exp());
+    }
+    let mut sim = Simulation::new(tissue, &params).unwrap();
+    let summary = sim.run(&mut NoObserver).unwrap();
+    (evolver, measure(sim.tissue()), summary.residual)
+}
+
+/// Issue 25, per-cell parameters against an outside truth: Evolver's heterogeneous cluster (hetero4:
+/// cell–medium tension 1, six cell–cell tensions 0.9–1.7) is additive, T_ij = a_i + a_j, so one
+/// lateral tension per cell (`[[cell_overrides]]`, γ_l,i = a_i mN/m) is its model. Started from
+/// Evolver's equilibrium with them, ours stays there within the tetrahedral cluster's bounds; with
+/// one lateral tension for all cells (their mean, the best a per-type model can do) it moves away.
+#[test]
+fn heterogeneous_cluster_stays_at_the_evolver_equilibrium_only_with_per_cell_tensions() {
+    let interfaces = truth("hetero4")["interfaces"].as_object().unwrap().clone();
+    // a_i by least squares over the six pairs (4 unknowns): the residual says whether it is additive.
+    let mut m = nalgebra::DMatrix::<Real>::zeros(interfaces.len(), 4);
+    let mut t = nalgebra::DVector::<Real>::zeros(interfaces.len());
+    for (row, (pair, v)) in interfaces.iter().enumerate() {
+        let (a, b) = pair.split_once('-').unwrap();
+        m[(row, a.parse::<usize>().unwrap() - 1)] = 1.0;
+        m[(row, b.parse::<usize>().unwrap() - 1)] = 1.0;
+        t[row] = v["tension"].as_f64().unwrap();
+    }
+    let a = m.clone().svd(true, true).solve(&t, 1e-12).unwrap();
+    assert!((&m * &a - &t).amax() < 1e-9, "hetero4 is not additive: {a}");
+    let own: Vec<CellOverrideConfig> = (0..4)
+        .map(|i| CellOverrideConfig {
+            id: i as u32 + 1,
+            surface_tension: PerFaceType { lateral: Some(a[i] * 1e-3), ..PerFaceType::default() },
+            adhesion: PerFaceType::default(),
+        })
+        .collect();
+    let (evolver, ours, residual) = relax_at_evolver_pressures("hetero4", |p| p.cell_overrides = own);
+    let d = differences(&evolver, &ours);
+    report(&format!("hetero4, per-cell γ_l = ({:.2}, {:.2}, {:.2}, {:.2}) mN/m", a[0], a[1], a[2], a[3]), &d, residual);
+    let mean = a.mean();
+    let (evolver, uniform, residual) =
+        relax_at_evolver_pressures("hetero4", |p| p.cell_types[0].faces.lateral.surface_tension = mean * 1e-3);
+    let u = differences(&evolver, &uniform);
+    report(&format!("hetero4, one γ_l = {mean:.2} mN/m for all cells"), &u, residual);
+    eprintln!("per-cell {d:?}, uniform {u:?}");
+    // Measured: per-cell 0.60° (far field), 2.9 % (areas), 7e-4 (sphericity); one γ_l for all 33.6°,
+    // 258 %. The bounds are the tetrahedral cluster's for angles and sphericity; the areas get 4 %
+    // (2 % there) because they drift slowly in longer runs (5.7 % after 9,000 steps: not understood,
+    // see docs/src/validation/evolver.md). Rim angles are not asserted: with per-cell tensions ours
+    // read up to 25° below Evolver's while the far-field angles agree (also in the docs).
+    assert!(d[0] < 1.0, "far-field angles off by {:.2}°", d[0]);
+    assert!(d[2] < 0.04, "contact areas off by {:.1} %", 100.0 * d[2]);
+    assert!(d[3] < 2e-3, "sphericity off by {:.4}", d[3]);
+    assert!(u[0] > 20.0 && u[2] > 1.0, "one lateral tension for all cells matched the heterogeneous cluster: {u:?}");
 }
 
 #[test]
