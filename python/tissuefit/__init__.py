@@ -331,11 +331,13 @@ class TensionMap:
 
     ``interfaces``: the columns of ``interfaces.csv`` (``cell_a``, ``cell_b`` with 0 the medium,
     ``tension``, ``tension_sd``, ``determined``, ``area_um2``...); ``cells``: of ``cells.csv``
-    (``cell``, ``pressure``, ``pressure_sd``, ``determined``...); ``summary``: ``summary.json``
+    (``cell``, ``pressure``, ``pressure_sd``, ``determined``, ``free_tension``, ``lateral_tension``...);
+    ``summary``: ``summary.json``
     (units: ``tension_unit``, ``pressure_unit``, residuals, warnings). ``tissue``: the tissue the
     estimate was made on; ``face_tension[i]``: the tension of each face of ``tissue.cells[i]``
     (NaN where undetermined); ``pressure[i]``: that cell's pressure. ``out``: the folder with the
-    four files (``tensions.vtp`` for ParaView)."""
+    files (``tensions.vtp`` for ParaView; ``cell_overrides.toml``: the map as per-cell model
+    parameters, with ``gauge_tension``)."""
 
     interfaces: dict[str, np.ndarray]
     cells: dict[str, np.ndarray]

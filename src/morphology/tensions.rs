@@ -1125,3 +1125,96 @@ fn solve_pressures(
     }
     (out, Some(rms))
 }
+
+/// The map as per-cell parameters of the model: each cell's free tension (its interface with the
+/// medium) and a lateral tension a_i such that every cell–cell interface pulls with T_ij ≈ a_i + a_j
+/// (what coupled contacts make of two cells' lateral tensions), by least squares over the determined
+/// cell–cell interfaces of each connected group of cells. A group whose interfaces do not fix every
+/// a_i (two cells: one equation, two unknowns; more generally a group without a cycle of odd
+/// length) leaves its cells' lateral tensions undetermined rather than splitting T arbitrarily.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PerCellTensions {
+    /// In the order of [`TensionMap::cells`].
+    pub cells: Vec<PerCellTension>,
+    /// Rms over the determined cell–cell interfaces of the groups solved of (a_i + a_j − T_ij)/T_ij:
+    /// how far the map is from additive (0 for a map that per-cell tensions reproduce exactly);
+    /// `None` when no group was solved.
+    pub additive_residual_rms: Option<Real>,
+}
+
+/// One cell of [`PerCellTensions`], in units of the gauge.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PerCellTension {
+    pub cell: u32,
+    /// The tension of the cell's interface with the medium; `None` when it has none or it is
+    /// undetermined.
+    pub free: Option<Real>,
+    /// a_i; `None` when undetermined.
+    pub lateral: Option<Real>,
+}
+
+/// Decomposes `map` into per-cell tensions ([`PerCellTensions`]).
+pub fn per_cell_tensions(map: &TensionMap) -> PerCellTensions {
+    let index: std::collections::HashMap<u32, usize> = map.cells.iter().enumerate().map(|(i, c)| (c.cell, i)).collect();
+    let pairs: Vec<(usize, usize, Real)> = map
+        .interfaces
+        .iter()
+        .filter(|f| f.cell_b != 0)
+        .filter_map(|f| Some((*index.get(&f.cell_a)?, *index.get(&f.cell_b)?, f.tension?)))
+        .collect();
+    // Connected groups of cells over the determined interfaces (union–find).
+    let n = map.cells.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for &(a, b, _) in &pairs {
+        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+        parent[ra.max(rb)] = ra.min(rb);
+    }
+    let mut lateral: Vec<Option<Real>> = vec![None; n];
+    let mut relative = Vec::new();
+    for group in 0..n {
+        let members: Vec<usize> = (0..n).filter(|&i| root(&mut parent, i) == group).collect();
+        let rows: Vec<&(usize, usize, Real)> =
+            pairs.iter().filter(|(a, _, _)| root(&mut parent, *a) == group).collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let column = |i: usize| members.iter().position(|&m| m == i).expect("a member");
+        let mut a = DMatrix::<Real>::zeros(rows.len(), members.len());
+        let mut t = DVector::<Real>::zeros(rows.len());
+        for (r, &&(i, j, tension)) in rows.iter().enumerate() {
+            a[(r, column(i))] = 1.0;
+            a[(r, column(j))] = 1.0;
+            t[r] = tension;
+        }
+        let svd = a.clone().svd(true, true);
+        let largest = svd.singular_values.max();
+        let rank = svd.singular_values.iter().filter(|&&s| s > 1e-9 * largest).count();
+        if rank < members.len() {
+            continue;
+        }
+        let Ok(x) = svd.solve(&t, 1e-12 * largest) else { continue };
+        for (k, &i) in members.iter().enumerate() {
+            lateral[i] = Some(x[k]);
+        }
+        let fitted = &a * &x;
+        relative.extend(rows.iter().enumerate().map(|(r, row)| (fitted[r] - row.2) / row.2));
+    }
+    let free_of = |cell: u32| map.interfaces.iter().find(|f| f.cell_a == cell && f.cell_b == 0).and_then(|f| f.tension);
+    PerCellTensions {
+        cells: map
+            .cells
+            .iter()
+            .zip(lateral)
+            .map(|(c, lateral)| PerCellTension { cell: c.cell, free: free_of(c.cell), lateral })
+            .collect(),
+        additive_residual_rms: (!relative.is_empty())
+            .then(|| (relative.iter().map(|r| r * r).sum::<Real>() / relative.len() as Real).sqrt()),
+    }
+}

@@ -1,6 +1,8 @@
 //! The tensions stage: the direct estimate of every interface's tension and every cell's pressure
 //! from a tissue's shapes ([`crate::morphology::tensions`]) into `interfaces.csv`, `cells.csv`,
-//! `summary.json` and `tensions.vtp` (per-face tension, per-cell pressure), written together.
+//! `summary.json`, `tensions.vtp` (per-face tension, per-cell pressure) and `cell_overrides.toml`
+//! (the map as per-cell model parameters, [`crate::morphology::tensions::per_cell_tensions`]),
+//! written together.
 //! `tissuefit tensions` (which reads or meshes its input first) and the Python API both run [`run`].
 
 use super::{StageError, write_csv};
@@ -8,7 +10,9 @@ use crate::geometry::Real;
 use crate::io::{CellField, OutputGroup, vtp_bytes};
 use crate::mesh::Tissue;
 use crate::morphology::ContactRule;
-use crate::morphology::tensions::{Gauge, TensionMap, TensionSettings, estimate_tensions};
+use crate::morphology::tensions::{
+    Gauge, PerCellTensions, TensionMap, TensionSettings, estimate_tensions, per_cell_tensions,
+};
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
@@ -40,7 +44,7 @@ pub struct TensionsOutcome {
     pub summary: Summary,
 }
 
-/// Estimates the tensions and pressures of `tissue` with `settings` and writes the four files into
+/// Estimates the tensions and pressures of `tissue` with `settings` and writes the five files into
 /// `out` (created when missing), all or nothing.
 pub fn run(
     tissue: &Tissue,
@@ -62,6 +66,7 @@ pub fn run(
         Gauge::MediumMean => "the mean of the cell–medium tensions".to_string(),
         Gauge::Interface(a, b) => format!("the tension of interface {a}-{b}"),
     };
+    let per_cell = per_cell_tensions(&map);
     let summary = Summary {
         file: input.file.to_string(),
         input: input.kind,
@@ -88,11 +93,15 @@ pub fn run(
         residual_rms: map.residual_rms,
         residual_median: map.residual_median,
         pressure_residual_rms: map.pressure_residual_rms.map(|p| p * 1e-6),
+        additive_residual_rms: per_cell.additive_residual_rms,
+        lateral_determined: per_cell.cells.iter().filter(|c| c.lateral.is_some()).count(),
         wall_seconds,
         threads: rayon::current_num_threads(),
         warnings: map.warnings.clone(),
     };
-    let Fields { face_tension, pressure } = write_outputs(out, tissue, &map, &summary).map_err(err)?;
+    let overrides = cell_overrides_toml(&per_cell, input);
+    let Fields { face_tension, pressure } =
+        write_outputs(out, tissue, &map, &per_cell, &overrides, &summary).map_err(err)?;
     Ok(TensionsOutcome { map, face_tension, pressure, summary })
 }
 
@@ -103,7 +112,56 @@ struct Fields {
 }
 
 /// What the stage writes into its folder, all or nothing.
-pub const OUTPUT_FILES: [&str; 4] = ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp"];
+pub const OUTPUT_FILES: [&str; 5] =
+    ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp", "cell_overrides.toml"];
+
+/// `cell_overrides.toml`: the per-cell tensions as `[[cell_overrides]]` entries for a model file
+/// (free tension on apical and basal faces, a_i on lateral ones, N/m) when the gauge is absolute
+/// (`--gauge-tension`); otherwise only a comment saying how to get them.
+fn cell_overrides_toml(per_cell: &PerCellTensions, input: &TensionsInput<'_>) -> String {
+    use crate::mechanics::{CellOverrideConfig, PerFaceType};
+    let mut text = format!(
+        "# Per-cell tensions from the direct estimate of `tissuefit tensions` ({}): each cell's free tension\n\
+         # (its interface with the medium) on its apical and basal faces, and a lateral tension a_i such\n\
+         # that a cell–cell interface pulls with a_i + a_j (coupled contacts), by least squares.\n\
+         # Append to a model file to simulate the map forward (see the Per-cell tensions and adhesions\n\
+         # section of the simulation guide). Values the map does not determine are left out.\n",
+        input.file
+    );
+    if let Some(rms) = per_cell.additive_residual_rms {
+        text.push_str(&format!(
+            "# Additive residual: rms of (a_i + a_j - T_ij)/T_ij = {rms:.4} (0: per-cell tensions reproduce the map).\n"
+        ));
+    }
+    if !input.gauge_in_mn_per_m {
+        text.push_str(
+            "# The tensions are relative to the gauge: rerun with --gauge-tension T (mN/m) for values in N/m.\n",
+        );
+        return text;
+    }
+    let entries: Vec<CellOverrideConfig> = per_cell
+        .cells
+        .iter()
+        .filter(|c| c.free.is_some() || c.lateral.is_some())
+        .map(|c| {
+            let free = c.free.map(|t| t * 1e-3);
+            CellOverrideConfig {
+                id: c.cell,
+                surface_tension: PerFaceType { apical: free, lateral: c.lateral.map(|t| t * 1e-3), basal: free },
+                adhesion: PerFaceType::default(),
+            }
+        })
+        .collect();
+    #[derive(Serialize)]
+    struct Entries {
+        cell_overrides: Vec<CellOverrideConfig>,
+    }
+    if !entries.is_empty() {
+        text.push('\n');
+        text.push_str(&toml::to_string(&Entries { cell_overrides: entries }).unwrap_or_default());
+    }
+    text
+}
 
 /// A row of `interfaces.csv`.
 #[derive(Serialize, Default)]
@@ -129,6 +187,10 @@ struct CellRow {
     determined: bool,
     free_mean_curvature_per_um: Option<Real>,
     free_area_um2: Real,
+    /// The cell's free tension (its interface with the medium) and its lateral tension a_i of the
+    /// per-cell decomposition (T_ij ≈ a_i + a_j), in the tension unit; empty when undetermined.
+    free_tension: Option<Real>,
+    lateral_tension: Option<Real>,
 }
 
 /// `summary.json`.
@@ -163,13 +225,24 @@ pub struct Summary {
     pub residual_median: Option<Real>,
     /// Rms Young–Laplace residual of the pressures (pressure unit).
     pub pressure_residual_rms: Option<Real>,
+    /// Per-cell decomposition T_ij ≈ a_i + a_j: rms relative residual over the interfaces it solved,
+    /// and how many cells got a lateral tension.
+    pub additive_residual_rms: Option<Real>,
+    pub lateral_determined: usize,
     pub wall_seconds: f64,
     pub threads: usize,
     pub warnings: Vec<String>,
 }
 
 /// The tissue, `tissue` or `labels`, and for labels the largest voxel edge (m).
-fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summary) -> Result<Fields, String> {
+fn write_outputs(
+    dir: &Path,
+    tissue: &Tissue,
+    map: &TensionMap,
+    per_cell: &PerCellTensions,
+    overrides: &str,
+    summary: &Summary,
+) -> Result<Fields, String> {
     let interfaces: Vec<InterfaceRow> = map
         .interfaces
         .iter()
@@ -196,6 +269,8 @@ fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summar
             determined: c.determined,
             free_mean_curvature_per_um: c.free_mean_curvature.map(|h| h * 1e-6),
             free_area_um2: c.free_area * 1e12,
+            free_tension: per_cell.cells.iter().find(|p| p.cell == c.cell).and_then(|p| p.free),
+            lateral_tension: per_cell.cells.iter().find(|p| p.cell == c.cell).and_then(|p| p.lateral),
         })
         .collect();
     // Per-face tension and per-cell pressure for ParaView (NaN where undetermined, and on nuclei,
@@ -228,6 +303,8 @@ fn write_outputs(dir: &Path, tissue: &Tissue, map: &TensionMap, summary: &Summar
             writeln!(w)
         })
         .map_err(|e| io(&path, &e))?;
+    let path = dir.join("cell_overrides.toml");
+    group.write_bytes(&path, overrides.as_bytes()).map_err(|e| io(&path, &e))?;
     let vtp = dir.join("tensions.vtp");
     let fields =
         [CellField { name: "tension", values: &face_tension }, CellField { name: "pressure", values: &pressure }];

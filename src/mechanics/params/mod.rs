@@ -90,10 +90,10 @@ pub struct CellOverrideConfig {
     /// The cell's id (its label in a label volume, `cell_id` in a tissue file).
     pub id: u32,
     /// Surface tension γ per face type in place of the cell type's. Unit: N/m.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "PerFaceType::is_empty")]
     pub surface_tension: PerFaceType,
     /// Spring adhesion strength ω per face type in place of the cell type's. Unit: Pa/m.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "PerFaceType::is_empty")]
     pub adhesion: PerFaceType,
 }
 
@@ -113,6 +113,11 @@ pub struct PerFaceType {
 }
 
 impl PerFaceType {
+    /// Whether no face type has a value.
+    pub fn is_empty(&self) -> bool {
+        self.to_array().iter().all(Option::is_none)
+    }
+
     /// The three values in face-type code order.
     pub fn to_array(self) -> [Option<Real>; 3] {
         [self.apical, self.lateral, self.basal]
