@@ -1,8 +1,8 @@
 //! `tissuefit tensions TISSUE|LABELS.tif --out DIR [--gauge medium|A-B] [--gauge-tension T]
 //! [--one-medium-tension]`: the direct estimate of every interface's tension and every cell's pressure
 //! from the shapes alone (force balance at the junction lines, Young–Laplace on the interfaces; see
-//! [`crate::morphology::tensions`]) into `interfaces.csv`, `cells.csv`, `summary.json`, `tensions.vtp` and `cell_overrides.toml`,
-//! written together (all or nothing). A label TIFF is meshed first as `tissuefit mesh` meshes it.
+//! [`crate::morphology::tensions`]) into `interfaces.csv`, `cells.csv`, `summary.json`, `tensions.vtp`
+//! and `cell_overrides.toml`, written together (all or nothing). A label TIFF is meshed first as `tissuefit mesh` meshes it.
 
 use super::label_args::{describe_grid, parse_voxel_size};
 use super::{InputArgs, Outcome};
@@ -25,7 +25,8 @@ pub struct TensionsArgs {
     /// TIFF stack, an OME-Zarr .zarr folder, an HDF5 .h5 dataset or a NumPy .npy), meshed first as
     /// `tissuefit mesh` does (cell ids = labels).
     pub tissue: PathBuf,
-    /// Output directory (created if missing): interfaces.csv, cells.csv, summary.json, tensions.vtp, cell_overrides.toml.
+    /// Output directory (created if missing): interfaces.csv, cells.csv, summary.json, tensions.vtp,
+    /// cell_overrides.toml.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Which tension fixes the scale: `medium` (the mean of the cell–medium tensions) or an interface

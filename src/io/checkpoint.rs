@@ -190,7 +190,8 @@ mod tests {
     use crate::mesh::{CellId, CellKind, CellOverrides, FaceType};
     use serde::{Deserialize, Serialize};
 
-    /// [`SimulationState`] as format 5 first laid it out (its cells as format 6 has them), every field at the top level.
+    /// [`SimulationState`] as format 5 first laid it out (its cells as format 6 has them), every
+    /// field at the top level.
     #[derive(Serialize, Deserialize)]
     struct FlatFormat5 {
         cells: Vec<CellState>,

@@ -306,12 +306,11 @@ pub fn cell_parameters(tissue: &Tissue, params: &Parameters) -> Result<Vec<CellT
         .cells()
         .iter()
         .map(|c| {
-            let base = params.cell_type(c.cell_type()).ok_or(UnknownCellType {
+            params.parameters_of(c).ok_or(UnknownCellType {
                 cell: c.id(),
                 cell_type: c.cell_type(),
                 defined: params.cell_types.len(),
-            })?;
-            Ok(base.with_overrides(c.overrides()))
+            })
         })
         .collect()
 }

@@ -1176,21 +1176,28 @@ pub fn per_cell_tensions(map: &TensionMap) -> PerCellTensions {
         let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
         parent[ra.max(rb)] = ra.min(rb);
     }
+    // Each group's cells and interfaces, in one pass (groups in order of their smallest cell).
+    let roots: Vec<usize> = (0..n).map(|i| root(&mut parent, i)).collect();
+    type Group = (Vec<usize>, Vec<(usize, usize, Real)>);
+    let mut groups: std::collections::BTreeMap<usize, Group> = Default::default();
+    for (i, &r) in roots.iter().enumerate() {
+        groups.entry(r).or_default().0.push(i);
+    }
+    for &pair in &pairs {
+        groups.entry(roots[pair.0]).or_default().1.push(pair);
+    }
     let mut lateral: Vec<Option<Real>> = vec![None; n];
+    let mut column = vec![0; n];
     let mut relative = Vec::new();
-    for group in 0..n {
-        let members: Vec<usize> = (0..n).filter(|&i| root(&mut parent, i) == group).collect();
-        let rows: Vec<&(usize, usize, Real)> =
-            pairs.iter().filter(|(a, _, _)| root(&mut parent, *a) == group).collect();
-        if rows.is_empty() {
-            continue;
+    for (members, rows) in groups.values().filter(|(_, rows)| !rows.is_empty()) {
+        for (k, &i) in members.iter().enumerate() {
+            column[i] = k;
         }
-        let column = |i: usize| members.iter().position(|&m| m == i).expect("a member");
         let mut a = DMatrix::<Real>::zeros(rows.len(), members.len());
         let mut t = DVector::<Real>::zeros(rows.len());
-        for (r, &&(i, j, tension)) in rows.iter().enumerate() {
-            a[(r, column(i))] = 1.0;
-            a[(r, column(j))] = 1.0;
+        for (r, &(i, j, tension)) in rows.iter().enumerate() {
+            a[(r, column[i])] = 1.0;
+            a[(r, column[j])] = 1.0;
             t[r] = tension;
         }
         let svd = a.clone().svd(true, true);
@@ -1206,13 +1213,14 @@ pub fn per_cell_tensions(map: &TensionMap) -> PerCellTensions {
         let fitted = &a * &x;
         relative.extend(rows.iter().enumerate().map(|(r, row)| (fitted[r] - row.2) / row.2));
     }
-    let free_of = |cell: u32| map.interfaces.iter().find(|f| f.cell_a == cell && f.cell_b == 0).and_then(|f| f.tension);
+    let free: std::collections::HashMap<u32, Real> =
+        map.interfaces.iter().filter(|f| f.cell_b == 0).filter_map(|f| Some((f.cell_a, f.tension?))).collect();
     PerCellTensions {
         cells: map
             .cells
             .iter()
             .zip(lateral)
-            .map(|(c, lateral)| PerCellTension { cell: c.cell, free: free_of(c.cell), lateral })
+            .map(|(c, lateral)| PerCellTension { cell: c.cell, free: free.get(&c.cell).copied(), lateral })
             .collect(),
         additive_residual_rms: (!relative.is_empty())
             .then(|| (relative.iter().map(|r| r * r).sum::<Real>() / relative.len() as Real).sqrt()),

@@ -13,7 +13,7 @@
 //! lumen or ECM body contributes its apical values.
 
 use crate::geometry::Real;
-use crate::mechanics::{CellTypeParams, ContactModel, Parameters};
+use crate::mechanics::{ContactModel, Parameters};
 use crate::mesh::{Cell, CellKind, FaceType, Tissue};
 use crate::morphology::Morphology;
 use serde::Serialize;
@@ -54,11 +54,6 @@ pub struct ModelInterfaceRow {
     pub contact_model: &'static str,
 }
 
-/// The parameter set a cell runs with; `None` for a cell whose type is undefined.
-fn effective(params: &Parameters, cell: &Cell) -> Option<CellTypeParams> {
-    params.cell_type(cell.cell_type()).map(|p| p.with_overrides(cell.overrides()))
-}
-
 /// The face type of `cell` that faces a body of kind `partner`.
 fn facing(cell: &Cell, partner: CellKind) -> FaceType {
     if !cell.kind().is_cell() {
@@ -82,7 +77,7 @@ pub fn model_tables(
 ) -> (Vec<ModelCellRow>, Vec<ModelInterfaceRow>) {
     let mut cells = Vec::with_capacity(tissue.len());
     for (c, cell) in tissue.cells().iter().enumerate() {
-        let Some(p) = effective(params, cell) else { continue };
+        let Some(p) = params.parameters_of(cell) else { continue };
         let [ga, gl, gb] = FaceType::ALL.map(|t| p.faces.get(t).surface_tension);
         let [wa, wl, wb] = FaceType::ALL.map(|t| p.faces.get(t).adhesion);
         cells.push(ModelCellRow {
@@ -111,7 +106,7 @@ pub fn model_tables(
         if a.kind() == CellKind::Nucleus || b.kind() == CellKind::Nucleus {
             continue;
         }
-        let [Some(pa), Some(pb)] = [a, b].map(|c| effective(params, c)) else { continue };
+        let [Some(pa), Some(pb)] = [a, b].map(|c| params.parameters_of(c)) else { continue };
         let (fa, fb) = (pa.faces.get(facing(a, b.kind())), pb.faces.get(facing(b, a.kind())));
         // Coupling ties two cells; a cell and a lumen or the ECM always meet by springs.
         let coupled = model == ContactModel::Coupling && a.kind().is_cell() && b.kind().is_cell();

@@ -262,15 +262,16 @@ fn write_outputs(
     let cells: Vec<CellRow> = map
         .cells
         .iter()
-        .map(|c| CellRow {
+        .zip(&per_cell.cells)
+        .map(|(c, own)| CellRow {
             cell: c.cell,
             pressure: c.pressure.map(|p| p * 1e-6),
             pressure_sd: c.pressure_sd.map(|p| p * 1e-6),
             determined: c.determined,
             free_mean_curvature_per_um: c.free_mean_curvature.map(|h| h * 1e-6),
             free_area_um2: c.free_area * 1e12,
-            free_tension: per_cell.cells.iter().find(|p| p.cell == c.cell).and_then(|p| p.free),
-            lateral_tension: per_cell.cells.iter().find(|p| p.cell == c.cell).and_then(|p| p.lateral),
+            free_tension: own.free,
+            lateral_tension: own.lateral,
         })
         .collect();
     // Per-face tension and per-cell pressure for ParaView (NaN where undetermined, and on nuclei,

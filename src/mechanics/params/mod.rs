@@ -159,6 +159,12 @@ impl Parameters {
         overrides
     }
 
+    /// The parameter set cell `cell` runs with: its cell type's with its own tensions and adhesions
+    /// ([`crate::mesh::CellOverrides`]) in place of the type's; `None` when its type is undefined.
+    pub fn parameters_of(&self, cell: &crate::mesh::Cell) -> Option<CellTypeParams> {
+        self.cell_type(cell.cell_type()).map(|p| p.with_overrides(cell.overrides()))
+    }
+
     /// Gives every cell named in `[[cell_overrides]]` its values ([`Self::overrides_of`]); errors on an
     /// entry whose id is not a cell of `tissue`. Returns how many cells it changed.
     pub fn apply_cell_overrides(&self, tissue: &mut crate::mesh::Tissue) -> Result<usize, UnknownOverrideCell> {
