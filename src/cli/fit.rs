@@ -78,12 +78,12 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         "{}: {}; {:.1} s; outputs in {}",
         args.config.display(),
         result.summary_line(),
-        result.wall_seconds,
+        result.wall_seconds(),
         args.out.display()
     );
     // A poor fit, or a best point whose relaxation failed, completed but found a problem, like an
     // unconverged one: exit code 1.
-    Ok(if result.converged && !result.poor_fit && !result.best_relaxation.failed {
+    Ok(if result.succeeded() {
         Outcome::Success
     } else {
         Outcome::CheckFailed

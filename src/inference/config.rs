@@ -31,7 +31,19 @@ pub struct FitConfig {
     /// The parameters to fit or fix, by name: `surface_tension` (every face type),
     /// `surface_tension_apical`, `surface_tension_lateral`, `surface_tension_basal`, `adhesion`
     /// (every face type). Applied to every epithelial cell type. Names not listed keep the model's value.
+    /// Required by `mode = "global"`; with `mode = "per_cell"` only the fixed values (`value`) and the
+    /// starts (`initial`, else the middle of the bounds) of the base model are used.
+    #[serde(default)]
     pub parameters: BTreeMap<String, ParameterConfig>,
+    /// What is fitted: `"global"` (default) — the named parameters, shared by every cell, by an
+    /// optimiser over relaxed simulations; `"per_cell"` — every cell's own free and lateral
+    /// tension, refined from the direct estimate until the simulation, measured like the data, gives
+    /// the data's tension map (`[per_cell]`; the docs book, "Per-cell maps").
+    #[serde(default)]
+    pub mode: FitMode,
+    /// Settings of `mode = "per_cell"`. Default: [`PerCellConfig::default`].
+    #[serde(default)]
+    pub per_cell: PerCellConfig,
     /// Objective weights and scales. Default: [`ObjectiveConfig::default`].
     #[serde(default)]
     pub objective: ObjectiveConfig,
@@ -44,6 +56,66 @@ pub struct FitConfig {
     /// Profile (uncertainty) settings. Default: [`ProfileConfig::default`].
     #[serde(default)]
     pub profile: ProfileConfig,
+}
+
+/// What a fit determines.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum FitMode {
+    /// A few parameters shared by every cell (`[parameters]`), by Nelder–Mead or particle swarm.
+    #[default]
+    Global,
+    /// Every cell's own free and lateral tension (a per-cell map), by forward refinement of the
+    /// direct estimate ([`super::per_cell`]).
+    PerCell,
+}
+
+/// The forward refinement of `mode = "per_cell"`: start from the direct estimate of the observed
+/// tissue's tensions, relax the tissue with every cell's own tensions, measure the relaxed tissue
+/// like the data and estimate its tensions the same way, correct each cell's tensions by the ratio
+/// of the observed to the simulated estimate, and repeat until they agree.
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PerCellConfig {
+    /// Most refinement iterations, each one relaxation and one measurement. Default 6.
+    #[serde(default = "default_per_cell_iterations")]
+    pub iterations: usize,
+    /// Converged when the rms relative difference between the simulated and the observed estimate,
+    /// over every determined interface (cell–cell and cell–medium), falls below this. Default 0.02.
+    #[serde(default = "default_per_cell_tolerance")]
+    pub tolerance: Real,
+    /// The mean free-surface (cell–medium) tension of the moving cells, N/m: the scale a shape cannot
+    /// tell (every tension of the map is relative to it). Default: the base model's apical tension
+    /// of the first moving cell's type.
+    #[serde(default)]
+    pub free_tension: Option<Real>,
+    /// The fraction of the logarithmic correction applied per iteration: each tension is multiplied
+    /// by (observed/simulated)^step (and by at most ×/÷ 1.25). Below 1 it damps the forward model's
+    /// noise (a relaxation one bit apart can move a junction); 1 takes the whole correction.
+    /// Default 0.5.
+    #[serde(default = "default_per_cell_step")]
+    pub step: Real,
+    /// Start each relaxation from the previous iteration's relaxed tissue instead of the observed
+    /// one. Faster to settle, but the result then depends on the path. Default false.
+    #[serde(default)]
+    pub warm_start: bool,
+}
+
+fn default_per_cell_step() -> Real {
+    0.5
+}
+
+fn default_per_cell_iterations() -> usize {
+    6
+}
+fn default_per_cell_tolerance() -> Real {
+    0.02
+}
+
+impl Default for PerCellConfig {
+    fn default() -> Self {
+        toml::from_str("").expect("all defaults")
+    }
 }
 
 /// The observed input: exactly one of `tissue` or `labels`.
@@ -464,8 +536,9 @@ impl FitConfig {
     /// The checks of everything but `[observed]` (parameters, objective, optimiser, forward,
     /// profile); a pipeline runs these on its `[fit]` section.
     pub fn check_settings(&self) -> Result<(), String> {
-        if self.parameters.is_empty() {
-            return Err("parameters: name at least one parameter to fit".into());
+        let global = self.mode == FitMode::Global;
+        if self.parameters.is_empty() && global {
+            return Err("parameters: name at least one parameter to fit (or set mode = \"per_cell\")".into());
         }
         let mut fitted = 0;
         for (name, p) in &self.parameters {
@@ -511,8 +584,29 @@ impl FitConfig {
                 }
             }
         }
-        if fitted == 0 {
+        if fitted == 0 && global {
             return Err("parameters: every parameter is fixed; give `bounds` to at least one".into());
+        }
+        let pc = &self.per_cell;
+        if pc.iterations == 0 {
+            return Err("per_cell.iterations: must be at least 1".into());
+        }
+        if !(pc.tolerance.is_finite() && pc.tolerance > 0.0 && pc.tolerance < 1.0) {
+            return Err(format!(
+                "per_cell.tolerance: a relative difference in (0, 1) (0.02 = 2 %); got {}",
+                pc.tolerance
+            ));
+        }
+        if !(pc.step > 0.0 && pc.step <= 1.0) {
+            return Err(format!("per_cell.step: a fraction in (0, 1] of the correction per iteration; got {}", pc.step));
+        }
+        if let Some(g) = pc.free_tension {
+            if !(g.is_finite() && g > 0.0) {
+                return Err(format!("per_cell.free_tension: a tension > 0 in N/m; got {g}"));
+            }
+            if let Some(bad) = crate::io::implausible_tension("per_cell.free_tension", g) {
+                return Err(bad);
+            }
         }
         let o = &self.objective;
         use super::forward::Metric;

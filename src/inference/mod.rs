@@ -21,6 +21,7 @@ mod best;
 mod config;
 mod forward;
 mod optimise;
+mod per_cell;
 pub(crate) mod plot;
 mod profile;
 mod result;
@@ -30,12 +31,13 @@ mod trace;
 
 pub use best::{BEST_MODEL_FILE, BEST_TISSUE_FILE, BestRelaxation, RESIDUALS_FILE, write_best_outputs};
 pub use config::{
-    FitConfig, ForwardConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod, ParameterConfig,
-    ProfileConfig,
+    FitConfig, FitMode, ForwardConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod, ParameterConfig,
+    PerCellConfig, ProfileConfig,
 };
 pub use forward::{
     Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metric, Metrics, Observation, Status, shift_offset,
 };
+pub use per_cell::{Iteration, PER_CELL_FILES, PerCellResult, run_per_cell};
 pub use optimise::{BOUND_PENALTY, Evaluator, Halt, OptimiserOutcome, optimise};
 pub use plot::{plot_landscape, plot_objective};
 pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};

@@ -299,7 +299,7 @@ fn run_locked(
             let r =
                 crate::stages::fit::run(&config, crate::stages::fit::Observed::MeshStage(&mesh_dir), dir, &options)?;
             let line = r.summary_line();
-            Ok((line, r.converged))
+            Ok((line, r.converged()))
         })?;
         let result = crate::stages::fit::read_result(&out.join("fit"))?;
         fit_converged = Some(result.converged);

@@ -34,7 +34,54 @@ pub const OUTPUT_FILES: &[&str] = &[
     crate::inference::BEST_TISSUE_FILE,
     crate::inference::BEST_MODEL_FILE,
     crate::inference::RESIDUALS_FILE,
+    // `mode = "per_cell"`
+    "cells.csv",
+    "interfaces.csv",
+    "iterations.csv",
+    "tissue.vtp",
+    "relaxed.vtp",
+    "cell_overrides.toml",
 ];
+
+/// What a fit found: a global fit's result, or a per-cell map's.
+#[derive(Clone, Debug)]
+pub enum FitOutcome {
+    Global(Box<FitResult>),
+    PerCell(crate::inference::PerCellResult),
+}
+
+impl FitOutcome {
+    /// One line for a terminal or log.
+    pub fn summary_line(&self) -> String {
+        match self {
+            FitOutcome::Global(r) => r.summary_line(),
+            FitOutcome::PerCell(r) => r.summary_line(),
+        }
+    }
+
+    /// Converged, not a poor fit, and the best point's relaxation usable.
+    pub fn succeeded(&self) -> bool {
+        match self {
+            FitOutcome::Global(r) => r.converged && !r.poor_fit && !r.best_relaxation.failed,
+            FitOutcome::PerCell(r) => r.converged && !r.poor_fit,
+        }
+    }
+
+    /// The optimiser (global) or the refinement (per cell) met its criterion.
+    pub fn converged(&self) -> bool {
+        match self {
+            FitOutcome::Global(r) => r.converged,
+            FitOutcome::PerCell(r) => r.converged,
+        }
+    }
+
+    pub fn wall_seconds(&self) -> Real {
+        match self {
+            FitOutcome::Global(r) => r.wall_seconds,
+            FitOutcome::PerCell(r) => r.wall_seconds,
+        }
+    }
+}
 
 fn err(message: impl Into<String>) -> StageError {
     StageError::new("fit", message)
@@ -92,9 +139,14 @@ fn observation(config: &FitConfig, observed: Observed) -> Result<Observation, St
 
 /// Runs the fit of `config` on the `observed` tissue into `out` (created if needed). A fit in which
 /// no evaluation succeeded is an error pointing at the trace, where every evaluation's reason is.
-pub fn run(config: &FitConfig, observed: Observed, out: &Path, options: &FitOptions) -> Result<FitResult, StageError> {
+pub fn run(config: &FitConfig, observed: Observed, out: &Path, options: &FitOptions) -> Result<FitOutcome, StageError> {
     let observation = observation(config, observed)?;
-    crate::inference::run_fit_observed(config, Some(observation), out, options).map_err(|e| match e {
+    if config.mode == crate::inference::FitMode::PerCell {
+        return crate::inference::run_per_cell(config, observation, out, options)
+            .map(FitOutcome::PerCell)
+            .map_err(|e| err(e.to_string()));
+    }
+    crate::inference::run_fit_observed(config, Some(observation), out, options).map(|r| FitOutcome::Global(Box::new(r))).map_err(|e| match e {
         InferenceError::Failed(_) => err(format!(
             "{e} (every evaluation and its reason: {}; no {RESULT_FILE} was written)",
             out.join(TRACE_FILE).display()

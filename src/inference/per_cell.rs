@@ -1,0 +1,783 @@
+//! Per-cell tension maps by forward refinement (`[fit] mode = "per_cell"`, issue 25).
+//!
+//! The direct estimate ([`crate::morphology::tensions`]) reads every interface's tension off the
+//! observed shapes, but what it reads is biased by the measurement: junctions rounded over a voxel,
+//! meshes a few nodes across an interface, rims that are not the far field. The forward model makes
+//! the same measurement on a simulation whose tensions are known, so the bias can be taken out:
+//!
+//! 1. estimate the observed tissue's map T_obs (gauge: the mean cell–medium tension), and start
+//!    every moving cell i with its free tension f_i (its cell–medium tension) and a lateral tension
+//!    a_i with a_i + a_j ≈ T_ij (coupled contacts add the two cells' lateral tensions), scaled so
+//!    that the mean free tension is `per_cell.free_tension`;
+//! 2. relax the observed tissue with those per-cell tensions ([`ForwardModel::relax`]: the volume
+//!    passes, measured like the data), measure the relaxed tissue like the data (voxelised on the
+//!    observed grid and meshed with the observed options, for a label input) and estimate its map
+//!    T_sim with the same settings;
+//! 3. stop when T_sim/T_obs − 1 has an rms below `per_cell.tolerance` over every interface
+//!    determined in both (the simulated map regauged to the observed one's free interfaces); else
+//!    correct multiplicatively by c = (T_obs/T_sim)^step, clamped to ×/÷ 1.25 — f_i ← f_i·c on each
+//!    cell's free interface, the model's cell–cell tensions a_i + a_j ← (a_i + a_j)·c refitted to
+//!    per-cell a_i by least squares (damped towards the current a_i where the interfaces leave a
+//!    direction free, e.g. a doublet's split of T_12) — rescale to the free tension, and go to 2
+//!    (from the observed tissue again, unless `per_cell.warm_start`).
+//!
+//! Each iteration costs one relaxation and one measurement, whatever the number of cells, so a map
+//! of hundreds of parameters costs a few relaxations. The answer is the per-cell tensions of the
+//! iteration with the smallest mismatch; the map's tensions are the model's (f_i, and a_i + a_j for
+//! cell–cell interfaces), its pressures the simulation's.
+//!
+//! Measured (docs book, "Per-cell maps"): the forward model's own noise — relaxations that stop a
+//! little apart, junctions that move by a voxel — is 2–4 % rms on small clusters at 10 voxels per
+//! diameter, with single iterations off by up to 15 %, so the refinement cannot resolve biases below
+//! that; it is why the correction is damped and the answer is the best iteration, not the last.
+//!
+//! Intervals: each interface's tension carries the direct estimate's first-order uncertainty
+//! (`tension_sd` of the observed map, propagated relatively); their coverage has not been measured
+//! against truths yet.
+
+use super::config::{FitConfig, FitMode};
+use super::forward::{ForwardModel, Observation};
+use super::run::FitOptions;
+use super::space::ParameterSpace;
+use super::InferenceError;
+use crate::geometry::Real;
+use crate::imaging::voxelize;
+use crate::io::{CellField, OutputGroup, Progress, vtp_bytes};
+use crate::mechanics::{CellOverrideConfig, NoObserver, Parameters, PerFaceType};
+use crate::mesh::Tissue;
+use crate::meshing::mesh_labels;
+use crate::morphology::tensions::{TensionMap, TensionSettings, estimate_tensions};
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+/// The files a per-cell fit writes into its folder (with `fit.toml` and `model.toml`).
+pub const PER_CELL_FILES: [&str; 6] =
+    ["cells.csv", "interfaces.csv", "iterations.csv", "tissue.vtp", "relaxed.vtp", "cell_overrides.toml"];
+
+/// An interface of the map: two cell labels, `b` = 0 for the medium (a < b otherwise).
+type Key = (u32, u32);
+
+/// A best rms mismatch above this (or 5 × `per_cell.tolerance`, if larger) is a poor fit.
+pub const POOR_FIT_MISMATCH: Real = 0.10;
+
+/// One iteration of the refinement.
+#[derive(Clone, Debug, Serialize)]
+pub struct Iteration {
+    pub iteration: usize,
+    /// "converged", "accepted" (within `forward.accept_residual`), "unconverged" or "failed".
+    pub relaxation: &'static str,
+    pub steps: u64,
+    pub residual: Real,
+    /// Rms and largest |T_sim/T_obs − 1| over the interfaces determined in both maps (NaN when the
+    /// relaxation or its measurement failed).
+    pub rms_mismatch: Real,
+    pub max_mismatch: Real,
+    /// Interfaces compared.
+    pub interfaces: usize,
+    pub seconds: Real,
+    /// Why the relaxation or its measurement failed (empty otherwise).
+    pub reason: String,
+}
+
+/// `result.json` of a per-cell fit. It carries the fields every fit's result has
+/// (`converged`, `poor_fit`, `parameters`, `ratios`, `best_relaxation`), so a pipeline reads it like
+/// a global fit's.
+#[derive(Clone, Debug, Serialize)]
+pub struct PerCellResult {
+    pub mode: &'static str,
+    /// The mismatch fell below `per_cell.tolerance`.
+    pub converged: bool,
+    /// The best mismatch is over [`POOR_FIT_MISMATCH`] (or 5 × the tolerance, if larger): the model
+    /// cannot make the data's map (say, a non-additive map, or a tissue the relaxation changes).
+    pub poor_fit: bool,
+    pub tolerance: Real,
+    /// The iteration whose tensions are the answer (1-based; the smallest mismatch).
+    pub best_iteration: usize,
+    pub rms_mismatch: Real,
+    pub max_mismatch: Real,
+    /// The direct estimate's own mismatch on the observed tissue: the rms of T_sim/T_obs − 1 at the
+    /// first iteration, i.e. how far the start was (the bias the refinement took out).
+    pub start_mismatch: Real,
+    pub iterations: usize,
+    /// The mean free tension the map is scaled to, N/m and mN/m.
+    pub free_tension_n_per_m: Real,
+    pub free_tension_mn_per_m: Real,
+    pub cells: usize,
+    pub interfaces: usize,
+    /// Rms of (a_i + a_j − T_ij)/T_ij of the observed map against the start's per-cell tensions: how
+    /// far the data's map is from one per-cell tensions can make.
+    pub additive_residual_rms: Option<Real>,
+    pub uncertainty: &'static str,
+    /// Empty in this mode (the answer is in cells.csv and interfaces.csv).
+    pub parameters: BTreeMap<String, Real>,
+    pub ratios: BTreeMap<String, Real>,
+    pub best_relaxation: BestRelaxationNote,
+    pub wall_seconds: Real,
+    pub threads: usize,
+    pub warnings: Vec<String>,
+}
+
+/// `best_relaxation` of [`PerCellResult`].
+#[derive(Clone, Debug, Serialize)]
+pub struct BestRelaxationNote {
+    pub failed: bool,
+    pub reason: String,
+}
+
+impl PerCellResult {
+    /// One line for a terminal or log.
+    pub fn summary_line(&self) -> String {
+        let state = if self.converged {
+            "converged".to_string()
+        } else {
+            format!("NOT converged (tolerance {:.3})", self.tolerance)
+        };
+        let poor = if self.poor_fit { "; POOR FIT: the model does not make the data's map" } else { "" };
+        format!(
+            "per-cell map of {} cells, {} interfaces: mismatch {:.4} rms ({:.4} max) after {} iterations \
+             (start {:.4}), {state}{poor}",
+            self.cells,
+            self.interfaces,
+            self.rms_mismatch,
+            self.max_mismatch,
+            self.iterations,
+            self.start_mismatch
+        )
+    }
+}
+
+/// A row of `cells.csv`.
+#[derive(Serialize, Default)]
+struct CellRow {
+    cell: u32,
+    free_tension_mn_per_m: Option<Real>,
+    lateral_tension_mn_per_m: Option<Real>,
+    free_tension_n_per_m: Option<Real>,
+    lateral_tension_n_per_m: Option<Real>,
+    /// The direct estimate's (the refinement's start), mN/m.
+    direct_free_tension_mn_per_m: Option<Real>,
+    direct_lateral_tension_mn_per_m: Option<Real>,
+    /// The relaxed simulation's pressure at the answer.
+    pressure_pa: Option<Real>,
+    pressure_kpa: Option<Real>,
+    volume_um3: Real,
+}
+
+/// A row of `interfaces.csv`.
+#[derive(Serialize, Default)]
+struct InterfaceRow {
+    cell_a: u32,
+    /// 0: the medium.
+    cell_b: u32,
+    /// The model's tension of the interface (f_a for the medium, a_a + a_b between cells).
+    tension_mn_per_m: Option<Real>,
+    tension_sd_mn_per_m: Option<Real>,
+    tension_n_per_m: Option<Real>,
+    /// The direct estimate of the observed tissue, scaled to the same free tension.
+    direct_mn_per_m: Option<Real>,
+    /// The direct estimates of the observed and the relaxed tissue at the answer, relative to their
+    /// mean cell–medium tension; mismatch = simulated/observed − 1.
+    observed_relative: Option<Real>,
+    simulated_relative: Option<Real>,
+    mismatch: Option<Real>,
+    area_um2: Real,
+}
+
+/// The per-cell tensions being refined (N/m), by cell label.
+#[derive(Clone, Debug)]
+struct Tensions {
+    free: BTreeMap<u32, Real>,
+    lateral: BTreeMap<u32, Real>,
+}
+
+impl Tensions {
+    /// The model's tension of interface `k`.
+    fn of(&self, (a, b): Key) -> Option<Real> {
+        if b == 0 {
+            self.free.get(&a).copied()
+        } else {
+            Some(self.lateral.get(&a)? + self.lateral.get(&b)?)
+        }
+    }
+
+    fn overrides(&self) -> Vec<CellOverrideConfig> {
+        self.free
+            .keys()
+            .chain(self.lateral.keys())
+            .copied()
+            .collect::<std::collections::BTreeSet<u32>>()
+            .into_iter()
+            .map(|id| {
+                let free = self.free.get(&id).copied();
+                CellOverrideConfig {
+                    id,
+                    surface_tension: PerFaceType { apical: free, lateral: self.lateral.get(&id).copied(), basal: free },
+                    adhesion: PerFaceType::default(),
+                }
+            })
+            .collect()
+    }
+
+    /// Scales every tension so that the mean free tension is `target`.
+    fn rescale(&mut self, target: Real) {
+        if self.free.is_empty() {
+            return;
+        }
+        let mean = self.free.values().sum::<Real>() / self.free.len() as Real;
+        let s = target / mean;
+        self.free.values_mut().chain(self.lateral.values_mut()).for_each(|v| *v *= s);
+    }
+}
+
+/// The determined tensions of a map, by interface (relative to its gauge).
+fn tensions_of(map: &TensionMap) -> BTreeMap<Key, Real> {
+    map.interfaces.iter().filter_map(|f| Some(((f.cell_a, f.cell_b), f.tension?))).collect()
+}
+
+/// Per-cell lateral tensions a with a_i + a_j ≈ t_ij over `rows`, by least squares damped towards
+/// `prior` (weight `DAMPING` relative to one interface), so that a direction the interfaces leave
+/// free keeps its prior value and a determined one moves by at most that weight off the fit.
+fn lateral_fit(cells: &[u32], rows: &[(Key, Real)], prior: &BTreeMap<u32, Real>) -> BTreeMap<u32, Real> {
+    const DAMPING: Real = 1e-3;
+    let column: BTreeMap<u32, usize> = cells.iter().enumerate().map(|(k, &c)| (c, k)).collect();
+    let n = cells.len();
+    let mut normal = DMatrix::<Real>::zeros(n, n);
+    let mut rhs = DVector::<Real>::zeros(n);
+    for &((a, b), t) in rows {
+        let (Some(&i), Some(&j)) = (column.get(&a), column.get(&b)) else { continue };
+        for (p, q) in [(i, i), (i, j), (j, i), (j, j)] {
+            normal[(p, q)] += 1.0;
+        }
+        rhs[i] += t;
+        rhs[j] += t;
+    }
+    for (k, c) in cells.iter().enumerate() {
+        normal[(k, k)] += DAMPING;
+        rhs[k] += DAMPING * prior.get(c).copied().unwrap_or(0.0);
+    }
+    let solved = normal.cholesky().map(|ch| ch.solve(&rhs));
+    cells
+        .iter()
+        .enumerate()
+        .map(|(k, &c)| {
+            let p = prior.get(&c).copied().unwrap_or(0.0);
+            let v = solved.as_ref().map_or(p, |x| x[k]);
+            (c, if v.is_finite() { v } else { p })
+        })
+        .collect()
+}
+
+/// `simulated` in the observed map's gauge: scaled so that the cell–medium interfaces determined in
+/// both maps have the same summed tension. Each map's own gauge is the mean over *its* free
+/// interfaces, and a relaxed tissue measured like the data may show a free patch the data do not
+/// (or lose one), which would shift every tension of one map against the other.
+fn regauged(observed: &BTreeMap<Key, Real>, simulated: &BTreeMap<Key, Real>) -> BTreeMap<Key, Real> {
+    let (mut o, mut s) = (0.0, 0.0);
+    for (k, t) in simulated.iter().filter(|((_, b), _)| *b == 0) {
+        if let Some(v) = observed.get(k) {
+            o += v;
+            s += t;
+        }
+    }
+    let factor = if o > 0.0 && s > 0.0 { o / s } else { 1.0 };
+    simulated.iter().map(|(k, t)| (*k, t * factor)).collect()
+}
+
+/// The largest factor by which one iteration changes a tension (and its inverse the smallest): the
+/// correction is clamped to it, so a noisy or wrong measurement cannot throw the next relaxation far
+/// off (a tissue whose tensions halve at once may fold through itself).
+const MAX_STEP: Real = 1.25;
+
+/// The multiplicative correction (observed/simulated)^step, clamped to [1/MAX_STEP, MAX_STEP].
+fn correction(observed: Real, simulated: Real, step: Real) -> Real {
+    (observed / simulated).powf(step).clamp(1.0 / MAX_STEP, MAX_STEP)
+}
+
+/// The rms and largest |sim/obs − 1| over the interfaces in both maps, and how many.
+fn mismatch(observed: &BTreeMap<Key, Real>, simulated: &BTreeMap<Key, Real>) -> (Real, Real, usize) {
+    let r: Vec<Real> =
+        observed.iter().filter_map(|(k, o)| simulated.get(k).map(|s| s / o - 1.0)).filter(|r| r.is_finite()).collect();
+    if r.is_empty() {
+        return (Real::NAN, Real::NAN, 0);
+    }
+    let rms = (r.iter().map(|x| x * x).sum::<Real>() / r.len() as Real).sqrt();
+    (rms, r.iter().fold(0.0, |m: Real, x| m.max(x.abs())), r.len())
+}
+
+/// The state of the best iteration so far.
+struct Best {
+    iteration: usize,
+    rms: Real,
+    max: Real,
+    tensions: Tensions,
+    relaxed: Tissue,
+    simulated: BTreeMap<Key, Real>,
+    pressure: BTreeMap<u32, Real>,
+}
+
+/// Runs the per-cell fit of `config` on `observation` into `out` (created if needed).
+pub fn run_per_cell(
+    config: &FitConfig,
+    observation: Observation,
+    out: &Path,
+    options: &FitOptions,
+) -> Result<PerCellResult, InferenceError> {
+    debug_assert_eq!(config.mode, FitMode::PerCell);
+    let started = Instant::now();
+    let output_err = |p: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", p.display()));
+    // Fixed values and the fitted parameters' starts set the base model; nothing is searched.
+    let space = ParameterSpace::from_config(&config.parameters)?;
+    let base = space.apply(&config.base_parameters()?, &space.initial_point());
+    let empty = ParameterSpace::from_config(&BTreeMap::new())?;
+    let model = ForwardModel::new(observation, base, empty, config.objective.clone(), config.forward.clone())?;
+    let mut warnings = Vec::new();
+    let obs = &model.observation;
+    let moving: Vec<u32> = obs.cell_labels.clone();
+    let first = obs.tissue.cells().iter().find(|c| moving.contains(&c.id().0)).expect("an observation has a moving cell");
+    let type_params = model
+        .base
+        .parameters_of(first)
+        .ok_or_else(|| InferenceError::Config(format!("cell {}: its cell type is not in the model", first.id().0)))?;
+    let free_tension = config.per_cell.free_tension.unwrap_or(type_params.faces.apical.surface_tension);
+    if !(free_tension > 0.0) {
+        return Err(InferenceError::Config(format!(
+            "per_cell.free_tension: the model's apical tension of cell {}'s type is {free_tension}; give \
+             per_cell.free_tension (N/m), the scale of the map",
+            first.id().0
+        )));
+    }
+    if model.base.numerics.polarity == crate::mechanics::Polarity::None
+        && !obs.tissue.cells().iter().any(|c| c.face_types().contains(&crate::mesh::FaceType::Lateral))
+    {
+        return Err(InferenceError::Config(
+            "the per-cell map sets each cell's lateral tension, but the model's polarity = \"none\" leaves the \
+             observed tissue without lateral faces, so it would change nothing; set \
+             model_overrides.numerics.polarity = \"contacts\" (faces touching another cell become lateral)"
+                .into(),
+        ));
+    }
+    let voxel = obs.labels.as_ref().map(|l| l.voxel_size().iter().copied().fold(0.0, Real::max));
+    let settings = TensionSettings { rounding_scale: voxel, ..Default::default() };
+    let observed_map = estimate_tensions(&obs.tissue, &settings)
+        .map_err(|e| InferenceError::Observed(format!("the direct estimate of the observed tissue: {e}")))?;
+    warnings.extend(observed_map.warnings.iter().map(|w| format!("observed tissue: {w}")));
+    let observed = tensions_of(&observed_map);
+    let observed: BTreeMap<Key, Real> =
+        observed.into_iter().filter(|((a, b), _)| moving.contains(a) && (*b == 0 || moving.contains(b))).collect();
+    if observed.keys().all(|&(_, b)| b == 0) {
+        return Err(InferenceError::Observed(
+            "the direct estimate determined no cell–cell interface between moving cells: there is no map to refine"
+                .into(),
+        ));
+    }
+    // The start: the direct estimate, scaled to the free tension.
+    let mean_free = {
+        let f: Vec<Real> = observed.iter().filter(|((_, b), _)| *b == 0).map(|(_, t)| *t).collect();
+        if f.is_empty() { 1.0 } else { f.iter().sum::<Real>() / f.len() as Real }
+    };
+    let scale = free_tension / mean_free;
+    let cell_cell: Vec<(Key, Real)> =
+        observed.iter().filter(|((_, b), _)| *b != 0).map(|(k, t)| (*k, t * scale)).collect();
+    let half_mean = cell_cell.iter().map(|(_, t)| t).sum::<Real>() / (2 * cell_cell.len()) as Real;
+    let prior: BTreeMap<u32, Real> = moving.iter().map(|&c| (c, half_mean)).collect();
+    let mut tensions = Tensions {
+        free: moving
+            .iter()
+            .map(|&c| (c, observed.get(&(c, 0)).map_or(free_tension, |t| t * scale)))
+            .collect(),
+        lateral: lateral_fit(&moving, &cell_cell, &prior),
+    };
+    let floor = 0.02 * free_tension;
+    tensions.lateral.values_mut().for_each(|a| *a = a.max(floor));
+    let start = tensions.clone();
+    let additive_residual_rms = {
+        let r: Vec<Real> = cell_cell.iter().filter_map(|&(k, t)| Some(start.of(k)? / t - 1.0)).collect();
+        (!r.is_empty()).then(|| (r.iter().map(|x| x * x).sum::<Real>() / r.len() as Real).sqrt())
+    };
+
+    std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
+    let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;
+    crate::io::write_bytes_atomically(&out.join("fit.toml"), resolved.as_bytes()).map_err(|e| output_err(out, &e))?;
+
+    let iterations = config.per_cell.iterations;
+    let step = config.per_cell.step;
+    let mut progress = Progress::new(
+        "fit",
+        iterations as u64,
+        "iteration",
+        "{elapsed_precise} [{wide_bar}] {pos}/{len} iterations, {msg}",
+        options.progress,
+    )
+    .with_watch(options.watch.clone());
+    let mut trace: Vec<Iteration> = Vec::new();
+    let mut best: Option<Best> = None;
+    let mut warm: Tissue = obs.tissue.clone();
+    let mut converged = false;
+    for iteration in 1..=iterations {
+        let t0 = Instant::now();
+        let mut params = model.base.clone();
+        params.cell_overrides = tensions.overrides();
+        let mut begin = warm.clone();
+        params.apply_cell_overrides(&mut begin).map_err(|e| InferenceError::Config(e.to_string()))?;
+        let relaxed = model.relax(&params, &begin, &mut NoObserver);
+        let mut row = Iteration {
+            iteration,
+            relaxation: "failed",
+            steps: 0,
+            residual: Real::NAN,
+            rms_mismatch: Real::NAN,
+            max_mismatch: Real::NAN,
+            interfaces: 0,
+            seconds: 0.0,
+            reason: String::new(),
+        };
+        let measured = match relaxed {
+            Err((reason, steps)) => {
+                row.steps = steps;
+                Err(reason)
+            }
+            Ok((tissue, summary)) => {
+                row.steps = summary.steps;
+                row.residual = summary.residual;
+                row.relaxation = if summary.converged {
+                    "converged"
+                } else if summary.residual <= model.forward.accept_residual {
+                    "accepted"
+                } else {
+                    "unconverged"
+                };
+                measure_map(&model, &tissue, &settings, &params).map(|(map, pressure)| (tissue, map, pressure))
+            }
+        };
+        if model.watch.stopped() {
+            progress.finish();
+            return Err(InferenceError::Stopped);
+        }
+        let (tissue, simulated, pressure) = match measured {
+            Ok(m) if row.relaxation != "unconverged" => m,
+            Ok(_) => {
+                row.reason = format!(
+                    "not converged: residual {:.3e} > forward.accept_residual {:.3e}",
+                    row.residual, model.forward.accept_residual
+                );
+                row.seconds = t0.elapsed().as_secs_f64();
+                progress.line(iteration as u64, &format!("iteration {iteration}: {}", row.reason));
+                trace.push(row);
+                break;
+            }
+            Err(reason) => {
+                row.reason = reason;
+                row.seconds = t0.elapsed().as_secs_f64();
+                progress.line(iteration as u64, &format!("iteration {iteration}: failed: {}", row.reason));
+                trace.push(row);
+                break;
+            }
+        };
+        let simulated = regauged(&observed, &simulated);
+        let (rms, max, n) = mismatch(&observed, &simulated);
+        row.rms_mismatch = rms;
+        row.max_mismatch = max;
+        row.interfaces = n;
+        row.seconds = t0.elapsed().as_secs_f64();
+        progress.line(
+            iteration as u64,
+            &format!(
+                "iteration {iteration}: mismatch {rms:.4} rms, {max:.4} max over {n} interfaces; {} steps, {:.1} s",
+                row.steps, row.seconds
+            ),
+        );
+        trace.push(row);
+        if best.as_ref().is_none_or(|b| rms < b.rms) {
+            best = Some(Best {
+                iteration,
+                rms,
+                max,
+                tensions: tensions.clone(),
+                relaxed: tissue.clone(),
+                simulated: simulated.clone(),
+                pressure,
+            });
+        }
+        if rms <= config.per_cell.tolerance {
+            converged = true;
+            break;
+        }
+        if iteration == iterations {
+            break;
+        }
+        // The multiplicative correction.
+        for (&c, f) in tensions.free.iter_mut() {
+            if let (Some(o), Some(s)) = (observed.get(&(c, 0)), simulated.get(&(c, 0))) {
+                *f *= correction(*o, *s, step);
+            }
+        }
+        let rows: Vec<(Key, Real)> = observed
+            .iter()
+            .filter(|((_, b), _)| *b != 0)
+            .filter_map(|(&k, o)| Some((k, tensions.of(k)? * correction(*o, *simulated.get(&k)?, step))))
+            .collect();
+        tensions.lateral = lateral_fit(&moving, &rows, &tensions.lateral);
+        tensions.lateral.values_mut().for_each(|a| *a = a.max(floor));
+        tensions.rescale(free_tension);
+        if config.per_cell.warm_start {
+            warm = tissue;
+        }
+    }
+    progress.finish();
+    let Some(best) = best else {
+        let last = trace.last().map(|r| r.reason.clone()).unwrap_or_default();
+        return Err(InferenceError::Failed(format!(
+            "the first relaxation with the direct estimate's tensions did not give a map: {last} (see {})",
+            out.join("iterations.csv").display()
+        )));
+    };
+    if !converged && trace.last().is_some_and(|r| r.relaxation == "failed" || !r.reason.is_empty()) {
+        warnings.push(format!(
+            "iteration {} ended the refinement: {}",
+            trace.len(),
+            trace.last().map(|r| r.reason.as_str()).unwrap_or("")
+        ));
+    }
+    let start_mismatch = trace.first().map_or(Real::NAN, |r| r.rms_mismatch);
+    let result = PerCellResult {
+        mode: "per_cell",
+        converged,
+        poor_fit: best.rms > POOR_FIT_MISMATCH.max(5.0 * config.per_cell.tolerance),
+        tolerance: config.per_cell.tolerance,
+        best_iteration: best.iteration,
+        rms_mismatch: best.rms,
+        max_mismatch: best.max,
+        start_mismatch,
+        iterations: trace.len(),
+        free_tension_n_per_m: free_tension,
+        free_tension_mn_per_m: free_tension * 1e3,
+        cells: moving.len(),
+        interfaces: observed.len(),
+        additive_residual_rms,
+        uncertainty: "tension_sd: the observed direct estimate's first-order uncertainty (force-balance residuals, \
+                      cluster-robust by junction line), carried relatively to the refined tension; coverage not \
+                      yet measured against truths",
+        parameters: BTreeMap::new(),
+        ratios: BTreeMap::new(),
+        best_relaxation: BestRelaxationNote { failed: false, reason: String::new() },
+        wall_seconds: started.elapsed().as_secs_f64(),
+        threads: rayon::current_num_threads(),
+        warnings,
+    };
+    let mut params = model.base.clone();
+    params.cell_overrides = best.tensions.overrides();
+    write_outputs(out, &model, &params, &observed_map, &observed, &start, &best, &trace, &result, scale, options)?;
+    Ok(result)
+}
+
+/// The relaxed tissue measured like the data (voxelised on the observed grid and meshed with the
+/// observed options, for a label input; else as it lies), its direct estimate's determined tensions,
+/// and every moving cell's pressure in the relaxed tissue (Pa).
+fn measure_map(
+    model: &ForwardModel,
+    tissue: &Tissue,
+    settings: &TensionSettings,
+    params: &Parameters,
+) -> Result<(BTreeMap<Key, Real>, BTreeMap<u32, Real>), String> {
+    let obs = &model.observation;
+    let pressure: BTreeMap<u32, Real> = tissue
+        .cells()
+        .iter()
+        .filter(|c| obs.cell_labels.contains(&c.id().0))
+        .filter_map(|c| {
+            let p = params.parameters_of(c)?;
+            Some((c.id().0, p.pressure(c.mesh().signed_volume(), c.target_volume())))
+        })
+        .collect();
+    let (Some(labels), Some(options), true) = (&obs.labels, &obs.meshing, model.forward.measure_like_data) else {
+        let map = estimate_tensions(tissue, settings).map_err(|e| format!("the direct estimate of the relaxed tissue: {e}"))?;
+        return Ok((tensions_of(&map), pressure));
+    };
+    // Like the data, at `forward.measure_shifts` sub-voxel placements (in parallel), each interface's
+    // tension averaged over the placements that determine it (combined in shift order: the same on
+    // any thread count).
+    let size = labels.voxel_size();
+    let each: Vec<Result<BTreeMap<Key, Real>, String>> = (0..model.forward.measure_shifts.max(1))
+        .into_par_iter()
+        .map(|k| {
+            let o = super::forward::shift_offset(k);
+            let offset = crate::geometry::Vec3::new(o[0] * size[0], o[1] * size[1], o[2] * size[2]);
+            let mut shifted = tissue.clone();
+            if k > 0 {
+                for cell in shifted.cells_mut() {
+                    for p in cell.positions_mut() {
+                        *p += offset;
+                    }
+                }
+            }
+            let voxels =
+                voxelize(&shifted, &labels.grid()).map_err(|e| format!("voxelising the relaxed tissue: {e}"))?;
+            let meshed =
+                mesh_labels(&voxels, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
+            let map = estimate_tensions(&meshed.tissue, settings)
+                .map_err(|e| format!("the direct estimate of the relaxed tissue (shift {k}): {e}"))?;
+            Ok(tensions_of(&map))
+        })
+        .collect();
+    let mut sums: BTreeMap<Key, (Real, usize)> = BTreeMap::new();
+    for map in each {
+        for (k, t) in map? {
+            let e = sums.entry(k).or_insert((0.0, 0));
+            e.0 += t;
+            e.1 += 1;
+        }
+    }
+    Ok((sums.into_iter().map(|(k, (t, n))| (k, t / n as Real)).collect(), pressure))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_outputs(
+    out: &Path,
+    model: &ForwardModel,
+    params: &Parameters,
+    observed_map: &TensionMap,
+    observed: &BTreeMap<Key, Real>,
+    start: &Tensions,
+    best: &Best,
+    trace: &[Iteration],
+    result: &PerCellResult,
+    scale: Real,
+    options: &FitOptions,
+) -> Result<(), InferenceError> {
+    let io = |path: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", path.display()));
+    let obs = &model.observation;
+    let t = &best.tensions;
+    let mn = |v: Option<Real>| v.map(|x| x * 1e3);
+    let cells: Vec<CellRow> = obs
+        .tissue
+        .cells()
+        .iter()
+        .filter(|c| obs.cell_labels.contains(&c.id().0))
+        .map(|c| {
+            let id = c.id().0;
+            let p = best.pressure.get(&id).copied();
+            CellRow {
+                cell: id,
+                free_tension_mn_per_m: mn(t.free.get(&id).copied()),
+                lateral_tension_mn_per_m: mn(t.lateral.get(&id).copied()),
+                free_tension_n_per_m: t.free.get(&id).copied(),
+                lateral_tension_n_per_m: t.lateral.get(&id).copied(),
+                direct_free_tension_mn_per_m: mn(start.free.get(&id).copied()),
+                direct_lateral_tension_mn_per_m: mn(start.lateral.get(&id).copied()),
+                pressure_pa: p,
+                pressure_kpa: p.map(|p| p * 1e-3),
+                volume_um3: c.mesh().signed_volume() * 1e18,
+            }
+        })
+        .collect();
+    let interfaces: Vec<InterfaceRow> = observed_map
+        .interfaces
+        .iter()
+        .filter(|f| observed.contains_key(&(f.cell_a, f.cell_b)))
+        .map(|f| {
+            let k = (f.cell_a, f.cell_b);
+            let tension = t.of(k);
+            let o = observed.get(&k).copied();
+            let s = best.simulated.get(&k).copied();
+            let relative_sd = f.tension_sd.zip(f.tension).map(|(sd, t)| sd / t);
+            InterfaceRow {
+                cell_a: f.cell_a,
+                cell_b: f.cell_b,
+                tension_mn_per_m: mn(tension),
+                tension_sd_mn_per_m: mn(tension.zip(relative_sd).map(|(t, r)| t * r)),
+                tension_n_per_m: tension,
+                direct_mn_per_m: mn(o.map(|o| o * scale)),
+                observed_relative: o,
+                simulated_relative: s,
+                mismatch: o.zip(s).map(|(o, s)| s / o - 1.0),
+                area_um2: f.area * 1e12,
+            }
+        })
+        .collect();
+    // The observed tissue coloured by the refined map: each face its interface's tension (mN/m),
+    // each cell its simulated pressure (Pa).
+    let mut face_tension: Vec<Real> = Vec::with_capacity(obs.tissue.face_count());
+    for (cell, faces) in obs.tissue.cells().iter().zip(&observed_map.face_interface) {
+        if faces.len() == cell.mesh().face_count() {
+            face_tension.extend(faces.iter().map(|&k| {
+                let f = &observed_map.interfaces[k];
+                t.of((f.cell_a, f.cell_b)).map_or(Real::NAN, |x| x * 1e3)
+            }));
+        } else {
+            face_tension.extend(std::iter::repeat_n(Real::NAN, cell.mesh().face_count()));
+        }
+    }
+    let pressure_of = |tissue: &Tissue| -> Vec<Real> {
+        tissue.cells().iter().map(|c| best.pressure.get(&c.id().0).copied().unwrap_or(Real::NAN)).collect()
+    };
+    let mut observed_tissue = obs.tissue.clone();
+    params.apply_cell_overrides(&mut observed_tissue).map_err(|e| InferenceError::Output(e.to_string()))?;
+    let mut relaxed = best.relaxed.clone();
+    params.apply_cell_overrides(&mut relaxed).map_err(|e| InferenceError::Output(e.to_string()))?;
+    let unit = options.output_unit;
+    let (observed_tissue, relaxed) = if unit.is_si() {
+        (observed_tissue, relaxed)
+    } else {
+        let mut a = observed_tissue;
+        let mut b = relaxed;
+        a.scale(crate::geometry::Vec3::repeat(unit.factor(1)));
+        b.scale(crate::geometry::Vec3::repeat(unit.factor(1)));
+        (a, b)
+    };
+    let mut group = OutputGroup::new();
+    let path = out.join("cells.csv");
+    crate::stages::write_csv(&mut group, &path, &cells, &CellRow::default()).map_err(|e| io(&path, &e))?;
+    let path = out.join("interfaces.csv");
+    crate::stages::write_csv(&mut group, &path, &interfaces, &InterfaceRow::default()).map_err(|e| io(&path, &e))?;
+    let path = out.join("iterations.csv");
+    group
+        .write(&path, |w| {
+            let mut csv = csv::Writer::from_writer(w);
+            for row in trace {
+                csv.serialize(row).map_err(std::io::Error::other)?;
+            }
+            csv.flush()
+        })
+        .map_err(|e| io(&path, &e))?;
+    let path = out.join("tissue.vtp");
+    let observed_pressure = pressure_of(&observed_tissue);
+    let fields = [
+        CellField { name: "tension_mn_per_m", values: &face_tension },
+        CellField { name: "pressure", values: &observed_pressure },
+    ];
+    let bytes = vtp_bytes(&path, &observed_tissue, &fields, None).map_err(|e| io(&path, &e))?;
+    group.write_bytes(&path, &bytes).map_err(|e| io(&path, &e))?;
+    let path = out.join("relaxed.vtp");
+    let relaxed_pressure = pressure_of(&relaxed);
+    let fields = [CellField { name: "pressure", values: &relaxed_pressure }];
+    let bytes = vtp_bytes(&path, &relaxed, &fields, None).map_err(|e| io(&path, &e))?;
+    group.write_bytes(&path, &bytes).map_err(|e| io(&path, &e))?;
+    let path = out.join("cell_overrides.toml");
+    #[derive(Serialize)]
+    struct Entries<'a> {
+        cell_overrides: &'a [CellOverrideConfig],
+    }
+    let mut text = format!(
+        "# Per-cell tensions of a per-cell fit (N/m; free tension on apical and basal faces, lateral tension\n\
+         # on lateral ones; iteration {} of the refinement, mismatch {:.4} rms). Append to a model file to\n\
+         # simulate the map (the docs book, Per-cell tensions and adhesions).\n\n",
+        best.iteration, best.rms
+    );
+    text.push_str(&toml::to_string(&Entries { cell_overrides: &params.cell_overrides }).unwrap_or_default());
+    group.write_bytes(&path, text.as_bytes()).map_err(|e| io(&path, &e))?;
+    let path = out.join("model.toml");
+    group.write_bytes(&path, params.to_toml_string().as_bytes()).map_err(|e| io(&path, &e))?;
+    let path = out.join(super::super::stages::fit::RESULT_FILE);
+    group
+        .write(&path, |w| {
+            serde_json::to_writer_pretty(&mut *w, result).map_err(std::io::Error::other)?;
+            writeln!(w)
+        })
+        .map_err(|e| io(&path, &e))?;
+    group.commit().map_err(|e| InferenceError::Output(format!("writing into {}: {e}", out.display())))
+}
