@@ -83,9 +83,5 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
     );
     // A poor fit, or a best point whose relaxation failed, completed but found a problem, like an
     // unconverged one: exit code 1.
-    Ok(if result.succeeded() {
-        Outcome::Success
-    } else {
-        Outcome::CheckFailed
-    })
+    Ok(if result.succeeded() { Outcome::Success } else { Outcome::CheckFailed })
 }

@@ -598,7 +598,10 @@ impl FitConfig {
             ));
         }
         if !(pc.step > 0.0 && pc.step <= 1.0) {
-            return Err(format!("per_cell.step: a fraction in (0, 1] of the correction per iteration; got {}", pc.step));
+            return Err(format!(
+                "per_cell.step: a fraction in (0, 1] of the correction per iteration; got {}",
+                pc.step
+            ));
         }
         if let Some(g) = pc.free_tension {
             if !(g.is_finite() && g > 0.0) {

@@ -31,14 +31,14 @@ mod trace;
 
 pub use best::{BEST_MODEL_FILE, BEST_TISSUE_FILE, BestRelaxation, RESIDUALS_FILE, write_best_outputs};
 pub use config::{
-    FitConfig, FitMode, ForwardConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod, ParameterConfig,
-    PerCellConfig, ProfileConfig,
+    FitConfig, FitMode, ForwardConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod,
+    ParameterConfig, PerCellConfig, ProfileConfig,
 };
 pub use forward::{
     Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metric, Metrics, Observation, Status, shift_offset,
 };
-pub use per_cell::{Iteration, PER_CELL_FILES, PerCellResult, run_per_cell};
 pub use optimise::{BOUND_PENALTY, Evaluator, Halt, OptimiserOutcome, optimise};
+pub use per_cell::{Iteration, PER_CELL_FILES, PerCellResult, run_per_cell};
 pub use plot::{plot_landscape, plot_objective};
 pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};
 pub use result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};

@@ -35,14 +35,14 @@
 //! (`tension_sd` of the observed map, propagated relatively); their coverage has not been measured
 //! against truths yet.
 
+use super::InferenceError;
 use super::config::{FitConfig, FitMode};
 use super::forward::{ForwardModel, Observation};
 use super::run::FitOptions;
 use super::space::ParameterSpace;
-use super::InferenceError;
 use crate::geometry::Real;
 use crate::imaging::voxelize;
-use crate::io::{CellField, OutputGroup, Progress, vtp_bytes};
+use crate::io::{CellField, OutputGroup, Progress, vtp_bytes_in};
 use crate::mechanics::{CellOverrideConfig, NoObserver, Parameters, PerFaceType};
 use crate::mesh::Tissue;
 use crate::meshing::mesh_labels;
@@ -61,6 +61,9 @@ pub const PER_CELL_FILES: [&str; 6] =
 
 /// An interface of the map: two cell labels, `b` = 0 for the medium (a < b otherwise).
 type Key = (u32, u32);
+
+/// Determined tensions by interface.
+type TensionsByInterface = BTreeMap<Key, Real>;
 
 /// A best rms mismatch above this (or 5 × `per_cell.tolerance`, if larger) is a poor fit.
 pub const POOR_FIT_MISMATCH: Real = 0.10;
@@ -141,12 +144,7 @@ impl PerCellResult {
         format!(
             "per-cell map of {} cells, {} interfaces: mismatch {:.4} rms ({:.4} max) after {} iterations \
              (start {:.4}), {state}{poor}",
-            self.cells,
-            self.interfaces,
-            self.rms_mismatch,
-            self.max_mismatch,
-            self.iterations,
-            self.start_mismatch
+            self.cells, self.interfaces, self.rms_mismatch, self.max_mismatch, self.iterations, self.start_mismatch
         )
     }
 }
@@ -198,11 +196,7 @@ struct Tensions {
 impl Tensions {
     /// The model's tension of interface `k`.
     fn of(&self, (a, b): Key) -> Option<Real> {
-        if b == 0 {
-            self.free.get(&a).copied()
-        } else {
-            Some(self.lateral.get(&a)? + self.lateral.get(&b)?)
-        }
+        if b == 0 { self.free.get(&a).copied() } else { Some(self.lateral.get(&a)? + self.lateral.get(&b)?) }
     }
 
     fn overrides(&self) -> Vec<CellOverrideConfig> {
@@ -338,13 +332,14 @@ pub fn run_per_cell(
     let mut warnings = Vec::new();
     let obs = &model.observation;
     let moving: Vec<u32> = obs.cell_labels.clone();
-    let first = obs.tissue.cells().iter().find(|c| moving.contains(&c.id().0)).expect("an observation has a moving cell");
+    let first =
+        obs.tissue.cells().iter().find(|c| moving.contains(&c.id().0)).expect("an observation has a moving cell");
     let type_params = model
         .base
         .parameters_of(first)
         .ok_or_else(|| InferenceError::Config(format!("cell {}: its cell type is not in the model", first.id().0)))?;
     let free_tension = config.per_cell.free_tension.unwrap_or(type_params.faces.apical.surface_tension);
-    if !(free_tension > 0.0) {
+    if free_tension.is_nan() || free_tension <= 0.0 {
         return Err(InferenceError::Config(format!(
             "per_cell.free_tension: the model's apical tension of cell {}'s type is {free_tension}; give \
              per_cell.free_tension (N/m), the scale of the map",
@@ -386,10 +381,7 @@ pub fn run_per_cell(
     let half_mean = cell_cell.iter().map(|(_, t)| t).sum::<Real>() / (2 * cell_cell.len()) as Real;
     let prior: BTreeMap<u32, Real> = moving.iter().map(|&c| (c, half_mean)).collect();
     let mut tensions = Tensions {
-        free: moving
-            .iter()
-            .map(|&c| (c, observed.get(&(c, 0)).map_or(free_tension, |t| t * scale)))
-            .collect(),
+        free: moving.iter().map(|&c| (c, observed.get(&(c, 0)).map_or(free_tension, |t| t * scale))).collect(),
         lateral: lateral_fit(&moving, &cell_cell, &prior),
     };
     let floor = 0.02 * free_tension;
@@ -583,7 +575,7 @@ fn measure_map(
     tissue: &Tissue,
     settings: &TensionSettings,
     params: &Parameters,
-) -> Result<(BTreeMap<Key, Real>, BTreeMap<u32, Real>), String> {
+) -> Result<(TensionsByInterface, BTreeMap<u32, Real>), String> {
     let obs = &model.observation;
     let pressure: BTreeMap<u32, Real> = tissue
         .cells()
@@ -595,7 +587,8 @@ fn measure_map(
         })
         .collect();
     let (Some(labels), Some(options), true) = (&obs.labels, &obs.meshing, model.forward.measure_like_data) else {
-        let map = estimate_tensions(tissue, settings).map_err(|e| format!("the direct estimate of the relaxed tissue: {e}"))?;
+        let map = estimate_tensions(tissue, settings)
+            .map_err(|e| format!("the direct estimate of the relaxed tissue: {e}"))?;
         return Ok((tensions_of(&map), pressure));
     };
     // Like the data, at `forward.measure_shifts` sub-voxel placements (in parallel), each interface's
@@ -720,15 +713,6 @@ fn write_outputs(
     let mut relaxed = best.relaxed.clone();
     params.apply_cell_overrides(&mut relaxed).map_err(|e| InferenceError::Output(e.to_string()))?;
     let unit = options.output_unit;
-    let (observed_tissue, relaxed) = if unit.is_si() {
-        (observed_tissue, relaxed)
-    } else {
-        let mut a = observed_tissue;
-        let mut b = relaxed;
-        a.scale(crate::geometry::Vec3::repeat(unit.factor(1)));
-        b.scale(crate::geometry::Vec3::repeat(unit.factor(1)));
-        (a, b)
-    };
     let mut group = OutputGroup::new();
     let path = out.join("cells.csv");
     crate::stages::write_csv(&mut group, &path, &cells, &CellRow::default()).map_err(|e| io(&path, &e))?;
@@ -750,12 +734,12 @@ fn write_outputs(
         CellField { name: "tension_mn_per_m", values: &face_tension },
         CellField { name: "pressure", values: &observed_pressure },
     ];
-    let bytes = vtp_bytes(&path, &observed_tissue, &fields, None).map_err(|e| io(&path, &e))?;
+    let bytes = vtp_bytes_in(&path, &observed_tissue, &fields, None, unit).map_err(|e| io(&path, &e))?;
     group.write_bytes(&path, &bytes).map_err(|e| io(&path, &e))?;
     let path = out.join("relaxed.vtp");
     let relaxed_pressure = pressure_of(&relaxed);
     let fields = [CellField { name: "pressure", values: &relaxed_pressure }];
-    let bytes = vtp_bytes(&path, &relaxed, &fields, None).map_err(|e| io(&path, &e))?;
+    let bytes = vtp_bytes_in(&path, &relaxed, &fields, None, unit).map_err(|e| io(&path, &e))?;
     group.write_bytes(&path, &bytes).map_err(|e| io(&path, &e))?;
     let path = out.join("cell_overrides.toml");
     #[derive(Serialize)]

@@ -102,6 +102,26 @@ pub fn vtp_bytes(
     Ok(bytes)
 }
 
+/// [`vtp_bytes`] with lengths in `unit` (as [`write_vtp_in`]: points scaled from metres, the unit
+/// recorded); in SI, [`vtp_bytes`] byte for byte.
+pub fn vtp_bytes_in(
+    path: &Path,
+    tissue: &Tissue,
+    extra: &[CellField<'_>],
+    time: Option<Real>,
+    unit: OutputUnit,
+) -> Result<Vec<u8>, IoError> {
+    if unit.is_si() {
+        return vtp_bytes(path, tissue, extra, time);
+    }
+    let scaled = scaled_tissue(tissue, unit);
+    let header = vtp_header(path, &scaled, extra, time, unit)?;
+    let mut bytes = Vec::new();
+    write_vtp_body(&mut bytes, &header, &scaled, extra)
+        .map_err(|source| IoError::Write { path: path.to_path_buf(), source })?;
+    Ok(bytes)
+}
+
 /// Checks the fields and returns the XML header.
 fn vtp_header(
     path: &Path,

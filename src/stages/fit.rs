@@ -47,7 +47,7 @@ pub const OUTPUT_FILES: &[&str] = &[
 #[derive(Clone, Debug)]
 pub enum FitOutcome {
     Global(Box<FitResult>),
-    PerCell(crate::inference::PerCellResult),
+    PerCell(Box<crate::inference::PerCellResult>),
 }
 
 impl FitOutcome {
@@ -143,16 +143,18 @@ pub fn run(config: &FitConfig, observed: Observed, out: &Path, options: &FitOpti
     let observation = observation(config, observed)?;
     if config.mode == crate::inference::FitMode::PerCell {
         return crate::inference::run_per_cell(config, observation, out, options)
-            .map(FitOutcome::PerCell)
+            .map(|r| FitOutcome::PerCell(Box::new(r)))
             .map_err(|e| err(e.to_string()));
     }
-    crate::inference::run_fit_observed(config, Some(observation), out, options).map(|r| FitOutcome::Global(Box::new(r))).map_err(|e| match e {
-        InferenceError::Failed(_) => err(format!(
-            "{e} (every evaluation and its reason: {}; no {RESULT_FILE} was written)",
-            out.join(TRACE_FILE).display()
-        )),
-        e => err(e.to_string()),
-    })
+    crate::inference::run_fit_observed(config, Some(observation), out, options)
+        .map(|r| FitOutcome::Global(Box::new(r)))
+        .map_err(|e| match e {
+            InferenceError::Failed(_) => err(format!(
+                "{e} (every evaluation and its reason: {}; no {RESULT_FILE} was written)",
+                out.join(TRACE_FILE).display()
+            )),
+            e => err(e.to_string()),
+        })
 }
 
 /// What a caller needs of a finished fit's `result.json`, read back typed (the whole file is

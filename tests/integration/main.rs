@@ -37,6 +37,7 @@ mod meshing;
 mod morphology;
 mod morphology_labels;
 mod output_units;
+mod per_cell_fit;
 mod pipeline;
 mod polarity;
 mod presets;

@@ -1,0 +1,224 @@
+//! `[fit] mode = "per_cell"` (issue 25): a per-cell tension map by forward refinement of the direct
+//! estimate, scored against Surface Evolver's heterogeneous cluster (hetero4: six different
+//! interface tensions) at 10 voxels per diameter, the same on 1 and 2 threads, honest about not
+//! converging, in a pipeline, and with clear errors on bad settings.
+
+use crate::support::cli::tissuefit;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use tissuefit::geometry::{Real, Vec3};
+use tissuefit::inference::FitConfig;
+use tissuefit::io::{LengthScale, ReadOptions, read_tissue};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/evolver/fixtures").join(name)
+}
+
+/// The model of the "compact-embryo" preset (coupled contacts, faces typed by contact).
+const MODEL: &str = r#"
+[model_overrides.numerics]
+contact_model = "coupling"
+polarity = "contacts"
+dynamics = "overdamped"
+damping = 3e-9
+[[model_overrides.cell_types]]
+kind = "epithelial"
+area_elasticity = 0.0
+max_pressure = inf
+growth_rate = 0.0
+faces.apical = { surface_tension = 1e-3, bending_modulus = 0.0, adhesion = 0.0 }
+faces.basal = { surface_tension = 1e-3, bending_modulus = 0.0, adhesion = 0.0 }
+faces.lateral = { surface_tension = 0.5e-3, bending_modulus = 0.0, adhesion = 0.0 }
+[model_overrides.simulation]
+mode = "equilibrium"
+method = "fire"
+max_steps = 1500
+settle_steps = 500
+remesh_every_steps = 50
+[forward]
+accept_residual = 1e9
+measure_shifts = 2
+"#;
+
+fn write_config(dir: &Path, per_cell: &str) -> PathBuf {
+    let labels = fixture("hetero4").join("labels_10.tif");
+    let text = format!(
+        "mode = \"per_cell\"\n[observed]\nlabels = {:?}\n[observed.meshing]\ntarget_nodes = 200\n{MODEL}[per_cell]\n{per_cell}\n",
+        labels.display().to_string()
+    );
+    let path = dir.join("fit.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn rows(path: &Path) -> Vec<BTreeMap<String, String>> {
+    let mut reader = csv::Reader::from_path(path).unwrap();
+    reader.deserialize().map(|r| r.unwrap()).collect()
+}
+
+fn number(row: &BTreeMap<String, String>, key: &str) -> Real {
+    row[key].parse().unwrap_or_else(|_| panic!("{key} = {:?}", row[key]))
+}
+
+fn median(mut v: Vec<Real>) -> Real {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n % 2 == 1 { v[n / 2] } else { (v[n / 2 - 1] + v[n / 2]) / 2.0 }
+}
+
+/// Relative errors of `column` (mN/m, scaled so the mean free tension is the truth's γ) against the
+/// Evolver truth, every interface (cell–cell and cell–medium).
+fn errors(interfaces: &[BTreeMap<String, String>], column: &str) -> Vec<Real> {
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixture("hetero4").join("truth.json")).unwrap()).unwrap();
+    let gamma = truth["gamma_a"].as_f64().unwrap();
+    let free: Vec<Real> = interfaces.iter().filter(|r| r["cell_b"] == "0").map(|r| number(r, column)).collect();
+    let scale = gamma / (free.iter().sum::<Real>() / free.len() as Real);
+    interfaces
+        .iter()
+        .map(|r| {
+            let (a, b) = (&r["cell_a"], &r["cell_b"]);
+            let want =
+                if b == "0" { gamma } else { truth["interfaces"][format!("{a}-{b}")]["tension"].as_f64().unwrap() };
+            (number(r, column) * scale / want - 1.0).abs()
+        })
+        .collect()
+}
+
+/// The issue's target, per-interface median error ≤ 10 % at 10 voxels per diameter, on an outside
+/// truth; every file written; the same map on 1 and 2 threads; a refinement that did not reach its
+/// tolerance says so and exits 1 (its best map still written and usable).
+#[test]
+fn a_per_cell_fit_maps_evolvers_hetero4_at_10_voxels_the_same_on_one_and_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    // A tolerance below the forward model's noise: the refinement runs every iteration.
+    let config = write_config(dir.path(), "iterations = 3\ntolerance = 0.002");
+    let mut outputs = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.path().join(format!("t{threads}"));
+        let o = tissuefit(&[
+            "fit",
+            "--config",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            threads,
+        ]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains("per-cell map of 4 cells") && stderr.contains("NOT converged"), "{stderr}");
+        for f in [
+            "cells.csv",
+            "interfaces.csv",
+            "iterations.csv",
+            "tissue.vtp",
+            "relaxed.vtp",
+            "cell_overrides.toml",
+            "model.toml",
+            "result.json",
+            "fit.toml",
+        ] {
+            assert!(out.join(f).is_file(), "{f} missing");
+        }
+        let read = |f: &str| std::fs::read_to_string(out.join(f)).unwrap();
+        // iterations.csv without its seconds column.
+        let iterations: Vec<String> = read("iterations.csv")
+            .lines()
+            .map(|l| l.split(',').enumerate().filter(|(i, _)| *i != 7).map(|(_, x)| x).collect::<Vec<_>>().join(","))
+            .collect();
+        assert_eq!(iterations.len(), 4, "{iterations:?}");
+        outputs.push((read("cells.csv"), read("interfaces.csv"), iterations, read("cell_overrides.toml")));
+    }
+    assert!(outputs[0] == outputs[1], "1 and 2 threads differ");
+    let out = dir.path().join("t2");
+    let result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("result.json")).unwrap()).unwrap();
+    assert_eq!(result["mode"], "per_cell");
+    assert_eq!(result["converged"], false);
+    assert_eq!(result["iterations"], 3);
+    let interfaces = rows(&out.join("interfaces.csv"));
+    assert_eq!(interfaces.len(), 10, "6 cell–cell and 4 cell–medium interfaces");
+    let refined = errors(&interfaces, "tension_mn_per_m");
+    let direct = errors(&interfaces, "direct_mn_per_m");
+    eprintln!(
+        "hetero4, 10 voxels per diameter: per-interface median / max error refined {:.4} / {:.4}, direct {:.4} / {:.4}",
+        median(refined.clone()),
+        refined.iter().copied().fold(0.0, Real::max),
+        median(direct.clone()),
+        direct.iter().copied().fold(0.0, Real::max)
+    );
+    assert!(median(refined.clone()) <= 0.10, "{refined:?}");
+    // The map is scaled to the free tension (the model's apical 1 mN/m) and is the model's: a
+    // cell–cell tension is the sum of the two cells' lateral tensions.
+    let cells = rows(&out.join("cells.csv"));
+    let free: Vec<Real> = cells.iter().map(|c| number(c, "free_tension_mn_per_m")).collect();
+    assert!((free.iter().sum::<Real>() / 4.0 - 1.0).abs() < 1e-9, "{free:?}");
+    let lateral: BTreeMap<String, Real> =
+        cells.iter().map(|c| (c["cell"].clone(), number(c, "lateral_tension_mn_per_m"))).collect();
+    for r in interfaces.iter().filter(|r| r["cell_b"] != "0") {
+        let sum = lateral[&r["cell_a"]] + lateral[&r["cell_b"]];
+        assert!((number(r, "tension_mn_per_m") / sum - 1.0).abs() < 1e-9);
+    }
+    // The observed tissue, coloured by the map, carries each cell's tensions as a model would read them.
+    let read = read_tissue(
+        &out.join("tissue.vtp"),
+        &ReadOptions { length_scale: LengthScale(Vec3::repeat(1.0)), orient: false },
+    )
+    .unwrap()
+    .tissue;
+    for c in &cells {
+        let id: u32 = c["cell"].parse().unwrap();
+        let cell = read.cells().iter().find(|x| x.id().0 == id).unwrap();
+        let [_, l, b] = cell.overrides().surface_tension;
+        assert!((l.unwrap() * 1e3 / number(c, "lateral_tension_mn_per_m") - 1.0).abs() < 1e-9);
+        assert!((b.unwrap() * 1e3 / number(c, "free_tension_mn_per_m") - 1.0).abs() < 1e-9);
+    }
+    let snippet = std::fs::read_to_string(out.join("cell_overrides.toml")).unwrap();
+    assert_eq!(snippet.matches("[[cell_overrides]]").count(), 4, "{snippet}");
+}
+
+#[test]
+fn bad_per_cell_settings_are_refused_naming_the_key() {
+    let base = "mode = \"per_cell\"\n[observed]\nlabels = \"x.tif\"\n";
+    for (extra, want) in [
+        ("[per_cell]\niterations = 0\n", "per_cell.iterations"),
+        ("[per_cell]\nstep = 2.0\n", "per_cell.step"),
+        ("[per_cell]\ntolerance = 0.0\n", "per_cell.tolerance"),
+        ("[per_cell]\nfree_tension = 1.0\n", "per_cell.free_tension"),
+        ("[per_cell]\niteration = 3\n", "unknown field `iteration`"),
+    ] {
+        let e = FitConfig::from_toml_str(&format!("{base}{extra}"), "fit.toml").unwrap_err().to_string();
+        assert!(e.contains(want), "{extra}: {e}");
+    }
+    let e = FitConfig::from_toml_str("mode = \"per_cel\"\n[observed]\nlabels = \"x.tif\"\n", "fit.toml").unwrap_err();
+    assert!(e.to_string().contains("per_cell"), "{e}");
+    // A global fit still needs its parameters; a per-cell one does not.
+    let e = FitConfig::from_toml_str("[observed]\nlabels = \"x.tif\"\n", "fit.toml").unwrap_err().to_string();
+    assert!(e.contains("mode = \"per_cell\""), "{e}");
+    FitConfig::from_toml_str(base, "fit.toml").unwrap();
+}
+
+/// A pipeline's `[fit]` with `mode = "per_cell"` on top of the compact-embryo preset (whose fitted
+/// parameter then only sets the start): the map lands in the fit folder and the run's summary says
+/// what the refinement did.
+#[test]
+fn a_pipeline_maps_per_cell_with_the_compact_embryo_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = fixture("hetero4").join("labels_10.tif");
+    let text = format!(
+        "preset = \"compact-embryo\"\n[input]\nlabels = {:?}\nseed = 0\n[fit]\nmode = \"per_cell\"\n[fit.forward]\nmeasure_shifts = 1\n[fit.per_cell]\niterations = 2\ntolerance = 0.2\n",
+        labels.display().to_string()
+    );
+    let path = dir.path().join("pipeline.toml");
+    std::fs::write(&path, text).unwrap();
+    let out = dir.path().join("out");
+    let o = tissuefit(&["run", path.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let all = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{all}");
+    assert!(all.contains("per-cell map of 4 cells"), "{all}");
+    assert_eq!(rows(&out.join("fit/cells.csv")).len(), 4);
+    let result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("fit/result.json")).unwrap()).unwrap();
+    assert_eq!((result["mode"].as_str(), result["converged"].as_bool()), (Some("per_cell"), Some(true)));
+}
