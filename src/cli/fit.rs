@@ -16,11 +16,13 @@ pub struct FitArgs {
     /// Output folder: trace.csv, result.json, objective.png, landscape.png, profile.png (the profile of
     /// each fitted quantity, with the acceptance threshold and range), fit.toml, model.toml, and at
     /// the best point best.vtp (the relaxed tissue), best.toml (the model) and residuals.csv (observed
-    /// vs simulated per cell).
+    /// vs simulated per cell). With `mode = "per_cell"`: cells.csv, interfaces.csv (the per-cell map),
+    /// iterations.csv, tissue.vtp (coloured by tension), relaxed.vtp, cell_overrides.toml, model.toml,
+    /// result.json and fit.toml.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Continue the fit in DIR from its trace.csv (evaluations already there are not re-simulated);
-    /// an error when DIR holds no trace.csv.
+    /// an error when DIR holds no trace.csv. A per-cell fit runs its refinement again from the start.
     #[arg(long)]
     pub resume: bool,
     /// Overrides optimizer.max_evaluations.

@@ -56,14 +56,26 @@ use std::path::Path;
 use std::time::Instant;
 
 /// The files a per-cell fit writes into its folder (with `fit.toml` and `model.toml`).
-pub const PER_CELL_FILES: [&str; 6] =
-    ["cells.csv", "interfaces.csv", "iterations.csv", "tissue.vtp", "relaxed.vtp", "cell_overrides.toml"];
+pub const PER_CELL_FILES: [&str; 8] = [
+    "cells.csv",
+    "interfaces.csv",
+    "iterations.csv",
+    "tissue.vtp",
+    "relaxed.vtp",
+    "cell_overrides.toml",
+    "map.png",
+    "tension_histogram.png",
+];
 
 /// An interface of the map: two cell labels, `b` = 0 for the medium (a < b otherwise).
 type Key = (u32, u32);
 
 /// Determined tensions by interface.
 type TensionsByInterface = BTreeMap<Key, Real>;
+
+/// Interfaces whose observed tension is below this fraction of the gauge (the mean free tension) are
+/// left out of the map (see [`run_per_cell`]).
+const MIN_RELATIVE_TENSION: Real = 0.05;
 
 /// A best rms mismatch above this (or 5 × `per_cell.tolerance`, if larger) is a poor fit.
 pub const POOR_FIT_MISMATCH: Real = 0.10;
@@ -323,6 +335,9 @@ pub fn run_per_cell(
 ) -> Result<PerCellResult, InferenceError> {
     debug_assert_eq!(config.mode, FitMode::PerCell);
     let started = Instant::now();
+    if options.resume {
+        tracing::info!("a per-cell fit keeps no trace to resume from: its refinement runs again from the start");
+    }
     let output_err = |p: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", p.display()));
     // Fixed values and the fitted parameters' starts set the base model; nothing is searched.
     let space = ParameterSpace::from_config(&config.parameters)?;
@@ -364,6 +379,21 @@ pub fn run_per_cell(
     let observed = tensions_of(&observed_map);
     let observed: BTreeMap<Key, Real> =
         observed.into_iter().filter(|((a, b), _)| moving.contains(a) && (*b == 0 || moving.contains(b))).collect();
+    // A tension below a twentieth of the gauge is no tension the model can run with (a spurious free
+    // patch of a buried cell, a sliver of an interface): such an interface is not a target, and the
+    // cell keeps the start value for it.
+    let (observed, spurious): (BTreeMap<Key, Real>, BTreeMap<Key, Real>) =
+        observed.into_iter().partition(|(_, t)| *t >= MIN_RELATIVE_TENSION);
+    for ((a, b), t) in &spurious {
+        let what = if *b == 0 { format!("cell {a}'s free surface") } else { format!("interface {a}-{b}") };
+        warnings.push(format!(
+            "{what}: the direct estimate {t:.3} (relative to the mean free tension) is no tension a model runs \
+             with (a spurious patch or sliver?); left out of the map"
+        ));
+    }
+    for w in warnings.iter().skip(observed_map.warnings.len()) {
+        tracing::warn!("{w}");
+    }
     if observed.keys().all(|&(_, b)| b == 0) {
         return Err(InferenceError::Observed(
             "the direct estimate determined no cell–cell interface between moving cells: there is no map to refine"
@@ -386,6 +416,7 @@ pub fn run_per_cell(
     };
     let floor = 0.02 * free_tension;
     tensions.lateral.values_mut().for_each(|a| *a = a.max(floor));
+    tensions.free.values_mut().for_each(|f| *f = f.max(floor));
     let start = tensions.clone();
     let additive_residual_rms = {
         let r: Vec<Real> = cell_cell.iter().filter_map(|&(k, t)| Some(start.of(k)? / t - 1.0)).collect();
@@ -515,6 +546,7 @@ pub fn run_per_cell(
             .collect();
         tensions.lateral = lateral_fit(&moving, &rows, &tensions.lateral);
         tensions.lateral.values_mut().for_each(|a| *a = a.max(floor));
+        tensions.free.values_mut().for_each(|f| *f = f.max(floor));
         tensions.rescale(free_tension);
         if config.per_cell.warm_start {
             warm = tissue;
@@ -763,5 +795,12 @@ fn write_outputs(
             writeln!(w)
         })
         .map_err(|e| io(&path, &e))?;
-    group.commit().map_err(|e| InferenceError::Output(format!("writing into {}: {e}", out.display())))
+    let path = out.join("map.png");
+    let picture = crate::stages::map_png(&observed_tissue, face_tension, "interface tension, refined map (mN/m)")
+        .map_err(|e| io(&path, &e))?;
+    group.write_bytes(&path, &picture).map_err(|e| io(&path, &e))?;
+    group.commit().map_err(|e| InferenceError::Output(format!("writing into {}: {e}", out.display())))?;
+    let direct: Vec<Real> = interfaces.iter().filter_map(|r| r.direct_mn_per_m).collect();
+    let refined: Vec<Real> = interfaces.iter().filter_map(|r| r.tension_mn_per_m).collect();
+    super::plot::plot_tension_histogram(&out.join("tension_histogram.png"), &direct, &refined)
 }

@@ -10,24 +10,10 @@ use super::InferenceError;
 use super::forward::Evaluation;
 use super::profile::{NoiseFloor, Slice};
 use super::space::ParameterSpace;
+use crate::files::ensure_font;
 use crate::geometry::Real;
 use plotters::prelude::*;
-use plotters::style::{FontStyle, register_font};
 use std::path::Path;
-use std::sync::Once;
-
-static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
-static REGISTER: Once = Once::new();
-
-/// Registers the embedded font as "sans-serif" (once per process).
-pub(crate) fn ensure_font() {
-    REGISTER.call_once(|| {
-        // The embedded file is a valid TrueType font; a failure would only lose the labels.
-        if register_font("sans-serif", FontStyle::Normal, FONT).is_err() {
-            tracing::warn!("could not register the embedded font; plots will lack text");
-        }
-    });
-}
 
 fn err(path: &Path, e: impl std::fmt::Display) -> InferenceError {
     InferenceError::Output(format!("{}: {e}", path.display()))
@@ -349,6 +335,81 @@ pub fn plot_profiles(path: &Path, slices: &[Slice], noise: &NoiseFloor) -> Resul
                 )
                 .map_err(|e| err(path, e))?;
         }
+        root.present().map_err(|e| err(path, e))?;
+    }
+    crate::io::replace_with(&tmp, path).map_err(|e| err(path, e))
+}
+
+/// A per-cell fit's `tension_histogram.png`: how many interfaces have each tension (mN/m), the
+/// refined map (blue) over the direct estimate it started from (grey outline); cell–medium and
+/// cell–cell interfaces together.
+pub fn plot_tension_histogram(path: &Path, direct: &[Real], refined: &[Real]) -> Result<(), InferenceError> {
+    ensure_font();
+    let finite = |v: &[Real]| v.iter().copied().filter(|x| x.is_finite()).collect::<Vec<Real>>();
+    let (direct, refined) = (finite(direct), finite(refined));
+    let all: Vec<Real> = direct.iter().chain(&refined).copied().collect();
+    if all.is_empty() {
+        return Ok(());
+    }
+    let (min, max) =
+        (all.iter().copied().fold(Real::INFINITY, Real::min), all.iter().copied().fold(Real::NEG_INFINITY, Real::max));
+    let pad = if max > min { 0.02 * (max - min) } else { 0.05 * max.abs().max(1e-9) };
+    let (lo, hi) = (min - pad, max + pad);
+    let bins = ((all.len() as Real / 2.0).sqrt().ceil() as usize * 2).clamp(8, 40);
+    let width = (hi - lo) / bins as Real;
+    let count = |v: &[Real]| {
+        let mut c = vec![0u32; bins];
+        for &x in v {
+            c[(((x - lo) / width) as usize).min(bins - 1)] += 1;
+        }
+        c
+    };
+    let (cd, cr) = (count(&direct), count(&refined));
+    let top = cd.iter().chain(&cr).copied().max().unwrap_or(1).max(1);
+    let tmp = path.with_extension("png.tmp.png");
+    {
+        let root = BitMapBackend::new(&tmp, (800, 500)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(path, e))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption("interface tensions", ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(lo..lo + width * bins as Real, 0u32..top + 1)
+            .map_err(|e| err(path, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("tension (mN/m)")
+            .y_desc("interfaces")
+            .y_labels((top as usize + 2).min(11))
+            .y_label_formatter(&|n| format!("{n}"))
+            .light_line_style(WHITE)
+            .draw()
+            .map_err(|e| err(path, e))?;
+        let bar = |i: usize| (lo + i as Real * width, lo + (i + 1) as Real * width);
+        let blue = RGBColor(40, 90, 200);
+        chart
+            .draw_series(cr.iter().enumerate().filter(|(_, n)| **n > 0).map(|(i, &n)| {
+                let (a, b) = bar(i);
+                Rectangle::new([(a + 0.06 * width, 0), (b - 0.06 * width, n)], blue.mix(0.6).filled())
+            }))
+            .map_err(|e| err(path, e))?
+            .label(format!("refined map ({} interfaces)", refined.len()))
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], blue.mix(0.6).filled()));
+        chart
+            .draw_series(cd.iter().enumerate().filter(|(_, n)| **n > 0).map(|(i, &n)| {
+                let (a, b) = bar(i);
+                Rectangle::new([(a + 0.06 * width, 0), (b - 0.06 * width, n)], BLACK.mix(0.7).stroke_width(2))
+            }))
+            .map_err(|e| err(path, e))?
+            .label(format!("direct estimate ({} interfaces)", direct.len()))
+            .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], BLACK.mix(0.7).stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| err(path, e))?;
         root.present().map_err(|e| err(path, e))?;
     }
     crate::io::replace_with(&tmp, path).map_err(|e| err(path, e))

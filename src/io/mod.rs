@@ -30,7 +30,10 @@ pub use pvd::{PvdEntry, write_pvd};
 pub use read::{ReadOptions, ReadReport, read_tissue, read_tissue_bytes, write_tissue, write_tissue_in};
 pub use simulation_output::{SimulationRecorder, write_events};
 pub use units::{LengthScale, OutputUnit, parse_length, parse_lengths, parse_named_length};
-pub use vtp::{CellField, LENGTH_UNIT_FIELD, read_vtp, vtp_bytes, vtp_bytes_in, write_vtp, write_vtp_in};
+pub use vtp::{
+    CellField, FaceValues, LENGTH_UNIT_FIELD, read_vtp, read_vtp_face_values, vtp_bytes, vtp_bytes_in, write_vtp,
+    write_vtp_in,
+};
 
 // The file primitives live a layer down (`crate::files`), where `imaging` and `mechanics` can use
 // them too; the commands and stages above `io` keep reaching them here.

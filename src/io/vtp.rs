@@ -448,6 +448,36 @@ pub fn read_vtp(path: &Path) -> Result<Tissue, IoError> {
 /// and the unit the file recorded (`length_unit`, from which it was converted) with its metres per
 /// unit, if any.
 pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<(Tissue, Option<(String, Real)>), IoError> {
+    parse_vtp_with(path, bytes, &[]).map(|(tissue, unit, _)| (tissue, unit))
+}
+
+/// Per-face values of a tissue read from a `.vtp` file (see [`read_vtp_face_values`]).
+#[derive(Clone, Debug)]
+pub struct FaceValues {
+    /// The cell-data array they were read from.
+    pub name: String,
+    /// One value per triangle, cells in the tissue's order, triangles in each cell's order (a
+    /// polygon split into triangles gives each its value; NaN where a piece lacks the array).
+    pub values: Vec<Real>,
+}
+
+/// Reads a `.vtp` tissue and, per triangle, the values of the first of `names` that the file has as
+/// a one-component cell-data array (e.g. `tension` in `tensions.vtp`, `tension_mn_per_m` in a
+/// per-cell fit's `tissue.vtp`). An error names the arrays the file has when it has none of them.
+pub fn read_vtp_face_values(path: &Path, names: &[&str]) -> Result<(Tissue, FaceValues), IoError> {
+    let bytes = super::read_capped(path, super::MAX_TISSUE_FILE)
+        .map_err(|source| IoError::Open { path: path.to_path_buf(), source })?;
+    if names.is_empty() {
+        return Err(IoError::parse(path, None, "no cell-data array name given to read"));
+    }
+    let (tissue, _, values) = parse_vtp_with(path, &bytes, names)?;
+    let values = values.ok_or_else(|| IoError::parse(path, None, "internal: the cell-data array was not read"))?;
+    Ok((tissue, values))
+}
+
+type Parsed = (Tissue, Option<(String, Real)>, Option<FaceValues>);
+
+fn parse_vtp_with(path: &Path, bytes: &[u8], names: &[&str]) -> Result<Parsed, IoError> {
     let (xml, appended) = split_appended(path, bytes)?;
     let doc = roxmltree::Document::parse(&xml)
         .map_err(|e| IoError::parse(path, Some(e.pos().row as usize), format!("malformed XML: {e}")))?;
@@ -484,7 +514,7 @@ pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<(Tissue, Option<(St
     // VTK names a compressor even in ASCII files, where it does not apply; it matters for binary data.
     let compressor = root.attribute("compressor");
     let reader = ArrayReader { path, doc: &doc, appended, compressor, big_endian, header_size };
-    let mut faces = Faces::default();
+    let mut faces = Faces { field_names: names.iter().map(|n| n.to_string()).collect(), ..Faces::default() };
     let mut pieces = 0;
     for piece in poly_data.children().filter(|n| n.has_tag_name("Piece")) {
         reader.read_piece(piece, &mut faces)?;
@@ -497,13 +527,30 @@ pub(crate) fn parse_vtp(path: &Path, bytes: &[u8]) -> Result<(Tissue, Option<(St
         Some(node) => Some(read_unit(&reader, node)?),
         None => None,
     };
-    let mut tissue = faces.into_tissue(path)?;
+    let values = if names.is_empty() {
+        None
+    } else {
+        let Some(name) = faces.field_found.clone() else {
+            let has = if faces.array_names.is_empty() {
+                "none".to_owned()
+            } else {
+                faces.array_names.iter().cloned().collect::<Vec<_>>().join(", ")
+            };
+            return Err(IoError::parse(
+                path,
+                None,
+                format!("no cell-data array named {} (the file's cell-data arrays: {has})", names.join(" or ")),
+            ));
+        };
+        Some(name)
+    };
+    let (mut tissue, field) = faces.into_tissue(path)?;
     if let Some((_, metres)) = &unit
         && *metres != 1.0
     {
         tissue.scale(Vec3::repeat(*metres));
     }
-    Ok((tissue, unit))
+    Ok((tissue, unit, values.map(|name| FaceValues { name, values: field })))
 }
 
 /// The `length_unit` field: one string (VTK's ASCII string encoding, character codes ended by 0, or
@@ -970,6 +1017,24 @@ impl ArrayReader<'_> {
             }
             None => faces.interface_label.resize(faces.cell_id.len(), None),
         }
+        if let Some(cd) = cell_data {
+            faces.array_names.extend(
+                cd.children()
+                    .filter(|n| n.has_tag_name("DataArray"))
+                    .filter_map(|n| n.attribute("Name"))
+                    .map(String::from),
+            );
+        }
+        if !faces.field_names.is_empty() {
+            match faces.field_names.iter().find_map(|name| field(name).map(|node| (name.clone(), node))) {
+                Some((name, node)) => {
+                    let values = self.read_array(node, 1, n_cells)?.into_f64();
+                    faces.field.extend(values.iter().skip(skip));
+                    faces.field_found.get_or_insert(name);
+                }
+                None => faces.field.resize(faces.cell_id.len(), Real::NAN),
+            }
+        }
         for (k, name) in CellOverrides::ARRAY_NAMES.iter().flatten().enumerate() {
             match field(name) {
                 Some(node) => {
@@ -1000,11 +1065,21 @@ struct Faces {
     /// Per face, the cell's overrides ([`CellOverrides::ARRAY_NAMES`] flattened; `None`: NaN or no
     /// array).
     overrides: [Vec<Option<Real>>; 6],
+    /// The cell-data arrays asked for by name, in order of preference (empty: none).
+    field_names: Vec<String>,
+    /// Per face, the first of `field_names` the face's piece has (NaN: none).
+    field: Vec<Real>,
+    /// The name read, if any piece had one.
+    field_found: Option<String>,
+    /// Every cell-data array name met, for errors.
+    array_names: std::collections::BTreeSet<String>,
 }
 
 impl Faces {
     /// Groups faces into cells (in order of first appearance).
-    fn into_tissue(self, path: &Path) -> Result<Tissue, IoError> {
+    /// Also returns, per triangle of the tissue (cells in order), the value of `field` (empty when
+    /// no field was asked for).
+    fn into_tissue(self, path: &Path) -> Result<(Tissue, Vec<Real>), IoError> {
         let n_faces = self.polygon_ends.len();
         debug_assert!(
             [self.cell_id.len(), self.kind.len(), self.cell_type.len(), self.face_type.len()]
@@ -1041,6 +1116,7 @@ impl Faces {
         // Local index of each global point in the cell being assembled (u32::MAX: unused).
         let mut local = vec![u32::MAX; self.positions.len()];
         let mut cells = Vec::with_capacity(members.len());
+        let mut field = Vec::new();
         for faces in &members {
             let first = faces[0];
             let id = CellId(self.cell_id[first]);
@@ -1068,6 +1144,9 @@ impl Faces {
                 cell: id,
                 source,
             })?;
+            if !self.field_names.is_empty() {
+                field.extend(source.iter().map(|&p| self.field[faces[p as usize]]));
+            }
             let face_types = source.iter().map(|&p| self.face_type[faces[p as usize]]).collect();
             let mut cell = Cell::new(id, self.kind[first], self.cell_type[first], mesh)
                 .with_face_types(face_types)
@@ -1104,7 +1183,9 @@ impl Faces {
             }
             cells.push(cell);
         }
-        Tissue::from_cells(cells).map_err(|source| IoError::Tissue { path: path.to_path_buf(), source })
+        let tissue =
+            Tissue::from_cells(cells).map_err(|source| IoError::Tissue { path: path.to_path_buf(), source })?;
+        Ok((tissue, field))
     }
 }
 

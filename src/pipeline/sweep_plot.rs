@@ -8,7 +8,7 @@
 
 use super::PipelineError;
 use super::sweep::{ResultRow, Sweep, show_value};
-use crate::inference::plot::ensure_font;
+use crate::files::ensure_font;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 use toml::Value;

@@ -41,6 +41,8 @@ pub const OUTPUT_FILES: &[&str] = &[
     "tissue.vtp",
     "relaxed.vtp",
     "cell_overrides.toml",
+    "map.png",
+    "tension_histogram.png",
 ];
 
 /// What a fit found: a global fit's result, or a per-cell map's.

@@ -32,6 +32,31 @@ impl StageError {
     }
 }
 
+/// How far a map picture pulls cells apart (see [`crate::render::RenderOptions::explode`]): enough to
+/// show the faces between cells of a small cluster.
+pub const MAP_EXPLODE: crate::geometry::Real = 0.6;
+
+/// A map picture: `tissue` from the iso view, exploded by [`MAP_EXPLODE`] so that the interfaces
+/// between cells show, faces coloured by `values` (one per triangle, cells in order; NaN grey) with a
+/// colour bar titled `label`, as PNG bytes (`tensions.png`, a per-cell fit's `map.png`).
+pub(crate) fn map_png(
+    tissue: &crate::mesh::Tissue,
+    values: Vec<crate::geometry::Real>,
+    label: &str,
+) -> Result<Vec<u8>, String> {
+    use crate::render::{ColorBy, FaceScalars, RenderOptions, png_bytes, render_tissue};
+    let options = RenderOptions {
+        width: 900,
+        height: 700,
+        color_by: ColorBy::Tension,
+        scalars: Some(FaceScalars { label: label.to_owned(), values, range: None }),
+        explode: MAP_EXPLODE,
+        ..RenderOptions::default()
+    };
+    let img = render_tissue(tissue, &options).map_err(|e| e.to_string())?;
+    png_bytes(&img)
+}
+
 /// Writes rows under a header of `T`'s serde field names, in field order; the header comes from
 /// `example` (not written) so that a file without rows still has its columns (pandas reads it).
 pub fn write_csv<T: Serialize>(

@@ -112,8 +112,8 @@ struct Fields {
 }
 
 /// What the stage writes into its folder, all or nothing.
-pub const OUTPUT_FILES: [&str; 5] =
-    ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp", "cell_overrides.toml"];
+pub const OUTPUT_FILES: [&str; 6] =
+    ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp", "cell_overrides.toml", "tensions.png"];
 
 /// `cell_overrides.toml`: the per-cell tensions as `[[cell_overrides]]` entries for a model file
 /// (free tension on apical and basal faces, a_i on lateral ones, N/m) when the gauge is absolute
@@ -311,6 +311,11 @@ fn write_outputs(
         [CellField { name: "tension", values: &face_tension }, CellField { name: "pressure", values: &pressure }];
     let bytes = vtp_bytes(&vtp, tissue, &fields, None).map_err(|e| io(&vtp, &e))?;
     group.write_bytes(&vtp, &bytes).map_err(|e| io(&vtp, &e))?;
+    let png = dir.join("tensions.png");
+    let unit = if summary.tension_unit == "mN/m" { "mN/m" } else { "relative to the gauge" };
+    let picture = super::map_png(tissue, face_tension.clone(), &format!("interface tension ({unit})"))
+        .map_err(|e| io(&png, &e))?;
+    group.write_bytes(&png, &picture).map_err(|e| io(&png, &e))?;
     group.commit().map_err(|e| format!("writing the outputs into {}: {e}", dir.display()))?;
     Ok(Fields { face_tension, pressure })
 }

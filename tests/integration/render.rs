@@ -91,3 +91,83 @@ fn bad_input_is_an_error_naming_the_problem() {
     }
     assert!(!tmp.path().join("v.png").exists());
 }
+
+/// `tissuefit tensions` writes its map picture (tensions.png); `render --color-by tension|pressure`
+/// draws the map of its tensions.vtp with a colour bar, on the viridis scale: exploded, hetero4's six
+/// different interface tensions show as distinct colours, all of them on the scale (or the grey of
+/// faces without a value). Asking for an array the file lacks names those it has.
+#[test]
+fn tension_and_pressure_maps_are_drawn_from_tensions_vtp() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cluster = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("validation/evolver/fixtures/hetero4/cluster.vtk");
+    let out = tmp.path().join("t");
+    let o = tissuefit(&["tensions", cluster.to_str().unwrap(), "--length-unit", "um", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stage_png = image::open(out.join("tensions.png")).expect("tensions.png").to_rgb8();
+    assert_eq!(stage_png.dimensions(), (900, 700));
+    let vtp = out.join("tensions.vtp");
+    let png = tmp.path().join("map.png");
+    let args = |by: &str| {
+        vec![
+            "render".to_owned(),
+            vtp.to_str().unwrap().to_owned(),
+            "--out".into(),
+            png.to_str().unwrap().into(),
+            "--color-by".into(),
+            by.into(),
+            "--size".into(),
+            "500,400".into(),
+            "--explode".into(),
+            "0.6".into(),
+        ]
+    };
+    let o = tissuefit(&args("tension").iter().map(String::as_str).collect::<Vec<_>>());
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("coloured by tension (relative to the gauge)"), "{stdout}");
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (500, 400));
+    // Every drawn pixel of the tissue (left of the bar strip) is a shaded viridis colour or grey:
+    // scaled back to full brightness it lies near one of the scale's samples.
+    let strip = (500 / 5).clamp(70, 180);
+    let scale: Vec<[f64; 3]> = (0..=64).map(|k| tissuefit::render::viridis(k as f64 / 64.0)).collect();
+    let mut positions = std::collections::BTreeSet::new();
+    let mut off = 0;
+    for (_, _, p) in img.enumerate_pixels().filter(|(x, _, p)| *x < 500 - strip && p.0 != [255, 255, 255]) {
+        let c = p.0.map(|v| v as f64 / 255.0);
+        if (c[0] - c[1]).abs() < 0.02 && (c[1] - c[2]).abs() < 0.02 {
+            continue; // grey: no value, or an anti-aliased edge against the white background
+        }
+        // Shading multiplies by 0.6–1.0; find the scale sample and brightness that fit best.
+        let best = scale
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let f = (c[0] * s[0] + c[1] * s[1] + c[2] * s[2]) / (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+                (k, (0..3).map(|i| (c[i] - f * s[i]).powi(2)).sum::<f64>().sqrt())
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        if best.1 < 0.04 {
+            positions.insert(best.0 / 4);
+        } else {
+            off += 1;
+        }
+    }
+    assert!(positions.len() >= 4, "distinct scale positions: {positions:?}");
+    // Off-scale pixels are only the box-filtered outlines between faces of different colours.
+    assert!(off < 500 * 400 / 20, "{off} pixels off the scale");
+    let o = tissuefit(&args("pressure").iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let mut missing = args("field");
+    missing.extend(["--field".into(), "stress".into()]);
+    let o = tissuefit(&missing.iter().map(String::as_str).collect::<Vec<_>>());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("stress") && err.contains("tension") && err.contains("pressure"), "{err}");
+    let o = tissuefit(&args("field").iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--field NAME"));
+    let o = tissuefit(&["render", cluster.to_str().unwrap(), "--out", png.to_str().unwrap(), "--color-by", "tension"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains(".vtp"), "{}", String::from_utf8_lossy(&o.stderr));
+}
