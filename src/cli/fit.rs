@@ -59,7 +59,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<Outcome> {
         .input("--config", &args.config)
         .input_opt("observed.tissue", observed.and_then(|o| o.tissue.as_deref()))
         .input_opt("observed.labels", observed.and_then(|o| o.labels.as_deref()))
-        .folder("--out", &args.out, crate::stages::fit::OUTPUT_FILES)?;
+        .folder("--out", &args.out, &crate::stages::fit::output_files())?;
     if let Some(n) = args.max_evaluations {
         anyhow::ensure!(n > 0, "--max-evaluations must be at least 1");
         config.optimizer.max_evaluations = n;

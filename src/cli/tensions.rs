@@ -12,7 +12,7 @@ use crate::io::parse_length;
 use crate::io::{OutputPolicy, read_tissue};
 use crate::mesh::Tissue;
 use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, mesh_labels};
-use crate::morphology::tensions::{Gauge, TensionMap, TensionSettings};
+use crate::morphology::tensions::{FieldOfView, Gauge, TensionMap, TensionSettings};
 use crate::stages::measure::is_labels;
 use crate::stages::tensions::{OUTPUT_FILES, Summary, TensionsInput};
 use anyhow::{Context, bail};
@@ -93,7 +93,10 @@ fn parse_tension(s: &str) -> Result<Real, String> {
 }
 
 /// What `tensions` writes into --out.
-fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Option<Real>)> {
+/// A label volume's largest voxel side (m) and imaged box.
+type LabelGrid = Option<(Real, FieldOfView)>;
+
+fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, LabelGrid)> {
     let path = &args.tissue;
     if is_labels(path) {
         let options =
@@ -119,7 +122,7 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Opti
             );
         }
         let voxel = read.volume.grid().voxel_size.iter().copied().fold(0.0, Real::max);
-        return Ok((meshing.tissue, "labels", Some(voxel)));
+        return Ok((meshing.tissue, "labels", Some((voxel, FieldOfView::of_grid(&read.volume.grid())))));
     }
     if args.voxel_size.is_some()
         || args.zarr_level.is_some()
@@ -143,7 +146,8 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Opti
 
 pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
     OutputPolicy::new().input("TISSUE", &args.tissue).folder("--out", &args.out, &OUTPUT_FILES)?;
-    let (tissue, input, voxel) = read_input(args)?;
+    let (tissue, input, grid) = read_input(args)?;
+    let (voxel, field_of_view) = grid.unzip();
     let settings = TensionSettings {
         contact_distance: args.contact_distance,
         one_medium_tension: args.one_medium_tension,
@@ -151,6 +155,7 @@ pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
         gauge_value: args.gauge_tension.unwrap_or(1.0),
         rounding_scale: voxel,
         interface_labels: !args.distance_contacts,
+        field_of_view,
     };
     let file = args.tissue.display().to_string();
     let described = TensionsInput { file: &file, kind: input, gauge_in_mn_per_m: args.gauge_tension.is_some() };

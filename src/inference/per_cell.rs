@@ -46,7 +46,7 @@ use crate::io::{CellField, OutputGroup, Progress, vtp_bytes_in};
 use crate::mechanics::{CellOverrideConfig, NoObserver, Parameters, PerFaceType};
 use crate::mesh::Tissue;
 use crate::meshing::mesh_labels;
-use crate::morphology::tensions::{TensionMap, TensionSettings, estimate_tensions};
+use crate::morphology::tensions::{FieldOfView, TensionMap, TensionSettings, estimate_tensions};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -372,7 +372,9 @@ pub fn run_per_cell(
         ));
     }
     let voxel = obs.labels.as_ref().map(|l| l.voxel_size().iter().copied().fold(0.0, Real::max));
-    let settings = TensionSettings { rounding_scale: voxel, ..Default::default() };
+    // Faces on the image border are cut, not free (the simulated tissue is voxelised on the same grid).
+    let field_of_view = obs.labels.as_ref().map(|l| FieldOfView::of_grid(&l.grid()));
+    let settings = TensionSettings { rounding_scale: voxel, field_of_view, ..Default::default() };
     let observed_map = estimate_tensions(&obs.tissue, &settings)
         .map_err(|e| InferenceError::Observed(format!("the direct estimate of the observed tissue: {e}")))?;
     warnings.extend(observed_map.warnings.iter().map(|w| format!("observed tissue: {w}")));
@@ -729,8 +731,8 @@ fn write_outputs(
     let mut face_tension: Vec<Real> = Vec::with_capacity(obs.tissue.face_count());
     for (cell, faces) in obs.tissue.cells().iter().zip(&observed_map.face_interface) {
         if faces.len() == cell.mesh().face_count() {
-            face_tension.extend(faces.iter().map(|&k| {
-                let f = &observed_map.interfaces[k];
+            face_tension.extend(faces.iter().map(|k| {
+                let Some(f) = k.map(|k| &observed_map.interfaces[k]) else { return Real::NAN };
                 t.of((f.cell_a, f.cell_b)).map_or(Real::NAN, |x| x * 1e3)
             }));
         } else {

@@ -45,6 +45,11 @@
 //! interfaces to the medium is undetermined. The pressure's standard deviation combines the tensions'
 //! (independent) and the Laplace residual.
 //!
+//! **Field of view.** A segmentation cuts the cells at the image border: their faces there touch no
+//! medium. With [`TensionSettings::field_of_view`] (the imaged box, given for label volumes) a free
+//! face whose centre lies within a voxel or a mean edge length of the box's sides belongs to no interface: no tension, no
+//! junction along it, grey in the map.
+//!
 //! Units: lengths in metres as the tissue; tensions in units of the gauge; pressures in gauge tension
 //! per metre (the command line prints per µm). Deterministic: every loop runs in a fixed order and the
 //! contact partition is thread-independent, so 1 and N threads give identical results.
@@ -102,7 +107,42 @@ pub struct TensionSettings {
     /// Take the interfaces from the input's interface labels when every cell carries them (a
     /// multi-material mesh, [`crate::mesh::Cell::interface_labels`]) instead of the contact distance.
     pub interface_labels: bool,
+    /// The imaged box of a segmentation: free faces on its sides are cut by the border, no interface.
+    pub field_of_view: Option<FieldOfView>,
 }
+
+/// The box a label volume images (m): from the outer side of its first voxels to that of its last.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FieldOfView {
+    pub lo: Vec3,
+    pub hi: Vec3,
+    /// Per axis, how close (m) to a side a face's centre must be to count as cut: one voxel.
+    pub margin: Vec3,
+}
+
+impl FieldOfView {
+    /// The box of `grid` (voxel `[k, j, i]` centred at origin + (i·sx, j·sy, k·sz)).
+    pub fn of_grid(grid: &crate::imaging::VoxelGrid) -> Self {
+        let [nz, ny, nx] = grid.shape;
+        let [sz, sy, sx] = grid.voxel_size;
+        let size = Vec3::new(sx, sy, sz);
+        let lo = grid.origin - 0.5 * size;
+        let hi = grid.origin + Vec3::new(nx as Real * sx, ny as Real * sy, nz as Real * sz) - 0.5 * size;
+        Self { lo, hi, margin: size }
+    }
+
+    /// Whether a face centred at `x` lies on a side of the box: within the margin or `edge` (the
+    /// mesh's edge length, over which the mesh rounds the cut) of it.
+    pub fn on_border(&self, x: &Vec3, edge: Real) -> bool {
+        (0..3).any(|k| {
+            let m = self.margin[k].max(edge);
+            x[k] < self.lo[k] + m || x[k] > self.hi[k] - m
+        })
+    }
+}
+
+/// The key of a face cut by the field of view: no interface.
+const CUT: (u32, u32) = (u32::MAX, u32::MAX);
 
 impl Default for TensionSettings {
     fn default() -> Self {
@@ -113,6 +153,7 @@ impl Default for TensionSettings {
             gauge_value: 1.0,
             rounding_scale: None,
             interface_labels: true,
+            field_of_view: None,
         }
     }
 }
@@ -195,8 +236,9 @@ pub struct TensionMap {
     pub interfaces: Vec<InterfaceTension>,
     /// In tissue order.
     pub cells: Vec<CellPressure>,
-    /// For each tissue cell and face, the index in `interfaces` of the face's interface.
-    pub face_interface: Vec<Vec<usize>>,
+    /// For each tissue cell and face, the index in `interfaces` of the face's interface (`None`: a
+    /// face cut by the field of view).
+    pub face_interface: Vec<Vec<Option<usize>>>,
     /// Contact distance used (m): the contact rule's δ, or with interface labels only the scale of
     /// the rim search.
     pub contact_distance: Real,
@@ -302,6 +344,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
 
     // Interfaces and each face's interface.
     let mut patches: BTreeMap<(u32, u32), Patch> = BTreeMap::new();
+    let (mut cut_faces, mut cut_cells) = (0usize, std::collections::BTreeSet::new());
     let mut face_key: Vec<Vec<(u32, u32)>> = Vec::with_capacity(cells.len());
     for (i, cell) in cells.iter().enumerate() {
         if !participates[i] {
@@ -312,10 +355,24 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         let p = mesh.positions();
         let vectors = mesh.face_area_vectors();
         let own = ids[i];
-        let keys: Vec<(u32, u32)> =
-            partitions[i].partner.iter().map(|&b| key(own, if b == FREE { 0 } else { ids[b as usize] })).collect();
+        let centroid = |t: &[u32; 3]| (p[t[0] as usize] + p[t[1] as usize] + p[t[2] as usize]) / 3.0;
+        let keys: Vec<(u32, u32)> = partitions[i]
+            .partner
+            .iter()
+            .zip(mesh.triangles())
+            .map(|(&b, t)| match b {
+                FREE if settings.field_of_view.as_ref().is_some_and(|v| v.on_border(&centroid(t), h)) => CUT,
+                FREE => key(own, 0),
+                b => key(own, ids[b as usize]),
+            })
+            .collect();
         for (f, t) in mesh.triangles().iter().enumerate() {
             let k = keys[f];
+            if k == CUT {
+                cut_faces += 1;
+                cut_cells.insert(own);
+                continue;
+            }
             let patch = patches.entry(k).or_default();
             let side = usize::from(k.0 != own);
             patch.centroids.push((p[t[0] as usize] + p[t[1] as usize] + p[t[2] as usize]) / 3.0);
@@ -324,6 +381,13 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
             patch.normal_ab += if side == 0 { vectors[f] } else { -vectors[f] };
         }
         face_key.push(keys);
+    }
+    if cut_faces > 0 {
+        warnings.push(format!(
+            "{cut_faces} faces of {} cell(s) lie on the image border (cut by the field of view): they are no \
+             interface, and no junction along them is used",
+            cut_cells.len()
+        ));
     }
     let index: BTreeMap<(u32, u32), usize> = patches.keys().enumerate().map(|(n, k)| (*k, n)).collect();
     let keys: Vec<(u32, u32)> = patches.keys().copied().collect();
@@ -344,7 +408,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         for (e, &[u, v]) in adjacency.edges().iter().enumerate() {
             let &[f, g] = adjacency.edge_faces(e) else { continue };
             let (kf, kg) = (face_key[i][f as usize], face_key[i][g as usize]);
-            if kf == kg {
+            if kf == kg || kf == CUT || kg == CUT {
                 continue;
             }
             let other = |k: (u32, u32)| if k.0 == own { k.1 } else { k.0 };
@@ -640,7 +704,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         })
         .collect();
     let face_interface =
-        face_key.iter().map(|keys| keys.iter().map(|k| index[k]).collect::<Vec<usize>>()).collect::<Vec<_>>();
+        face_key.iter().map(|keys| keys.iter().map(|k| index.get(k).copied()).collect::<Vec<_>>()).collect::<Vec<_>>();
     Ok(TensionMap {
         interfaces,
         cells: cells_out,

@@ -22,7 +22,7 @@ use std::path::Path;
 pub const TRACE_FILE: &str = "trace.csv";
 /// The fitted parameters, their ranges and what the data determine ([`FitResult`]).
 pub const RESULT_FILE: &str = "result.json";
-/// The files the stage writes into its folder.
+/// The files a global fit writes into its folder.
 pub const OUTPUT_FILES: &[&str] = &[
     TRACE_FILE,
     RESULT_FILE,
@@ -34,16 +34,15 @@ pub const OUTPUT_FILES: &[&str] = &[
     crate::inference::BEST_TISSUE_FILE,
     crate::inference::BEST_MODEL_FILE,
     crate::inference::RESIDUALS_FILE,
-    // `mode = "per_cell"`
-    "cells.csv",
-    "interfaces.csv",
-    "iterations.csv",
-    "tissue.vtp",
-    "relaxed.vtp",
-    "cell_overrides.toml",
-    "map.png",
-    "tension_histogram.png",
 ];
+
+/// Every file the stage may write into its folder: a global fit's and a per-cell fit's
+/// ([`crate::inference::PER_CELL_FILES`]).
+pub fn output_files() -> Vec<&'static str> {
+    let mut files = OUTPUT_FILES.to_vec();
+    files.extend(crate::inference::PER_CELL_FILES.iter().filter(|f| !files.contains(f)).collect::<Vec<_>>());
+    files
+}
 
 /// What a fit found: a global fit's result, or a per-cell map's.
 #[derive(Clone, Debug)]

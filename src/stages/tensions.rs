@@ -279,7 +279,7 @@ fn write_outputs(
     let mut face_tension: Vec<Real> = Vec::with_capacity(tissue.face_count());
     for (cell, faces) in tissue.cells().iter().zip(&map.face_interface) {
         if faces.len() == cell.mesh().face_count() {
-            face_tension.extend(faces.iter().map(|&k| map.interfaces[k].tension.unwrap_or(Real::NAN)));
+            face_tension.extend(faces.iter().map(|k| k.and_then(|k| map.interfaces[k].tension).unwrap_or(Real::NAN)));
         } else {
             face_tension.extend(std::iter::repeat_n(Real::NAN, cell.mesh().face_count()));
         }
