@@ -516,7 +516,9 @@ type Tensions<'py> = (Vec<Bound<'py, PyArray1<f64>>>, Bound<'py, PyArray1<f64>>,
 /// The direct estimate of interface tensions and cell pressures (the tensions stage) into `out`:
 /// (per cell in tissue order: its faces' tensions; per cell: its pressure; summary.json's text).
 #[pyfunction]
-#[pyo3(signature = (tissue, out, *, file, kind, gauge = None, gauge_tension = None, one_medium_tension = false, rounding_scale_m = None))]
+/// `labels` (with its voxel size and origin): the volume `tissue` was meshed from, whose imaged box
+/// cuts the cells that reach its sides, as `tissuefit tensions` does for a label volume.
+#[pyo3(signature = (tissue, out, *, file, kind, gauge = None, gauge_tension = None, one_medium_tension = false, rounding_scale_m = None, labels = None, voxel_size_m = None, origin_m = None))]
 #[allow(clippy::too_many_arguments)]
 fn tensions<'py>(
     py: Python<'py>,
@@ -528,8 +530,16 @@ fn tensions<'py>(
     gauge_tension: Option<Real>,
     one_medium_tension: bool,
     rounding_scale_m: Option<Real>,
+    labels: Option<PyReadonlyArray3<'_, u32>>,
+    voxel_size_m: Option<[Real; 3]>,
+    origin_m: Option<[Real; 3]>,
 ) -> PyResult<Tensions<'py>> {
-    use tissuefit::morphology::tensions::{Gauge, TensionSettings};
+    use tissuefit::morphology::tensions::{FieldOfView, Gauge, TensionSettings};
+    let field_of_view = match (labels, voxel_size_m) {
+        (Some(labels), Some(size)) => Some(FieldOfView::of_grid(&volume_from(labels, size, origin_m)?.grid())),
+        (None, None) => None,
+        _ => return Err(error("tensions: labels and voxel_size_m go together")),
+    };
     if let Some(t) = gauge_tension
         && !(t.is_finite() && t > 0.0)
     {
@@ -540,6 +550,7 @@ fn tensions<'py>(
         gauge: gauge.map_or(Gauge::MediumMean, |(a, b)| Gauge::Interface(a, b)),
         gauge_value: gauge_tension.unwrap_or(1.0),
         rounding_scale: rounding_scale_m,
+        field_of_view,
         ..Default::default()
     };
     let kind = if kind == "labels" { "labels" } else { "tissue" };

@@ -383,12 +383,15 @@ def tensions(
         if voxel_size is not None or target_nodes is not None:
             raise TissuefitError("tensions: voxel_size and target_nodes apply to a label volume, not to a Tissue")
         tissue, kind, rounding = data, "tissue", None
+        volume = {}
     else:
         if voxel_size is None:
             raise TissuefitError("tensions: a label volume needs its voxel_size (µm, one number or (z, y, x))")
         tissue = mesh(data, voxel_size, target_nodes=target_nodes)
         # A segmentation rounds its junctions over a voxel: the estimate's scale (as the CLI does).
         kind, rounding = "labels", max(_voxel_size(voxel_size))
+        # The imaged box cuts the cells that reach its sides (as the CLI does).
+        volume = dict(labels=_labels_u32(data), voxel_size_m=_voxel_size(voxel_size), origin_m=_origin(voxel_size))
     faces, pressure, summary = _native.tensions(
         tissue._native,
         folder,
@@ -398,6 +401,7 @@ def tensions(
         gauge_tension=gauge_tension,
         one_medium_tension=one_medium_tension,
         rounding_scale_m=rounding,
+        **volume,
     )
     return TensionMap(
         interfaces=_read_csv_columns(Path(folder) / "interfaces.csv"),

@@ -180,11 +180,6 @@ pub enum TensionError {
     InvalidGaugeValue { value: Real },
     #[error("gauge interface {a}-{b} is not an interface of this tissue (labels present: {labels})")]
     UnknownGaugeInterface { a: u32, b: u32, labels: String },
-    #[error(
-        "no cell has a free surface, so the default gauge (mean cell–medium tension) is empty; fix one interface \
-         instead (--gauge A-B)"
-    )]
-    NoMediumInterface,
     #[error("the gauge {gauge} has no junction sample: every tension is undetermined")]
     GaugeUndetermined { gauge: String },
 }
@@ -244,6 +239,9 @@ pub struct TensionMap {
     pub contact_distance: Real,
     /// How the interfaces were found.
     pub contact_rule: super::ContactRule,
+    /// What fixes the scale, e.g. "the mean cell–medium tension" (or "the mean cell–cell tension"
+    /// when no cell has a free surface).
+    pub gauge: String,
     /// Junction samples used in the force balance.
     pub samples: usize,
     /// Samples left out (a partner pair that does not touch, or an interface without a fit, or
@@ -547,14 +545,23 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         return Err(TensionError::NoJunctions { delta });
     }
 
-    // Gauge vector.
+    // Gauge vector. A tissue without free surface (a dense crop) has no cell–medium mean: the mean
+    // cell–cell tension stands in, said in a warning.
+    let mut medium_gauge_fallback = false;
     let gauge_unknowns: Vec<usize> = match settings.gauge {
         Gauge::MediumMean => {
             let mut u: Vec<usize> =
                 keys.iter().enumerate().filter(|(_, k)| k.1 == 0).map(|(k, _)| unknown_of[k]).collect();
             u.dedup();
             if u.is_empty() {
-                return Err(TensionError::NoMediumInterface);
+                medium_gauge_fallback = true;
+                u = keys.iter().enumerate().filter(|(_, k)| k.1 != 0).map(|(k, _)| unknown_of[k]).collect();
+                u.dedup();
+                warnings.push(
+                    "no cell has a free surface (a dense crop?): the gauge is the mean cell–cell tension instead of \
+                     the mean cell–medium tension; fix one interface with --gauge A-B for another scale"
+                        .to_string(),
+                );
             }
             u
         }
@@ -570,6 +577,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         },
     };
     let gauge_name = match settings.gauge {
+        Gauge::MediumMean if medium_gauge_fallback => "the mean cell–cell tension".to_string(),
         Gauge::MediumMean => "the mean cell–medium tension".to_string(),
         Gauge::Interface(a, b) => format!("interface {a}-{b}"),
     };
@@ -706,6 +714,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
     let face_interface =
         face_key.iter().map(|keys| keys.iter().map(|k| index.get(k).copied()).collect::<Vec<_>>()).collect::<Vec<_>>();
     Ok(TensionMap {
+        gauge: gauge_name,
         interfaces,
         cells: cells_out,
         face_interface,

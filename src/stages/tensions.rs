@@ -63,6 +63,9 @@ pub fn run(
     let (tension_unit, pressure_unit) = if input.gauge_in_mn_per_m { ("mN/m", "kPa") } else { ("gauge", "gauge/um") };
     let gauge = match settings.gauge {
         Gauge::MediumMean if settings.one_medium_tension => "the cell–medium tension (shared)".to_string(),
+        Gauge::MediumMean if map.gauge.contains("cell–cell") => {
+            "the mean of the cell–cell tensions (no free surface)".to_string()
+        }
         Gauge::MediumMean => "the mean of the cell–medium tensions".to_string(),
         Gauge::Interface(a, b) => format!("the tension of interface {a}-{b}"),
     };
