@@ -98,7 +98,18 @@ def wait_run(qtbot, widget, timeout=RUN_TIMEOUT_MS):
     qtbot.wait(10)  # let the queued progress signals drain
 
 
+# Screenshots are rendered at this fixed size: the canvas itself can change height between two shots
+# (the dock widget's result text wraps onto more lines), and two shots of different shapes cannot be
+# compared pixel by pixel.
+SHOT_SIZE = (400, 400)
+
+
+def screenshot(viewer) -> np.ndarray:
+    return viewer.screenshot(size=SHOT_SIZE, canvas_only=True, flash=False)
+
+
 def differing_pixels(a: np.ndarray, b: np.ndarray) -> int:
+    assert a.shape == b.shape, (a.shape, b.shape)
     return int((np.abs(a[..., :3].astype(int) - b[..., :3].astype(int)).sum(-1) > 30).sum())
 
 
@@ -287,10 +298,10 @@ def test_fit_widget_short_fit(make_napari_viewer, qtbot, demo, notes, tmp_path):
     viewer.dims.ndisplay = 3
     viewer.reset_view()
     qtbot.wait(50)
-    with_surface = viewer.screenshot(canvas_only=True, flash=False)
+    with_surface = screenshot(viewer)
     layer.visible = False
     qtbot.wait(50)
-    without = viewer.screenshot(canvas_only=True, flash=False)
+    without = screenshot(viewer)
     changed = differing_pixels(with_surface, without)
     assert changed > 0.01 * with_surface.shape[0] * with_surface.shape[1], changed
     print(f"short fit (4 evaluations) in the widget: {elapsed:.1f} s; {changed} surface pixels")
@@ -475,7 +486,7 @@ def test_tension_widget_doublet(make_napari_viewer, qtbot, demo, notes):
     labels_layer.visible = False
     viewer.reset_view()
     qtbot.wait(50)
-    empty = viewer.screenshot(canvas_only=True, flash=False)
+    empty = screenshot(viewer)
 
     w.run()
     assert w.running  # in a worker thread, not blocking the GUI
@@ -503,7 +514,7 @@ def test_tension_widget_doublet(make_napari_viewer, qtbot, demo, notes):
     # drawn: the 3-D canvas differs from the empty one
     viewer.reset_view()
     qtbot.wait(50)
-    shot = viewer.screenshot(canvas_only=True, flash=False)
+    shot = screenshot(viewer)
     changed = differing_pixels(shot, empty)
     assert changed > 0.01 * shot.shape[0] * shot.shape[1], changed
 
