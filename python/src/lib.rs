@@ -516,8 +516,9 @@ type Tensions<'py> = (Vec<Bound<'py, PyArray1<f64>>>, Bound<'py, PyArray1<f64>>,
 /// The direct estimate of interface tensions and cell pressures (the tensions stage) into `out`:
 /// (per cell in tissue order: its faces' tensions; per cell: its pressure; summary.json's text).
 #[pyfunction]
-/// `labels` (with its voxel size and origin): the volume `tissue` was meshed from, whose imaged box
-/// cuts the cells that reach its sides, as `tissuefit tensions` does for a label volume.
+/// `labels` (with its voxel size and origin): the volume `tissue` was meshed from, from which each
+/// face's neighbour and the imaged box (which cuts the cells that reach its sides) are read, as
+/// `tissuefit tensions` does for a label volume.
 #[pyo3(signature = (tissue, out, *, file, kind, gauge = None, gauge_tension = None, one_medium_tension = false, rounding_scale_m = None, labels = None, voxel_size_m = None, origin_m = None))]
 #[allow(clippy::too_many_arguments)]
 fn tensions<'py>(
@@ -535,9 +536,14 @@ fn tensions<'py>(
     origin_m: Option<[Real; 3]>,
 ) -> PyResult<Tensions<'py>> {
     use tissuefit::morphology::tensions::{FieldOfView, Gauge, TensionSettings};
-    let field_of_view = match (labels, voxel_size_m) {
-        (Some(labels), Some(size)) => Some(FieldOfView::of_grid(&volume_from(labels, size, origin_m)?.grid())),
-        (None, None) => None,
+    let (labelled, field_of_view) = match (labels, voxel_size_m) {
+        (Some(labels), Some(size)) => {
+            let volume = volume_from(labels, size, origin_m)?;
+            let mut labelled = tissue.tissue.clone();
+            tissuefit::meshing::label_interfaces(&mut labelled, &volume).map_err(error)?;
+            (Some(labelled), Some(FieldOfView::of_grid(&volume.grid())))
+        }
+        (None, None) => (None, None),
         _ => return Err(error("tensions: labels and voxel_size_m go together")),
     };
     if let Some(t) = gauge_tension
@@ -555,7 +561,8 @@ fn tensions<'py>(
     };
     let kind = if kind == "labels" { "labels" } else { "tissue" };
     let input = stages::tensions::TensionsInput { file, kind, gauge_in_mn_per_m: gauge_tension.is_some() };
-    let outcome = py.detach(|| stages::tensions::run(&tissue.tissue, &settings, &input, &out)).map_err(error)?;
+    let estimated = labelled.as_ref().unwrap_or(&tissue.tissue);
+    let outcome = py.detach(|| stages::tensions::run(estimated, &settings, &input, &out)).map_err(error)?;
     let mut faces = Vec::with_capacity(tissue.tissue.len());
     let mut at = 0;
     for cell in tissue.tissue.cells() {

@@ -390,7 +390,7 @@ def tensions(
         tissue = mesh(data, voxel_size, target_nodes=target_nodes)
         # A segmentation rounds its junctions over a voxel: the estimate's scale (as the CLI does).
         kind, rounding = "labels", max(_voxel_size(voxel_size))
-        # The imaged box cuts the cells that reach its sides (as the CLI does).
+        # Each face's neighbour and the imaged box are read from the labels (as the CLI does).
         volume = dict(labels=_labels_u32(data), voxel_size_m=_voxel_size(voxel_size), origin_m=_origin(voxel_size))
     faces, pressure, summary = _native.tensions(
         tissue._native,

@@ -11,7 +11,9 @@ use crate::imaging::{LabelReadOptions, read_labels};
 use crate::io::parse_length;
 use crate::io::{OutputPolicy, read_tissue};
 use crate::mesh::Tissue;
-use crate::meshing::{BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, mesh_labels};
+use crate::meshing::{
+    BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, label_interfaces, mesh_labels,
+};
 use crate::morphology::tensions::{FieldOfView, Gauge, TensionMap, TensionSettings};
 use crate::stages::measure::is_labels;
 use crate::stages::tensions::{OUTPUT_FILES, Summary, TensionsInput};
@@ -44,8 +46,9 @@ pub struct TensionsArgs {
     /// interface with it. A length with unit (0.1um, 1e-7). Default: 0.25 × the mean edge length.
     #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
     pub contact_distance: Option<Real>,
-    /// Find the interfaces by the contact distance even when the input's faces carry interface labels
-    /// (a multi-material mesh), from which they are otherwise read exactly.
+    /// Find the interfaces by the contact distance even when each face's neighbour is known (a
+    /// multi-material mesh's face labels, or a label volume, read along each face's normal), from which
+    /// they are otherwise read exactly.
     #[arg(long)]
     pub distance_contacts: bool,
     #[command(flatten)]
@@ -111,8 +114,16 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Labe
             border: args.border,
             ..Default::default()
         };
-        let meshing = mesh_labels(&read.volume, &options)
+        let mut meshing = mesh_labels(&read.volume, &options)
             .with_context(|| format!("meshing {} ({})", path.display(), describe_grid(&read.volume)))?;
+        // Who is on the other side of each face, read from the labels (exact, no contact distance).
+        let unresolved = label_interfaces(&mut meshing.tissue, &read.volume)?;
+        if unresolved > 0 {
+            tracing::info!(
+                "{}: {unresolved} faces met only their own label along their normal; read as free surface",
+                path.display()
+            );
+        }
         for r in meshing.report.iter().filter(|r| r.cell_id.is_none()) {
             tracing::warn!(
                 "{}: label {} not meshed: {}",

@@ -45,7 +45,7 @@ use crate::imaging::voxelize;
 use crate::io::{CellField, OutputGroup, Progress, vtp_bytes_in};
 use crate::mechanics::{CellOverrideConfig, NoObserver, Parameters, PerFaceType};
 use crate::mesh::Tissue;
-use crate::meshing::mesh_labels;
+use crate::meshing::{label_interfaces, mesh_labels};
 use crate::morphology::tensions::{FieldOfView, TensionMap, TensionSettings, estimate_tensions};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -375,7 +375,20 @@ pub fn run_per_cell(
     // Faces on the image border are cut, not free (the simulated tissue is voxelised on the same grid).
     let field_of_view = obs.labels.as_ref().map(|l| FieldOfView::of_grid(&l.grid()));
     let settings = TensionSettings { rounding_scale: voxel, field_of_view, ..Default::default() };
-    let observed_map = estimate_tensions(&obs.tissue, &settings)
+    // A label input: each face's neighbour read from the labels (exact, no contact distance), on a
+    // copy (the simulations start from the observed tissue as meshed). Face order is kept.
+    let labelled;
+    let estimated = match &obs.labels {
+        Some(volume) => {
+            let mut t = obs.tissue.clone();
+            label_interfaces(&mut t, volume)
+                .map_err(|e| InferenceError::Observed(format!("reading interfaces from the labels: {e}")))?;
+            labelled = t;
+            &labelled
+        }
+        None => &obs.tissue,
+    };
+    let observed_map = estimate_tensions(estimated, &settings)
         .map_err(|e| InferenceError::Observed(format!("the direct estimate of the observed tissue: {e}")))?;
     warnings.extend(observed_map.warnings.iter().map(|w| format!("observed tissue: {w}")));
     let observed = tensions_of(&observed_map);
@@ -644,8 +657,10 @@ fn measure_map(
             }
             let voxels =
                 voxelize(&shifted, &labels.grid()).map_err(|e| format!("voxelising the relaxed tissue: {e}"))?;
-            let meshed =
+            let mut meshed =
                 mesh_labels(&voxels, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
+            label_interfaces(&mut meshed.tissue, &voxels)
+                .map_err(|e| format!("reading the relaxed tissue's interfaces from its voxels: {e}"))?;
             let map = estimate_tensions(&meshed.tissue, settings)
                 .map_err(|e| format!("the direct estimate of the relaxed tissue (shift {k}): {e}"))?;
             Ok(tensions_of(&map))

@@ -210,6 +210,12 @@ impl Cell {
     /// Records, per face, the id of the body on the face's other side (0 = the medium), as a
     /// multi-material mesh labels its faces; errors if the count differs from the face count.
     pub fn with_interface_labels(mut self, labels: Vec<u32>) -> Result<Self, TissueError> {
+        self.set_interface_labels(labels)?;
+        Ok(self)
+    }
+
+    /// [`Cell::with_interface_labels`] in place.
+    pub fn set_interface_labels(&mut self, labels: Vec<u32>) -> Result<(), TissueError> {
         if labels.len() != self.mesh.face_count() {
             return Err(TissueError::InterfaceLabelCount {
                 cell: self.id,
@@ -218,7 +224,7 @@ impl Cell {
             });
         }
         self.interface_labels = Some(labels);
-        Ok(self)
+        Ok(())
     }
 
     /// Per face, the id of the body on its other side (0 = the medium) as the input file labelled it,

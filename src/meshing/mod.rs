@@ -50,6 +50,7 @@
 mod ball_pivot;
 mod field;
 mod generate;
+mod interfaces;
 mod labels;
 mod point_grid;
 mod poisson;
@@ -68,6 +69,7 @@ pub use labels::{
 // Which labels count as cells is `imaging`'s (measuring a label volume applies the same rules);
 // re-exported here next to the meshing options that use it.
 pub use crate::imaging::{BorderPolicy, DEFAULT_MIN_VOXELS};
+pub use interfaces::label_interfaces;
 pub use poisson::SurfaceSamples;
 pub use retriangulate::{RetriangulateError, Retriangulation, VOXELS_PER_L_MIN, retriangulate};
 
