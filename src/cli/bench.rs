@@ -9,9 +9,12 @@
 //! * `contacts-tissue FILE`: a full dynamic step with spring contacts, broken down into internal
 //!   forces, broad phase, narrow phase, force application and integration; then the same tissue
 //!   replicated on a grid (1, 8, 27, 64 copies) to show how the contact stage scales;
-//! * `growth --cells N`: the paper's growth stress test from one cell to N cells (`bench/growth.rs`).
+//! * `growth --cells N`: the paper's growth stress test from one cell to N cells (`bench/growth.rs`);
+//! * `relax FILE [--config CFG] [--steps N]`: N steps of the relaxation `simulate` would run, with
+//!   the time per node-step of each stage (`bench/relax.rs`).
 
 mod growth;
+mod relax;
 
 use super::Outcome;
 use crate::geometry::{Real, Vec3};
@@ -29,11 +32,18 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// forces-cell, forces-tissue FILE, relax-cube, contacts-tissue FILE or growth.
-    #[arg(value_parser = ["forces-cell", "forces-tissue", "relax-cube", "contacts-tissue", "growth"])]
+    /// forces-cell, forces-tissue FILE, relax-cube, contacts-tissue FILE, growth or relax FILE.
+    #[arg(value_parser = ["forces-cell", "forces-tissue", "relax-cube", "contacts-tissue", "growth", "relax"])]
     pub scenario: String,
-    /// Tissue file for forces-tissue and contacts-tissue.
+    /// Tissue file for forces-tissue, contacts-tissue and relax.
     pub file: Option<PathBuf>,
+    /// relax: the model (a parameter file, as `simulate --config`); default: the built-in defaults,
+    /// the mesh-dependent numerics derived from FILE as `simulate` derives them.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// relax: steps to run (simulation.max_steps); the run stops earlier if it converges.
+    #[arg(long, default_value_t = 1000)]
+    pub steps: u64,
     /// Repetitions (force evaluations or steps) per measurement.
     #[arg(long, default_value_t = 200)]
     pub repeat: usize,
@@ -341,6 +351,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<Outcome> {
             let (value, reached) = growth::run_growth(&bench)?;
             println!("{}", serde_json::to_string(&value)?);
             return Ok(if reached { Outcome::Success } else { Outcome::CheckFailed });
+        }
+        "relax" => {
+            let file = args.file.as_ref().context("relax needs a tissue FILE")?;
+            relax::run_relax(file, args.config.as_deref(), args.steps)?
         }
         _ => relax_cube()?,
     };

@@ -63,7 +63,8 @@ pub enum Command {
     /// (paper mode 2) or from contacts (mode 1) → a .vtp to colour by face_type in ParaView; prints
     /// the counts per face type.
     Polarize(polarize::PolarizeArgs),
-    /// Throughput benchmarks: print one JSON object (forces-cell, forces-tissue FILE, relax-cube).
+    /// Throughput benchmarks: print one JSON object (forces-cell, forces-tissue FILE, relax-cube,
+    /// contacts-tissue FILE, growth, relax FILE).
     Bench(bench::BenchArgs),
     /// Simulation parameters: print the commented defaults, or check a config file.
     #[command(subcommand)]

@@ -50,7 +50,7 @@ pub use settings::{RelaxMethod, SimulationMode, SimulationSettings};
 pub use simulation::{
     BEST_ENERGY_SLACK, BestState, CellData, CellForcesState, CellState, CheckpointRequest, LastGood, NoObserver,
     OVERLAP_WARNING, Observer, Phase, REPULSION_MARGIN, REPULSION_PER_ADHESION, REPULSION_PER_PRESSURE, RunProgress,
-    Sample, Simulation, SimulationError, SimulationState, SimulationSummary, TopologyEvent, TopologyEventKind,
-    TopologyStats, derived_repulsion,
+    Sample, Simulation, SimulationError, SimulationState, SimulationSummary, StageTimes, TopologyEvent,
+    TopologyEventKind, TopologyStats, derived_repulsion,
 };
 pub use tension::tension_energy;

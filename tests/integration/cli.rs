@@ -244,6 +244,33 @@ fn bench_prints_one_json_object() {
     assert!(v["seconds_per_node_step"].as_f64().unwrap() > 0.0);
 }
 
+/// Issue 24's scenario benchmark: `bench relax` runs the relaxation `simulate` would run and says
+/// where the time went; the stages it names are parts of the run, so they sum to at most its wall
+/// time, and the node-steps are the force evaluations times the nodes.
+#[test]
+fn bench_relax_reports_the_cost_of_each_stage_per_node_step() {
+    let o = tissuefit(&["--threads", "1", "bench", "relax", demo().to_str().unwrap(), "--steps", "30"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = json(&o);
+    assert_eq!(v["scenario"], "relax");
+    let (evaluations, node_steps) = (v["force_evaluations"].as_u64().unwrap(), v["node_steps"].as_u64().unwrap());
+    let nodes = v["nodes"].as_u64().unwrap();
+    assert!(evaluations >= 30 && v["steps"].as_u64() == Some(30), "{v}");
+    assert!(node_steps >= evaluations * nodes / 2 && node_steps <= evaluations * nodes * 2, "{v}");
+    let parts = v["breakdown_seconds_per_node_step"].as_object().unwrap();
+    let staged: f64 = ["coupling", "internal_forces", "contact_broad", "contact_narrow", "contact_apply", "remeshing"]
+        .iter()
+        .map(|k| parts[*k].as_f64().unwrap())
+        .sum();
+    let per_step = v["seconds_per_node_step"].as_f64().unwrap();
+    assert!(parts["internal_forces"].as_f64().unwrap() > 0.0 && parts["contact_narrow"].as_f64().unwrap() > 0.0, "{v}");
+    assert!(staged > 0.0 && staged <= per_step * 1.000001, "stages {staged} > the whole {per_step}: {v}");
+    assert!(parts["contact_lists"].as_f64().unwrap() <= parts["contact_broad"].as_f64().unwrap(), "{v}");
+    let o = tissuefit(&["bench", "relax"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("relax needs a tissue FILE"));
+}
+
 /// Issue 23, item 2: no output may destroy an input or replace what is not a regular file. Each
 /// refusal exits 2 with a message naming the option and the path, before any work, and leaves the
 /// file it would have replaced byte for byte (and a FIFO a FIFO).

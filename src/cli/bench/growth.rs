@@ -54,7 +54,7 @@ pub fn growth_parameters(contact_model: Option<ContactModel>, l_min: Option<Real
 
 /// CPU time (user + system, s) of this process so far, from `/proc/self/stat` (Linux; clock ticks of
 /// 1/100 s); `None` elsewhere. On a shared machine it shows how much of the wall time was ours.
-fn cpu_seconds() -> Option<Real> {
+pub fn cpu_seconds() -> Option<Real> {
     let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
     // Fields after the command name (which is in parentheses and may contain spaces).
     let rest = stat.rsplit_once(')')?.1;

@@ -228,6 +228,9 @@ pub struct ContactWorkspace {
     pub candidate_rebuilds: usize,
     topology: Vec<CellTopology>,
     pairs: Vec<Vec<Pair>>,
+    /// Per cell, the closest face found for each (node, other cell) at the last evaluation, and the
+    /// buffer the current one fills (see [`ClosestHints`]).
+    hints: Vec<ClosestHints>,
     /// Number of node–surface pairs in the last evaluation.
     pub pair_count: usize,
     /// Which contact model the springs serve: with [`ContactModel::Coupling`], two coupling cells
@@ -246,8 +249,10 @@ pub struct ContactWorkspace {
 /// Wall time of the phases of one contact evaluation.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct ContactTimings {
-    /// Topology caches, face boxes, cell prefilter and grid rebuild.
+    /// Topology caches, face boxes, cell prefilter and grid rebuild (includes `lists`).
     pub broad: std::time::Duration,
+    /// Of `broad`: rebuilding the candidate lists (zero when they were reused).
+    pub lists: std::time::Duration,
     /// Closest faces and pair records, in parallel over cells.
     pub narrow: std::time::Duration,
     /// Applying the pair forces in a fixed order.
@@ -255,8 +260,27 @@ pub struct ContactTimings {
 }
 
 /// The candidate lists' skin, as a fraction of the search radius: lists are built for the search
-/// radius times (1 + `SKIN`) and reused until some node has moved by half the skin.
-const SKIN: Real = 0.5;
+/// radius times (1 + `SKIN`) and reused until some node has moved by half the skin. On a relaxing
+/// 64-cell aggregate nearly every rebuild follows a remeshing (99 of 600 steps at skin 1.0, 102 at
+/// 0.5), so a thin skin costs few extra rebuilds and shortens every list (`bench relax`, 600 FIRE
+/// steps, contact stage per node-step: 0.5 → 2.20 µs, 0.3 → 1.77, 0.2 → 1.68 with 128 rebuilds,
+/// 0.1 → 3.87 with 494); moving tissues (growth, dynamics) rebuild more often at a thin skin.
+const SKIN: Real = 0.25;
+
+/// The lists hold only the faces within their radius (the exact distance, not the padded box) when
+/// the lists before them were reused at least this many times: the exact test costs the rebuild
+/// what it saves each later evaluation, so where the lists are rebuilt at nearly every step
+/// (dynamic steps from a raw file) it is left out. Either way the same face is selected.
+const EXACT_AFTER_REUSES: usize = 2;
+
+/// Where nodes outrun the skin (dynamics: up to 70 nm per step on embryo_1 against c = 0.2 µm) the
+/// lists would be rebuilt at nearly every step; each rebuild forced by a move widens the skin by
+/// [`SKIN_WIDEN`] up to [`SKIN_MAX`] (the fixed skin before), and each forced by new triangles
+/// narrows it by [`SKIN_NARROW`] back towards [`SKIN`]. The skin changes only which faces are
+/// listed, never which one is selected: results are the same whatever it is.
+const SKIN_MAX: Real = 0.5;
+const SKIN_WIDEN: Real = 1.5;
+const SKIN_NARROW: Real = 0.8;
 
 /// Appends the bounding box of every face of `mesh`, padded by `pad`, to `out`.
 fn padded_face_boxes(mesh: &crate::mesh::CellMesh, pad: Real, out: &mut Vec<(Vec3, Vec3)>) {
@@ -285,6 +309,19 @@ fn boxes_overlap(a: &(Vec3, Vec3), b: &(Vec3, Vec3)) -> bool {
     (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
 }
 
+/// The closest face found for each (node, other cell index, face index) of one cell at the last
+/// evaluation, nodes ascending: the narrow phase starts each search with that face's exact
+/// distance as its bound, so that the box test skips the exact computation for almost every other
+/// candidate. Only a bound: a face within the search radius is always among the candidates (see
+/// [`CandidateLists`]), so the face the search selects, ties included, is the one it selects without
+/// the hint (the first candidate at the least distance), bit for bit; a stale hint (remeshed cell,
+/// another tissue) is just a looser bound.
+#[derive(Clone, Debug, Default)]
+struct ClosestHints {
+    last: Vec<(u32, u32, u32)>,
+    next: Vec<(u32, u32, u32)>,
+}
+
 /// Candidate faces of one cell's nodes (CSR): node n's are `faces[offsets[n]..offsets[n + 1]]`,
 /// global face indices, ascending.
 #[derive(Clone, Debug, Default)]
@@ -300,17 +337,27 @@ impl NodeCandidates {
 }
 
 /// Verlet lists of the narrow phase. For every node p of every cell, the faces g of the other cells
-/// whose bounding box padded by `radius` contained p when the lists were built. While every node has
-/// moved by at most δ since then, a face whose box padded by the current search radius s contains
-/// the node now is in its list if s + 2δ ≤ `radius` (the face's box has moved by at most δ, the node
-/// by at most δ). The narrow phase then tests its candidates exactly as it would test an exhaustive
-/// grid query, in the same (ascending) order, so it selects the same closest faces, bit for bit,
-/// without rebuilding the grid or scanning a grid cube's faces at every evaluation. Any change of
-/// triangles (remeshing, division, a new tissue) rebuilds the lists.
+/// that lay within `radius` of p (closest point, exactly; or, when [`EXACT_AFTER_REUSES`] says so,
+/// whose box padded by `radius` held p, a superset) when the lists were built. While every
+/// node has moved by at most δ since then, a face within the current search radius s of the node
+/// now is in its list if s + 2δ ≤ `radius` (the distance is 1-Lipschitz in the node and in each
+/// corner of the face, each moved by at most δ). The narrow phase selects, per other cell, the
+/// first face at the least distance among the faces whose box padded by s holds the node, and keeps
+/// it only within s: a face farther than s can be neither that face nor beat it, so testing only
+/// the listed faces, in the same (ascending) order, selects the same closest faces, bit for bit,
+/// as an exhaustive grid query, without rebuilding the grid or scanning a grid cube's faces at
+/// every evaluation. Any change of triangles (remeshing, division, a new tissue) rebuilds the lists.
 #[derive(Clone, Debug, Default)]
 struct CandidateLists {
     /// Radius the lists were built for (m); 0 before the first build.
     radius: Real,
+    /// The skin of the next rebuild, as a fraction of the search radius (0 before the first: then
+    /// [`SKIN`]).
+    skin: Real,
+    /// Evaluations that reused the lists since their last build.
+    reused: usize,
+    /// Whether the current lists hold only faces within the radius (see [`EXACT_AFTER_REUSES`]).
+    exact: bool,
     /// Per cell: topology generation, and node positions when the lists were built.
     generations: Vec<u64>,
     reference: Vec<Vec<Vec3>>,
@@ -325,12 +372,16 @@ impl CandidateLists {
         self.cells.iter().all(|c| c.faces.is_empty())
     }
 
-    /// Whether the lists hold every face that a search radius `search` can select for `cells`.
-    fn valid_for(&self, cells: &[crate::mesh::Cell], search: Real) -> bool {
+    /// Whether the lists hold every face that a search radius `search` can select for `cells`; when
+    /// they do not because nodes moved too far (not because triangles changed), the next rebuild
+    /// widens the skin.
+    fn valid_for(&mut self, cells: &[crate::mesh::Cell], search: Real) -> bool {
         if self.radius <= 0.0
             || self.generations.len() != cells.len()
             || cells.iter().zip(&self.generations).any(|(c, &g)| c.mesh().topology_generation() != g)
         {
+            // Rebuilt for the triangles: the skin narrows back (nodes did not outrun it).
+            self.skin = (self.skin * SKIN_NARROW).max(SKIN);
             return false;
         }
         let moved = cells
@@ -350,7 +401,13 @@ impl CandidateLists {
             .reduce(|| 0.0, Real::max)
             .sqrt();
         // The relative margin absorbs rounding of the padded boxes.
-        search + 2.0 * moved <= self.radius * (1.0 - 1e-9)
+        let valid = search + 2.0 * moved <= self.radius * (1.0 - 1e-9);
+        if valid {
+            self.reused += 1;
+        } else if search <= self.radius {
+            self.skin = (self.skin * SKIN_WIDEN).min(SKIN_MAX);
+        }
+        valid
     }
 
     /// Builds the lists from the current positions for the search radius `search` plus the skin,
@@ -365,7 +422,11 @@ impl CandidateLists {
         grid: &mut Option<SpatialGrid>,
     ) {
         let n = cells.len();
-        let skin = SKIN * search;
+        self.skin = self.skin.clamp(SKIN, SKIN_MAX);
+        self.exact = self.reused >= EXACT_AFTER_REUSES;
+        self.reused = 0;
+        let exact = self.exact;
+        let skin = self.skin * search;
         self.radius = search + skin;
         self.generations = cells.iter().map(|c| c.mesh().topology_generation()).collect();
         self.reference.resize_with(n, Vec::new);
@@ -413,6 +474,7 @@ impl CandidateLists {
         let q = ((extents.len() as Real * CELL_QUANTILE) as usize).min(extents.len().saturating_sub(1));
         let cell_size =
             if extents.is_empty() { largest } else { *extents.select_nth_unstable_by(q, Real::total_cmp).1 };
+        let cell_size = GRID_CELL_FRACTION * cell_size;
         let grid = grid.get_or_insert_with(|| SpatialGrid::new(cell_size));
         if grid.cell_size() != cell_size {
             grid.set_cell_size(cell_size);
@@ -420,7 +482,7 @@ impl CandidateLists {
         grid.rebuild(registered);
         let grid = &*grid;
         let oversized = !grid.oversized_items().is_empty();
-        let (boxes, neighbours, cell_boxes) = (&*registered, &neighbours, &cell_boxes);
+        let (boxes, neighbours, cell_boxes, radius) = (&*registered, &neighbours, &cell_boxes, self.radius);
         self.cells.par_iter_mut().enumerate().for_each(|(a, list)| {
             let positions = cells[a].mesh().positions();
             list.offsets.push(0);
@@ -442,8 +504,26 @@ impl CandidateLists {
                         // Already sorted and unique within a grid cell.
                         found.extend_from_slice(grid.items_at(p));
                     }
+                    // Of the faces whose padded box holds p, only those within the radius (the
+                    // closest point, exactly): the narrow phase can select no other (see the type's
+                    // doc), and a box's corners hold about twice as many faces as the ball.
+                    let mut b = 0;
                     for &g in &found {
-                        if !own.contains(&g) && inside(p, &boxes[g as usize]) {
+                        if own.contains(&g) || !inside(p, &boxes[g as usize]) {
+                            continue;
+                        }
+                        if !exact {
+                            list.faces.push(g);
+                            continue;
+                        }
+                        while face_offsets[b + 1] <= g {
+                            b += 1;
+                        }
+                        let mesh_b = cells[b].mesh();
+                        let (pb, t) = (mesh_b.positions(), mesh_b.triangles()[(g - face_offsets[b]) as usize]);
+                        let q =
+                            closest_point_on_triangle(p, &pb[t[0] as usize], &pb[t[1] as usize], &pb[t[2] as usize]);
+                        if q.distance <= radius {
                             list.faces.push(g);
                         }
                     }
@@ -454,9 +534,17 @@ impl CandidateLists {
     }
 }
 
-/// Quantile of the padded face extents used as the grid cell size (measured on embryo_1: 0.75 gives
-/// the fastest contact stage; 1.0, the largest face, is 13 % slower).
+/// Quantile of the padded face extents that sets the grid cell size (measured on embryo_1 when the
+/// grid was queried at every evaluation: 0.75 gave the fastest contact stage; 1.0, the largest
+/// face, was 13 % slower).
 const CELL_QUANTILE: Real = 0.75;
+
+/// The grid cell size as a fraction of that quantile. The grid now serves only the candidate-list
+/// rebuilds, where each node reads the faces of its grid cell: half the extent holds about a
+/// quarter as many faces per cell for ~3 registrations per axis instead of 2 (64-cell aggregate,
+/// `bench relax`, 600 FIRE steps: candidate-list rebuilds 0.97 → 0.70 µs per node-step; 0.33:
+/// 1.03; 0.25: 2.82, from the registrations).
+const GRID_CELL_FRACTION: Real = 0.5;
 
 /// Relative safety margin (of the cutoff) of the narrow phase's pruning: a face is skipped only if
 /// the distance from the node to its bounding box exceeds the best distance so far (or the cutoff)
@@ -647,6 +735,11 @@ impl ContactWorkspace {
         }
         self.topology.resize_with(n, CellTopology::default);
         self.pairs.resize_with(n, Vec::new);
+        if self.hints.len() != n {
+            // Other cells (or another tissue): the hints name faces of cells that moved in the list.
+            self.hints.clear();
+            self.hints.resize_with(n, ClosestHints::default);
+        }
         // Per-cell topology (cached until the triangles change).
         self.topology.par_iter_mut().zip(cells.par_iter()).for_each(|(topo, cell)| topo.update(cell.mesh()));
 
@@ -696,9 +789,12 @@ impl ContactWorkspace {
             .collect();
         // Candidate faces of every node, reused while no node has moved far enough to matter.
         if !self.candidates.valid_for(cells, search) {
+            let rebuilding = std::time::Instant::now();
             self.candidates.rebuild(cells, &self.boxes, &self.face_offsets, search, &mut self.grid);
             self.candidate_rebuilds += 1;
+            self.timings.lists = rebuilding.elapsed();
         }
+        self.timings.broad = started.elapsed();
         if self.candidates.is_empty() {
             self.pairs.iter_mut().for_each(Vec::clear);
             for f in forces.iter_mut() {
@@ -706,7 +802,6 @@ impl ContactWorkspace {
             }
             return 0.0;
         }
-        self.timings.broad = started.elapsed();
         let started = std::time::Instant::now();
 
         // Narrow phase, per cell in parallel: for each node, the closest face of every other cell
@@ -724,14 +819,17 @@ impl ContactWorkspace {
         let lists = &self.candidates.cells;
         let coupling = self.model == ContactModel::Coupling;
         let prune_margin = PRUNE_MARGIN * cutoff;
-        self.pairs.par_iter_mut().enumerate().for_each(|(a, pairs)| {
+        self.pairs.par_iter_mut().zip(self.hints.par_iter_mut()).enumerate().for_each(|(a, (pairs, hints))| {
             pairs.clear();
+            std::mem::swap(&mut hints.last, &mut hints.next);
+            hints.next.clear();
             let cell_a = &cells[a];
             let mesh_a = cell_a.mesh();
             let list = &lists[a];
             if list.faces.is_empty() {
                 return;
             }
+            let mut hint_at = 0;
             let inside = |p: &Vec3, b: &(Vec3, Vec3)| (0..3).all(|k| b.0[k] <= p[k] && p[k] <= b.1[k]);
             for (node, p) in mesh_a.positions().iter().enumerate() {
                 let candidates = list.of(node);
@@ -752,8 +850,22 @@ impl ContactWorkspace {
                     let pb = mesh_b.positions();
                     let mut best: Option<(u32, crate::geometry::PointTriangle)> = None;
                     // Faces whose box lies farther than this cannot be the closest face within the
-                    // cutoff (see `box_distance_squared`).
-                    let mut bound = search + prune_margin;
+                    // cutoff (see `box_distance_squared`), nor farther than last evaluation's closest
+                    // face (see `ClosestHints`).
+                    let mut bound = search;
+                    let last = &hints.last;
+                    while hint_at < last.len() && (last[hint_at].0, last[hint_at].1) < (node as u32, b as u32) {
+                        hint_at += 1;
+                    }
+                    if let Some(&(hn, hb, hf)) = last.get(hint_at)
+                        && (hn, hb) == (node as u32, b as u32)
+                        && let Some(t) = mesh_b.triangles().get(hf as usize)
+                    {
+                        let q =
+                            closest_point_on_triangle(p, &pb[t[0] as usize], &pb[t[1] as usize], &pb[t[2] as usize]);
+                        bound = bound.min(q.distance);
+                    }
+                    bound += prune_margin;
                     for &g in &candidates[group_start..k] {
                         // A face farther than the cutoff cannot matter: skip it unless its padded
                         // box holds p (a few comparisons instead of an exact distance).
@@ -771,6 +883,7 @@ impl ContactWorkspace {
                         }
                     }
                     let Some((f, q)) = best else { continue };
+                    hints.next.push((node as u32, b as u32, f));
                     if q.distance > search {
                         continue;
                     }

@@ -104,7 +104,9 @@ impl<'p> Simulation<'p> {
             let settling = s.settle_steps > 0 && self.progress.step.saturating_add(s.settle_steps) >= s.max_steps;
             let scheduled =
                 s.remesh_every_steps > 0 && !settling && self.progress.step.is_multiple_of(s.remesh_every_steps);
+            let (started, before) = (std::time::Instant::now(), self.work.times.evaluation());
             let remeshed = if scheduled { self.remesh()? } else { self.repair_out_of_turn()? };
+            self.work.times.add_remeshing(started, before);
             if remeshed {
                 // New nodes: the minimiser starts afresh on the new layout (carrying FIRE's Δt, α
                 // and velocities through out-of-turn passes was tried on a 64-cell spheroid: twice

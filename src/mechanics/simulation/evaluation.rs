@@ -9,6 +9,7 @@ use crate::mechanics::polarity::{RayCastSettings, polarize_by_ray_casting, polar
 use crate::mechanics::{ContactModel, Dynamics, Polarity};
 use crate::mesh::Cell;
 use rayon::prelude::*;
+use std::time::Instant;
 
 impl<'p> Simulation<'p> {
     /// Largest nodal force of a moving cell, over γ̄·l_min.
@@ -29,6 +30,7 @@ impl<'p> Simulation<'p> {
     fn compute_forces(&mut self) {
         let numerics = &self.params.numerics;
         let coupling = numerics.contact_model == ContactModel::Coupling;
+        let started = Instant::now();
         if coupling {
             self.work.coupling.couple(
                 &mut self.tissue,
@@ -37,16 +39,29 @@ impl<'p> Simulation<'p> {
                 numerics.coupling_junctions,
             );
         }
+        let coupled = Instant::now();
         self.work.forces.compute(&self.tissue, &self.cell_params, TermSet::ALL);
+        let internal = coupled.elapsed().as_secs_f64();
+        let rebuilds = self.work.contacts.candidate_rebuilds;
         self.work.contacts.add_contacts(
             &self.tissue,
             &self.cell_params,
             numerics.contact_cutoff,
             &mut self.work.forces.cells,
         );
+        let averaging = Instant::now();
         if coupling {
             self.work.coupling.average_forces(&self.tissue, &mut self.work.forces.cells);
         }
+        let c = self.work.contacts.timings;
+        let times = &mut self.work.times;
+        times.coupling += (coupled - started).as_secs_f64() + averaging.elapsed().as_secs_f64();
+        times.internal += internal;
+        times.contact_broad += c.broad.as_secs_f64();
+        times.contact_lists += c.lists.as_secs_f64();
+        times.contact_narrow += c.narrow.as_secs_f64();
+        times.contact_apply += c.apply.as_secs_f64();
+        times.candidate_rebuilds += (self.work.contacts.candidate_rebuilds - rebuilds) as u64;
     }
 
     /// Re-types the faces by ray casting when due: at the first evaluation, every
@@ -89,17 +104,24 @@ impl<'p> Simulation<'p> {
     /// contacts after, when polarity is on) and checks the state's health.
     pub(super) fn evaluate(&mut self) -> Result<(), SimulationError> {
         if self.params.numerics.polarity == Polarity::RayCasting {
+            let started = Instant::now();
             self.polarize_if_due();
+            self.work.times.polarity += started.elapsed().as_secs_f64();
         }
         self.compute_forces();
-        if self.params.numerics.polarity == Polarity::Contacts
-            && polarize_from_contacts(&mut self.tissue, &self.work.contacts) > 0
-        {
-            // Tensions changed with the face types: the forces must match the new types.
-            self.compute_forces();
+        if self.params.numerics.polarity == Polarity::Contacts {
+            let started = Instant::now();
+            let changed = polarize_from_contacts(&mut self.tissue, &self.work.contacts);
+            self.work.times.polarity += started.elapsed().as_secs_f64();
+            if changed > 0 {
+                // Tensions changed with the face types: the forces must match the new types.
+                self.compute_forces();
+            }
         }
         self.progress.force_evaluations += 1;
         self.progress.node_evaluations += self.tissue.node_count() as u64;
+        self.work.times.evaluations += 1;
+        self.work.times.node_evaluations += self.tissue.node_count() as u64;
         if self.normal_only {
             self.project_to_normals();
             if self.params.numerics.contact_model == ContactModel::Coupling {

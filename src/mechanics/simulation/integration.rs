@@ -49,11 +49,13 @@ impl<'p> Simulation<'p> {
         self.move_nodes(true);
         self.divide_and_remove()?;
         let every = self.params.simulation.remesh_every_steps;
+        let (started, before) = (std::time::Instant::now(), self.work.times.evaluation());
         if every > 0 && self.progress.step.is_multiple_of(every) {
             self.remesh_cells(None)?;
         } else if let Some(cells) = self.cells_needing_repair() {
             self.repair_meshes(cells)?;
         }
+        self.work.times.add_remeshing(started, before);
         self.evaluate()
     }
 

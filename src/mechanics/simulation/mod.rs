@@ -71,6 +71,7 @@ use crate::mesh::remesh::RemeshError;
 use crate::mesh::{CellId, FaceType, Tissue};
 use laplace::set_laplace_target_volumes;
 use serde::Serialize;
+pub use workspace::StageTimes;
 use workspace::Workspace;
 
 /// How a run ended.
@@ -264,6 +265,11 @@ impl<'p> Simulation<'p> {
             tissue,
             params,
         })
+    }
+
+    /// Where this session's time went, per stage of the force evaluation and remeshing.
+    pub fn stage_times(&self) -> StageTimes {
+        self.work.times
     }
 
     /// The current tissue.
