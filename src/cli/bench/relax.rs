@@ -41,7 +41,8 @@ pub fn run_relax(file: &Path, config: Option<&Path>, steps: u64) -> anyhow::Resu
     let wall = started.elapsed().as_secs_f64();
     let cpu = cpu_seconds().zip(cpu_start).map(|(now, start)| now - start);
     let t = sim.stage_times();
-    let node_steps = t.node_evaluations.max(1) as Real;
+    // A fresh run: its counters are this session's, as the stage times are.
+    let node_steps = summary.node_evaluations.max(1) as Real;
     let per = |s: Real| s / node_steps;
     Ok(json!({
         "scenario": "relax",
@@ -52,15 +53,15 @@ pub fn run_relax(file: &Path, config: Option<&Path>, steps: u64) -> anyhow::Resu
         "nodes": nodes,
         "nodes_at_end": sim.tissue().node_count(),
         "steps": summary.steps,
-        "force_evaluations": t.evaluations,
-        "node_steps": t.node_evaluations,
+        "force_evaluations": summary.force_evaluations,
+        "node_steps": summary.node_evaluations,
         "converged": summary.converged,
         "residual": summary.residual,
         "wall_seconds": wall,
         "cpu_seconds": cpu,
         "seconds_per_node_step": per(wall),
         "cpu_seconds_per_node_step": cpu.map(per),
-        "candidate_rebuilds": t.candidate_rebuilds,
+        "candidate_rebuilds": sim.contacts().candidate_rebuilds,
         "breakdown_seconds_per_node_step": {
             "coupling": per(t.coupling),
             "internal_forces": per(t.internal),

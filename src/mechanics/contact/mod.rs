@@ -356,8 +356,6 @@ struct CandidateLists {
     skin: Real,
     /// Evaluations that reused the lists since their last build.
     reused: usize,
-    /// Whether the current lists hold only faces within the radius (see [`EXACT_AFTER_REUSES`]).
-    exact: bool,
     /// Per cell: topology generation, and node positions when the lists were built.
     generations: Vec<u64>,
     reference: Vec<Vec<Vec3>>,
@@ -423,9 +421,9 @@ impl CandidateLists {
     ) {
         let n = cells.len();
         self.skin = self.skin.clamp(SKIN, SKIN_MAX);
-        self.exact = self.reused >= EXACT_AFTER_REUSES;
+        // Only faces within the radius when the lists before lived long enough to pay for it.
+        let exact = self.reused >= EXACT_AFTER_REUSES;
         self.reused = 0;
-        let exact = self.exact;
         let skin = self.skin * search;
         self.radius = search + skin;
         self.generations = cells.iter().map(|c| c.mesh().topology_generation()).collect();

@@ -42,7 +42,6 @@ impl<'p> Simulation<'p> {
         let coupled = Instant::now();
         self.work.forces.compute(&self.tissue, &self.cell_params, TermSet::ALL);
         let internal = coupled.elapsed().as_secs_f64();
-        let rebuilds = self.work.contacts.candidate_rebuilds;
         self.work.contacts.add_contacts(
             &self.tissue,
             &self.cell_params,
@@ -61,7 +60,6 @@ impl<'p> Simulation<'p> {
         times.contact_lists += c.lists.as_secs_f64();
         times.contact_narrow += c.narrow.as_secs_f64();
         times.contact_apply += c.apply.as_secs_f64();
-        times.candidate_rebuilds += (self.work.contacts.candidate_rebuilds - rebuilds) as u64;
     }
 
     /// Re-types the faces by ray casting when due: at the first evaluation, every
@@ -120,8 +118,6 @@ impl<'p> Simulation<'p> {
         }
         self.progress.force_evaluations += 1;
         self.progress.node_evaluations += self.tissue.node_count() as u64;
-        self.work.times.evaluations += 1;
-        self.work.times.node_evaluations += self.tissue.node_count() as u64;
         if self.normal_only {
             self.project_to_normals();
             if self.params.numerics.contact_model == ContactModel::Coupling {

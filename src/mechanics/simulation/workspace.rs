@@ -4,7 +4,6 @@
 use super::state::CellForcesState;
 use crate::mechanics::{CellForces, ContactWorkspace, CoupledPair, CouplingWorkspace, Numerics, TissueForces};
 use crate::mesh::Cell;
-use serde::Serialize;
 
 /// The buffers and caches of the force evaluation, reused across steps. Of the last evaluation, a
 /// checkpoint keeps only what a restored run cannot recompute without evaluating again (which would
@@ -23,7 +22,7 @@ pub(super) struct Workspace {
 /// Wall time (s) spent so far in each stage of a run's force evaluations and remeshing, this
 /// session (not kept by checkpoints): what `tissuefit bench relax` reports per node-step. The rest
 /// of a run's time is moving the nodes (FIRE or integration), residuals and bookkeeping.
-#[derive(Clone, Copy, Debug, Default, Serialize)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct StageTimes {
     /// Node coupling (coupling contacts only): snapping tied pairs, new ties.
     pub coupling: f64,
@@ -42,11 +41,6 @@ pub struct StageTimes {
     /// Remeshing (scheduled passes and out-of-turn repairs), without the force evaluations it asks
     /// for (those are in their stages).
     pub remeshing: f64,
-    /// Force evaluations and the nodes they evaluated (sums over evaluations).
-    pub evaluations: u64,
-    pub node_evaluations: u64,
-    /// Candidate-list rebuilds of the contact stage.
-    pub candidate_rebuilds: u64,
 }
 
 impl StageTimes {
