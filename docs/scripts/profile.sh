@@ -38,15 +38,16 @@ work, repeat = sys.argv[1], int(sys.argv[2])
 stages = ["internal_forces", "contact_lists", "contact_broad", "contact_narrow", "contact_apply",
           "coupling", "remeshing", "moving_and_rest"]
 print("| threads | wall µs per node-step | CPU µs per node-step | " +
-      " | ".join(s.replace("_", " ") for s in stages) + " | rebuilds | nodes | force evaluations |")
-print("|---" * (len(stages) + 6) + "|")
+      " | ".join(s.replace("_", " ") for s in stages) + " | rebuilds | updates | nodes | force evaluations |")
+print("|---" * (len(stages) + 7) + "|")
 for t in (1, 2):
     runs = [json.load(open(f"{work}/bench-{t}-{k}.json")) for k in range(1, repeat + 1)]
     med = lambda f: statistics.median(f(r) for r in runs) * 1e6
     cells = [f"{med(lambda r: r['seconds_per_node_step']):.2f}", f"{med(lambda r: r['cpu_seconds_per_node_step']):.2f}"]
     cells += [f"{med(lambda r, s=s: r['breakdown_seconds_per_node_step'][s]):.3f}" for s in stages]
     r0 = runs[0]
-    cells += [str(r0["candidate_rebuilds"]), str(r0["nodes"]), str(r0["force_evaluations"])]
+    cells += [str(r0["candidate_rebuilds"]), str(r0["candidate_updates"]), str(r0["nodes"]),
+              str(r0["force_evaluations"])]
     print(f"| {t} | " + " | ".join(cells) + " |")
 print()
 print(f"Medians of {repeat} runs of `tissuefit --threads T bench relax` (600 FIRE steps from the 64-cell "

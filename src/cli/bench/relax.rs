@@ -62,6 +62,7 @@ pub fn run_relax(file: &Path, config: Option<&Path>, steps: u64) -> anyhow::Resu
         "seconds_per_node_step": per(wall),
         "cpu_seconds_per_node_step": cpu.map(per),
         "candidate_rebuilds": sim.contacts().candidate_rebuilds,
+        "candidate_updates": sim.contacts().candidate_updates,
         "breakdown_seconds_per_node_step": {
             "coupling": per(t.coupling),
             "internal_forces": per(t.internal),

@@ -55,14 +55,16 @@
 //!
 //! **Search.** Each node's candidate faces (those of other cells whose bounding box, padded by the
 //! search radius and a skin, holds the node) are found through a spatial grid and kept across
-//! evaluations until some node may have moved by half the skin or some cell's triangles changed
-//! (Verlet lists, [`CandidateLists`]). Every evaluation tests the candidates exactly as an
+//! evaluations until some node may have moved by half the skin; when a few cells' triangles change
+//! (remeshing) only the entries involving those cells are searched again (Verlet lists,
+//! [`CandidateLists`]). Every evaluation tests the candidates exactly as an
 //! exhaustive search would, so keeping them changes no result, only the cost: near equilibrium the
 //! grid is rebuilt a few times per thousand steps instead of at every step.
 //!
 //! **Determinism.** Pairs are found in parallel per cell (read-only), then forces are applied in a
 //! fixed order (cell, node), so results do not depend on the thread count.
 
+mod candidates;
 mod coupling;
 mod face_quadrature;
 mod spring;
@@ -77,6 +79,7 @@ use super::CellForces;
 use super::{CellTypeParams, ContactModel, ContactQuadrature};
 use crate::geometry::{Real, SpatialGrid, TriangleRegion, Vec3, closest_point_on_triangle, triangle_area_gradients};
 use crate::mesh::{Adjacency, Cell, CellKind, FaceType, Tissue};
+use candidates::{CandidateLists, Refresh};
 use rayon::prelude::*;
 
 /// Topology of one cell needed by contacts, cached until its triangles change.
@@ -226,6 +229,8 @@ pub struct ContactWorkspace {
     candidates: CandidateLists,
     /// How many times the candidate lists were rebuilt since this workspace was created.
     pub candidate_rebuilds: usize,
+    /// How many times they were brought up to date for a few remeshed cells instead.
+    pub candidate_updates: usize,
     topology: Vec<CellTopology>,
     pairs: Vec<Vec<Pair>>,
     /// Per cell, the closest face found for each (node, other cell) at the last evaluation, and the
@@ -258,29 +263,6 @@ pub struct ContactTimings {
     /// Applying the pair forces in a fixed order.
     pub apply: std::time::Duration,
 }
-
-/// The candidate lists' skin, as a fraction of the search radius: lists are built for the search
-/// radius times (1 + `SKIN`) and reused until some node has moved by half the skin. On a relaxing
-/// 64-cell aggregate nearly every rebuild follows a remeshing (99 of 600 steps at skin 1.0, 102 at
-/// 0.5), so a thin skin costs few extra rebuilds and shortens every list (`bench relax`, 600 FIRE
-/// steps, contact stage per node-step: 0.5 → 2.20 µs, 0.3 → 1.77, 0.2 → 1.68 with 128 rebuilds,
-/// 0.1 → 3.87 with 494); moving tissues (growth, dynamics) rebuild more often at a thin skin.
-const SKIN: Real = 0.25;
-
-/// The lists hold only the faces within their radius (the exact distance, not the padded box) when
-/// the lists before them were reused at least this many times: the exact test costs the rebuild
-/// what it saves each later evaluation, so where the lists are rebuilt at nearly every step
-/// (dynamic steps from a raw file) it is left out. Either way the same face is selected.
-const EXACT_AFTER_REUSES: usize = 2;
-
-/// Where nodes outrun the skin (dynamics: up to 70 nm per step on embryo_1 against c = 0.2 µm) the
-/// lists would be rebuilt at nearly every step; each rebuild forced by a move widens the skin by
-/// [`SKIN_WIDEN`] up to [`SKIN_MAX`] (the fixed skin before), and each forced by new triangles
-/// narrows it by [`SKIN_NARROW`] back towards [`SKIN`]. The skin changes only which faces are
-/// listed, never which one is selected: results are the same whatever it is.
-const SKIN_MAX: Real = 0.5;
-const SKIN_WIDEN: Real = 1.5;
-const SKIN_NARROW: Real = 0.8;
 
 /// Appends the bounding box of every face of `mesh`, padded by `pad`, to `out`.
 fn padded_face_boxes(mesh: &crate::mesh::CellMesh, pad: Real, out: &mut Vec<(Vec3, Vec3)>) {
@@ -321,228 +303,6 @@ struct ClosestHints {
     last: Vec<(u32, u32, u32)>,
     next: Vec<(u32, u32, u32)>,
 }
-
-/// Candidate faces of one cell's nodes (CSR): node n's are `faces[offsets[n]..offsets[n + 1]]`,
-/// global face indices, ascending.
-#[derive(Clone, Debug, Default)]
-struct NodeCandidates {
-    offsets: Vec<u32>,
-    faces: Vec<u32>,
-}
-
-impl NodeCandidates {
-    fn of(&self, node: usize) -> &[u32] {
-        &self.faces[self.offsets[node] as usize..self.offsets[node + 1] as usize]
-    }
-}
-
-/// Verlet lists of the narrow phase. For every node p of every cell, the faces g of the other cells
-/// that lay within `radius` of p (closest point, exactly; or, when [`EXACT_AFTER_REUSES`] says so,
-/// whose box padded by `radius` held p, a superset) when the lists were built. While every
-/// node has moved by at most δ since then, a face within the current search radius s of the node
-/// now is in its list if s + 2δ ≤ `radius` (the distance is 1-Lipschitz in the node and in each
-/// corner of the face, each moved by at most δ). The narrow phase selects, per other cell, the
-/// first face at the least distance among the faces whose box padded by s holds the node, and keeps
-/// it only within s: a face farther than s can be neither that face nor beat it, so testing only
-/// the listed faces, in the same (ascending) order, selects the same closest faces, bit for bit,
-/// as an exhaustive grid query, without rebuilding the grid or scanning a grid cube's faces at
-/// every evaluation. Any change of triangles (remeshing, division, a new tissue) rebuilds the lists.
-#[derive(Clone, Debug, Default)]
-struct CandidateLists {
-    /// Radius the lists were built for (m); 0 before the first build.
-    radius: Real,
-    /// The skin of the next rebuild, as a fraction of the search radius (0 before the first: then
-    /// [`SKIN`]).
-    skin: Real,
-    /// Evaluations that reused the lists since their last build.
-    reused: usize,
-    /// Per cell: topology generation, and node positions when the lists were built.
-    generations: Vec<u64>,
-    reference: Vec<Vec<Vec3>>,
-    cells: Vec<NodeCandidates>,
-    /// Scratch of the rebuild (kept to avoid reallocating): every face's box padded by the radius,
-    /// with the faces that cannot be near another cell emptied; the grid holds these.
-    registered: Vec<(Vec3, Vec3)>,
-}
-
-impl CandidateLists {
-    fn is_empty(&self) -> bool {
-        self.cells.iter().all(|c| c.faces.is_empty())
-    }
-
-    /// Whether the lists hold every face that a search radius `search` can select for `cells`; when
-    /// they do not because nodes moved too far (not because triangles changed), the next rebuild
-    /// widens the skin.
-    fn valid_for(&mut self, cells: &[crate::mesh::Cell], search: Real) -> bool {
-        if self.radius <= 0.0
-            || self.generations.len() != cells.len()
-            || cells.iter().zip(&self.generations).any(|(c, &g)| c.mesh().topology_generation() != g)
-        {
-            // Rebuilt for the triangles: the skin narrows back (nodes did not outrun it).
-            self.skin = (self.skin * SKIN_NARROW).max(SKIN);
-            return false;
-        }
-        let moved = cells
-            .par_iter()
-            .zip(self.reference.par_iter())
-            .map(|(cell, reference)| {
-                let p = cell.mesh().positions();
-                if p.len() != reference.len() {
-                    return Real::INFINITY;
-                }
-                p.iter().zip(reference).fold(0.0 as Real, |m, (x, y)| {
-                    let d = (x - y).norm_squared();
-                    // A NaN position invalidates the lists.
-                    if d.is_nan() { Real::INFINITY } else { m.max(d) }
-                })
-            })
-            .reduce(|| 0.0, Real::max)
-            .sqrt();
-        // The relative margin absorbs rounding of the padded boxes.
-        let valid = search + 2.0 * moved <= self.radius * (1.0 - 1e-9);
-        if valid {
-            self.reused += 1;
-        } else if search <= self.radius {
-            self.skin = (self.skin * SKIN_WIDEN).min(SKIN_MAX);
-        }
-        valid
-    }
-
-    /// Builds the lists from the current positions for the search radius `search` plus the skin,
-    /// through one grid of every face's box padded by that radius. `boxes` and `face_offsets` are
-    /// the faces' boxes padded by `search` and where each cell's start (as in [`ContactWorkspace`]).
-    fn rebuild(
-        &mut self,
-        cells: &[crate::mesh::Cell],
-        boxes: &[(Vec3, Vec3)],
-        face_offsets: &[u32],
-        search: Real,
-        grid: &mut Option<SpatialGrid>,
-    ) {
-        let n = cells.len();
-        self.skin = self.skin.clamp(SKIN, SKIN_MAX);
-        // Only faces within the radius when the lists before lived long enough to pay for it.
-        let exact = self.reused >= EXACT_AFTER_REUSES;
-        self.reused = 0;
-        let skin = self.skin * search;
-        self.radius = search + skin;
-        self.generations = cells.iter().map(|c| c.mesh().topology_generation()).collect();
-        self.reference.resize_with(n, Vec::new);
-        for (r, cell) in self.reference.iter_mut().zip(cells) {
-            r.clear();
-            r.extend_from_slice(cell.mesh().positions());
-        }
-        self.cells.resize_with(n, NodeCandidates::default);
-        for c in &mut self.cells {
-            c.offsets.clear();
-            c.faces.clear();
-        }
-        let registered = &mut self.registered;
-        registered.clear();
-        registered.extend(boxes.iter().map(|(lo, hi)| (lo.add_scalar(-skin), hi.add_scalar(skin))));
-        let largest = registered.iter().fold(0.0 as Real, |m, (lo, hi)| m.max((hi - lo).max()));
-        if !(largest.is_finite() && largest > 0.0) {
-            // Non-finite coordinates: no candidates, and a rebuild at the next evaluation.
-            self.radius = 0.0;
-            return;
-        }
-        // Cell-level prefilter: each cell's box, and for each cell the other cells whose boxes
-        // overlap it. A node has candidates only if it lies in one of those boxes.
-        let cell_boxes = cell_boxes(registered, face_offsets);
-        let neighbours: Vec<Vec<usize>> = (0..n)
-            .map(|a| (0..n).filter(|&b| b != a && boxes_overlap(&cell_boxes[a], &cell_boxes[b])).collect())
-            .collect();
-        if neighbours.iter().all(Vec::is_empty) {
-            return;
-        }
-        // Only faces inside another cell's box can be near its nodes; the others stay out of the
-        // grid (an inverted box is skipped by it, and never tested below).
-        for (a, near) in neighbours.iter().enumerate() {
-            let range = face_offsets[a] as usize..face_offsets[a + 1] as usize;
-            for bx in &mut registered[range] {
-                if !near.iter().any(|&b| boxes_overlap(bx, &cell_boxes[b])) {
-                    *bx = (Vec3::repeat(Real::INFINITY), Vec3::repeat(Real::NEG_INFINITY));
-                }
-            }
-        }
-        // Grid cell = a quantile of the padded face extents: small enough that a lookup returns
-        // few faces, large enough that most faces span at most 2×2×2 cells (bigger ones span more).
-        let mut extents: Vec<Real> =
-            registered.iter().map(|(lo, hi)| (hi - lo).max()).filter(|e| e.is_finite()).collect();
-        let q = ((extents.len() as Real * CELL_QUANTILE) as usize).min(extents.len().saturating_sub(1));
-        let cell_size =
-            if extents.is_empty() { largest } else { *extents.select_nth_unstable_by(q, Real::total_cmp).1 };
-        let cell_size = GRID_CELL_FRACTION * cell_size;
-        let grid = grid.get_or_insert_with(|| SpatialGrid::new(cell_size));
-        if grid.cell_size() != cell_size {
-            grid.set_cell_size(cell_size);
-        }
-        grid.rebuild(registered);
-        let grid = &*grid;
-        let oversized = !grid.oversized_items().is_empty();
-        let (boxes, neighbours, cell_boxes, radius) = (&*registered, &neighbours, &cell_boxes, self.radius);
-        self.cells.par_iter_mut().enumerate().for_each(|(a, list)| {
-            let positions = cells[a].mesh().positions();
-            list.offsets.push(0);
-            if neighbours[a].is_empty() {
-                list.offsets.resize(positions.len() + 1, 0);
-                return;
-            }
-            let own = face_offsets[a]..face_offsets[a + 1];
-            let inside = |p: &Vec3, b: &(Vec3, Vec3)| (0..3).all(|k| b.0[k] <= p[k] && p[k] <= b.1[k]);
-            let mut found: Vec<u32> = Vec::new();
-            for p in positions {
-                if neighbours[a].iter().any(|&b| inside(p, &cell_boxes[b])) {
-                    found.clear();
-                    if oversized {
-                        grid.for_each_at(p, |item| found.push(item));
-                        found.sort_unstable();
-                        found.dedup();
-                    } else {
-                        // Already sorted and unique within a grid cell.
-                        found.extend_from_slice(grid.items_at(p));
-                    }
-                    // Of the faces whose padded box holds p, only those within the radius (the
-                    // closest point, exactly): the narrow phase can select no other (see the type's
-                    // doc), and a box's corners hold about twice as many faces as the ball.
-                    let mut b = 0;
-                    for &g in &found {
-                        if own.contains(&g) || !inside(p, &boxes[g as usize]) {
-                            continue;
-                        }
-                        if !exact {
-                            list.faces.push(g);
-                            continue;
-                        }
-                        while face_offsets[b + 1] <= g {
-                            b += 1;
-                        }
-                        let mesh_b = cells[b].mesh();
-                        let (pb, t) = (mesh_b.positions(), mesh_b.triangles()[(g - face_offsets[b]) as usize]);
-                        let q =
-                            closest_point_on_triangle(p, &pb[t[0] as usize], &pb[t[1] as usize], &pb[t[2] as usize]);
-                        if q.distance <= radius {
-                            list.faces.push(g);
-                        }
-                    }
-                }
-                list.offsets.push(list.faces.len() as u32);
-            }
-        });
-    }
-}
-
-/// Quantile of the padded face extents that sets the grid cell size (measured on embryo_1 when the
-/// grid was queried at every evaluation: 0.75 gave the fastest contact stage; 1.0, the largest
-/// face, was 13 % slower).
-const CELL_QUANTILE: Real = 0.75;
-
-/// The grid cell size as a fraction of that quantile. The grid now serves only the candidate-list
-/// rebuilds, where each node reads the faces of its grid cell: half the extent holds about a
-/// quarter as many faces per cell for ~3 registrations per axis instead of 2 (64-cell aggregate,
-/// `bench relax`, 600 FIRE steps: candidate-list rebuilds 0.97 → 0.70 µs per node-step; 0.33:
-/// 1.03; 0.25: 2.82, from the registrations).
-const GRID_CELL_FRACTION: Real = 0.5;
 
 /// Relative safety margin (of the cutoff) of the narrow phase's pruning: a face is skipped only if
 /// the distance from the node to its bounding box exceeds the best distance so far (or the cutoff)
@@ -786,11 +546,17 @@ impl ContactWorkspace {
             })
             .collect();
         // Candidate faces of every node, reused while no node has moved far enough to matter.
-        if !self.candidates.valid_for(cells, search) {
-            let rebuilding = std::time::Instant::now();
-            self.candidates.rebuild(cells, &self.boxes, &self.face_offsets, search, &mut self.grid);
-            self.candidate_rebuilds += 1;
-            self.timings.lists = rebuilding.elapsed();
+        let rebuilding = std::time::Instant::now();
+        match self.candidates.refresh(cells, &self.boxes, &self.face_offsets, search, &mut self.grid) {
+            Refresh::Reused => {}
+            Refresh::Updated => {
+                self.candidate_updates += 1;
+                self.timings.lists = rebuilding.elapsed();
+            }
+            Refresh::Rebuilt => {
+                self.candidate_rebuilds += 1;
+                self.timings.lists = rebuilding.elapsed();
+            }
         }
         self.timings.broad = started.elapsed();
         if self.candidates.is_empty() {
@@ -824,7 +590,7 @@ impl ContactWorkspace {
             let cell_a = &cells[a];
             let mesh_a = cell_a.mesh();
             let list = &lists[a];
-            if list.faces.is_empty() {
+            if list.is_empty() {
                 return;
             }
             let mut hint_at = 0;
