@@ -88,7 +88,12 @@ fn run(a: &Doublet) -> Result<(), String> {
     }
     let started = Instant::now();
     let mut sim = Simulation::new(tissue, &p).map_err(|e| e.to_string())?;
-    sim.set_fire_contact_masses(!a.unit_masses);
+    // Contact masses as `simulate` chooses them (only where contacts are stiff: R = 5 and 10 µm
+    // here), or off with --unit-masses. (Forcing them on everywhere made the R = 2 µm,
+    // w/(2γ) = 0.5 doublet churn: 33,844 splits in 15,000 steps instead of 645 in 12,000.)
+    if a.unit_masses {
+        sim.set_fire_contact_masses(false);
+    }
     let summary: SimulationSummary = sim.run(&mut NoObserver).map_err(|e| e.to_string())?;
     let wall = started.elapsed().as_secs_f64();
     let nodes = sim.tissue().cells()[0].mesh().node_count();

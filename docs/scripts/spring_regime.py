@@ -12,7 +12,11 @@ R = 10 µm rows with FIRE's contact masses off (`--unit-masses`), as every run w
     cargo build --release --example spring_regime
     python3 docs/scripts/spring_regime.py --jobs 2 --markdown docs/src/generated/spring-regime.md
 
-About 35 minutes on 2 cores (one thread per run). `--quick` runs four rows.
+About 35 minutes on 2 cores (one thread per run). `--quick` runs four rows. To rerun only some
+radii and keep the other rows of a table made by the same code:
+
+    python3 docs/scripts/spring_regime.py --radii 2 --keep docs/src/generated/spring-regime.md \
+        --markdown docs/src/generated/spring-regime.md
 """
 
 import argparse
@@ -69,6 +73,29 @@ def run_one(binary, steps, timeout, spec):
     return fields
 
 
+def read_table(path):
+    """The rows of a table this script wrote, as run_one returns them (spec, and its fields or error)."""
+    rows = []
+    for line in open(path, encoding="utf-8"):
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) < 17 or cells[0] in ("quadrature", "---"):
+            continue
+        q, r, l, c, _, ratio, start = cells[:7]
+        num = lambda x: int(x) if float(x).is_integer() and "." not in x else float(x)
+        spec = (q, num(r), float(l), float(c), float(ratio), start)
+        if cells[8].startswith("failed: "):
+            rows.append({"spec": spec, "error": cells[8][len("failed: "):]})
+            continue
+        steps = cells[12].split(" ")[0]
+        splits_collapses = cells[15]
+        rows.append({"spec": spec, "yd_deg": cells[7].rstrip("°"), "half_angle_deg": cells[8].rstrip("°"),
+                     "error_deg": cells[9].rstrip("°"), "overlap_pct": cells[10].rstrip(" %"), "xi": cells[11],
+                     "steps": steps, "converged": "false" if "(max)" in cells[12] else "true",
+                     "residual": cells[13], "nodes_per_cell": cells[14], "splits": splits_collapses,
+                     "collapses": "0", "wall_s": cells[16].rstrip(" s")})
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--binary", default=os.path.join(ROOT, "target", "release", "examples", "spring_regime"))
@@ -77,11 +104,22 @@ def main():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per run before it is stopped")
     ap.add_argument("--markdown", help="write the table here")
+    ap.add_argument("--radii", help="run only these radii (µm, comma-separated)")
+    ap.add_argument("--keep", help="with --radii: take the other rows from this table")
     a = ap.parse_args()
     runs = grid(a.quick)
+    kept = {}
+    if a.radii:
+        radii = {float(r) for r in a.radii.split(",")}
+        if a.keep:
+            kept = {row["spec"]: row for row in read_table(a.keep)}
+        missing = [s for s in runs if float(s[1]) not in radii and s not in kept]
+        if missing:
+            sys.exit(f"--radii without a row for {missing[0]} in --keep: rerun those radii too")
     rows = []
     with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
-        for row in pool.map(lambda s: run_one(a.binary, a.steps, a.timeout, s), runs):
+        todo = lambda s: kept[s] if s in kept and float(s[1]) not in radii else run_one(a.binary, a.steps, a.timeout, s)
+        for row in pool.map(todo, runs):
             q, r, l, c, ratio, start = row["spec"]
             msg = row.get("error") or f"half-angle {row['half_angle_deg']}° vs {row['yd_deg']}° ({row['error_deg']}°)"
             print(f"{q} R={r} l={l} c={c} w/2γ={ratio} {start}: {msg}", file=sys.stderr, flush=True)
