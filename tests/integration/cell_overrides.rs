@@ -3,6 +3,7 @@
 //! `model_interfaces.csv` report each cell's parameters and each interface's tension T_ab.
 
 use crate::support::cli::tissuefit;
+use crate::support::run_dirs::csv_maps as rows;
 use tissuefit::geometry::{Real, Vec3};
 use tissuefit::io::{ReadOptions, read_tissue, write_tissue};
 use tissuefit::mechanics::{CellOverrideConfig, ContactModel, Parameters, PerFaceType, Polarity};
@@ -45,16 +46,6 @@ fn doublet_and_model(dir: &std::path::Path) -> (String, String) {
     (tissue_path.to_str().unwrap().to_owned(), model_path.to_str().unwrap().to_owned())
 }
 
-/// The rows of a CSV file as (header → value) maps.
-fn rows(path: &std::path::Path) -> Vec<std::collections::HashMap<String, String>> {
-    let mut reader = csv::Reader::from_path(path).unwrap();
-    let headers = reader.headers().unwrap().clone();
-    reader
-        .records()
-        .map(|r| headers.iter().map(str::to_owned).zip(r.unwrap().iter().map(str::to_owned)).collect())
-        .collect()
-}
-
 #[test]
 fn cell_overrides_in_a_model_file_reach_the_run_its_tissue_and_its_tables() {
     let dir = tempfile::tempdir().unwrap();
@@ -72,7 +63,7 @@ fn cell_overrides_in_a_model_file_reach_the_run_its_tissue_and_its_tables() {
 
     let cells = rows(&out.join("model_cells.csv"));
     assert_eq!(cells.len(), 2);
-    let value = |row: &std::collections::HashMap<String, String>, key: &str| row[key].parse::<Real>().unwrap();
+    let value = |row: &std::collections::BTreeMap<String, String>, key: &str| row[key].parse::<Real>().unwrap();
     assert_eq!(cells[0]["own_values"], "false");
     assert_eq!(cells[1]["own_values"], "true");
     assert_eq!(value(&cells[0], "surface_tension_lateral_n_per_m"), 0.6e-3);

@@ -51,14 +51,7 @@ fn write_config(dir: &Path, per_cell: &str) -> PathBuf {
     path
 }
 
-fn rows(path: &Path) -> Vec<BTreeMap<String, String>> {
-    let mut reader = csv::Reader::from_path(path).unwrap();
-    reader.deserialize().map(|r| r.unwrap()).collect()
-}
-
-fn number(row: &BTreeMap<String, String>, key: &str) -> Real {
-    row[key].parse().unwrap_or_else(|_| panic!("{key} = {:?}", row[key]))
-}
+use crate::support::run_dirs::{csv_maps as rows, number};
 
 fn median(mut v: Vec<Real>) -> Real {
     v.sort_by(|a, b| a.total_cmp(b));

@@ -16,6 +16,7 @@
 //! answer would fail the same bound (it is 25 % off).
 
 use crate::support::cli::tissuefit;
+use crate::support::run_dirs::{csv_maps as rows, number};
 use std::collections::HashMap;
 use std::path::Path;
 use tissuefit::geometry::{Real, Vec3};
@@ -40,20 +41,6 @@ fn ring(gap: Real) -> Tissue {
         })
         .collect();
     Tissue::from_cells(cells).unwrap()
-}
-
-/// The rows of a CSV file as (header → value) maps.
-fn rows(path: &Path) -> Vec<HashMap<String, String>> {
-    let mut reader = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let headers = reader.headers().unwrap().clone();
-    reader
-        .records()
-        .map(|r| headers.iter().map(str::to_owned).zip(r.unwrap().iter().map(str::to_owned)).collect())
-        .collect()
-}
-
-fn number(row: &HashMap<String, String>, key: &str) -> Real {
-    row[key].parse().unwrap_or_else(|e| panic!("{key} = {:?}: {e}", row[key]))
 }
 
 /// Relaxes `tissue` with `p` through the command line, reads the final file back with `tissuefit

@@ -274,14 +274,7 @@ impl CandidateLists {
             grid.set_cell_size(cell_size);
         }
         grid.rebuild(registered);
-        let search = Search {
-            grid,
-            oversized: !grid.oversized_items().is_empty(),
-            cells,
-            boxes: registered,
-            face_offsets,
-            radius: exact.then_some(self.radius),
-        };
+        let search = Search::new(grid, cells, registered, face_offsets, exact.then_some(self.radius));
         let (neighbours, cell_boxes) = (&neighbours, &cell_boxes);
         self.cells.par_iter_mut().enumerate().for_each(|(a, list)| {
             let positions = cells[a].mesh().positions();
@@ -328,14 +321,7 @@ impl CandidateLists {
             .collect();
         cull(registered, face_offsets, &cell_boxes, &neighbours);
         grid.rebuild(registered);
-        let search = Search {
-            grid,
-            oversized: !grid.oversized_items().is_empty(),
-            cells,
-            boxes: registered,
-            face_offsets,
-            radius: Some(build),
-        };
+        let search = Search::new(grid, cells, registered, face_offsets, Some(build));
         let old_offsets = &self.offsets;
         self.scratch.resize_with(n, NodeCandidates::default);
         let (neighbours, cell_boxes) = (&neighbours, &cell_boxes);
@@ -426,7 +412,17 @@ struct Search<'a> {
     radius: Option<Real>,
 }
 
-impl Search<'_> {
+impl<'a> Search<'a> {
+    fn new(
+        grid: &'a SpatialGrid,
+        cells: &'a [Cell],
+        boxes: &'a [(Vec3, Vec3)],
+        face_offsets: &'a [u32],
+        radius: Option<Real>,
+    ) -> Self {
+        Search { grid, oversized: !grid.oversized_items().is_empty(), cells, boxes, face_offsets, radius }
+    }
+
     /// Appends to `out`, ascending, the faces of the other cells b with `accept(b)` (not of cell
     /// `own`) whose registered box holds `p` and, with a radius, that lie within it of `p`.
     /// `found` is scratch.
