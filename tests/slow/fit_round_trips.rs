@@ -11,7 +11,6 @@ use tissuefit::mechanics::ContactModel;
 use tissuefit::meshing::{LabelMeshingOptions, mesh_labels};
 
 use crate::support::round_trip;
-use crate::support::young_dupre;
 use round_trip::{AGGREGATE_GAMMA, aggregate_fit_config, aggregate_model, initial_aggregate, observe_aggregate};
 
 use crate::support::fit_doublet::*;

@@ -18,7 +18,6 @@
 use crate::support::cli::tissuefit;
 use crate::support::run_dirs::{csv_maps as rows, number};
 use std::collections::HashMap;
-use std::path::Path;
 use tissuefit::geometry::{Real, Vec3};
 use tissuefit::io::write_tissue;
 use tissuefit::mechanics::{
