@@ -173,7 +173,8 @@ impl CandidateLists {
             self.rebuild(cells, boxes, face_offsets, search, grid);
             return Refresh::Rebuilt;
         }
-        if fits && (count as Real) <= UPDATE_MAX_CHANGED_FRACTION * n as Real && grid.is_some() {
+        let few = (count as Real) <= UPDATE_MAX_CHANGED_FRACTION * n as Real;
+        if let Some(grid) = grid.as_mut().filter(|_| fits && few) {
             self.update(cells, boxes, face_offsets, search, grid, &changed, moved);
             return Refresh::Updated;
         }
@@ -237,20 +238,13 @@ impl CandidateLists {
         self.cells.resize_with(n, NodeCandidates::default);
         self.cells.iter_mut().for_each(NodeCandidates::clear);
         let registered = &mut self.registered;
-        registered.clear();
-        registered.extend(boxes.iter().map(|(lo, hi)| (lo.add_scalar(-skin), hi.add_scalar(skin))));
+        let (cell_boxes, neighbours) = register(registered, boxes, skin, face_offsets, |_, _| true);
         let largest = registered.iter().fold(0.0 as Real, |m, (lo, hi)| m.max((hi - lo).max()));
         if !(largest.is_finite() && largest > 0.0) {
             // Non-finite coordinates: no candidates, and a rebuild at the next evaluation.
             self.radius = 0.0;
             return;
         }
-        // Cell-level prefilter: each cell's box, and for each cell the other cells whose boxes
-        // overlap it. A node has candidates only if it lies in one of those boxes.
-        let cell_boxes = cell_boxes(registered, face_offsets);
-        let neighbours: Vec<Vec<usize>> = (0..n)
-            .map(|a| (0..n).filter(|&b| b != a && boxes_overlap(&cell_boxes[a], &cell_boxes[b])).collect())
-            .collect();
         if neighbours.iter().all(Vec::is_empty) {
             // No candidates (every node's list empty, as an update expects).
             for (list, cell) in self.cells.iter_mut().zip(cells) {
@@ -298,27 +292,17 @@ impl CandidateLists {
         boxes: &[(Vec3, Vec3)],
         face_offsets: &[u32],
         search: Real,
-        grid: &mut Option<SpatialGrid>,
+        grid: &mut SpatialGrid,
         changed: &[bool],
         moved: Real,
     ) {
         let n = cells.len();
-        let Some(grid) = grid.as_mut() else { return };
         // New entries are found out to the radius plus the others' move (see the type's doc).
         let build = self.radius + moved;
-        let pad = build - search;
         let registered = &mut self.registered;
-        registered.clear();
-        registered.extend(boxes.iter().map(|(lo, hi)| (lo.add_scalar(-pad), hi.add_scalar(pad))));
-        let cell_boxes = cell_boxes(registered, face_offsets);
         // A changed cell searches all its neighbours; an unchanged one only its changed neighbours.
-        let neighbours: Vec<Vec<usize>> = (0..n)
-            .map(|a| {
-                (0..n)
-                    .filter(|&b| b != a && (changed[a] || changed[b]) && boxes_overlap(&cell_boxes[a], &cell_boxes[b]))
-                    .collect()
-            })
-            .collect();
+        let (cell_boxes, neighbours) =
+            register(registered, boxes, build - search, face_offsets, |a, b| changed[a] || changed[b]);
         cull(registered, face_offsets, &cell_boxes, &neighbours);
         grid.rebuild(registered);
         let search = Search::new(grid, cells, registered, face_offsets, Some(build));
@@ -381,6 +365,26 @@ impl CandidateLists {
         self.offsets.clear();
         self.offsets.extend_from_slice(face_offsets);
     }
+}
+
+/// Fills `registered` with every face's box (`boxes`) padded by `pad`; returns each cell's box
+/// (the cell-level prefilter: a node has candidates only inside a neighbour's box) and, for each
+/// cell a, the other cells b with `related(a, b)` whose boxes overlap a's.
+fn register(
+    registered: &mut Vec<(Vec3, Vec3)>,
+    boxes: &[(Vec3, Vec3)],
+    pad: Real,
+    face_offsets: &[u32],
+    related: impl Fn(usize, usize) -> bool,
+) -> (Vec<(Vec3, Vec3)>, Vec<Vec<usize>>) {
+    registered.clear();
+    registered.extend(boxes.iter().map(|(lo, hi)| (lo.add_scalar(-pad), hi.add_scalar(pad))));
+    let cell_boxes = cell_boxes(registered, face_offsets);
+    let n = cell_boxes.len();
+    let neighbours = (0..n)
+        .map(|a| (0..n).filter(|&b| b != a && related(a, b) && boxes_overlap(&cell_boxes[a], &cell_boxes[b])).collect())
+        .collect();
+    (cell_boxes, neighbours)
 }
 
 /// Whether `p` lies in the box `b`.
