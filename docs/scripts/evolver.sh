@@ -13,7 +13,12 @@
 #   docs/src/generated/noise-scatter.md  what the noise does to the measured shape before any fit: the same
 #                                        two masks meshed with denoise_voxels = 2 and measured, clean and
 #                                        over 6 noise seeds of each kind (mean ± SD; seconds)
-# Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|noise-scatter|all]   (default all)
+#   docs/src/generated/noise-roughen.md  fits of the doublet, held-out triplet and 12-cell ball at 10 voxels
+#                                        per diameter with a voxel of wavy boundary noise, denoise_voxels = 2,
+#                                        the simulated masks roughened by forward.roughen_voxels = "auto",
+#                                        not at all, and by the true 1 voxel (about an hour; ROUGHEN="auto none"
+#                                        narrows it)
+# Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|noise-scatter|roughen|all]   (default all)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 what=${1:-all}
@@ -74,6 +79,34 @@ if [ "$what" = noise ] || [ "$what" = all ]; then
                 --template "$template" --work "$work/runs-$noise-$meshing" --markdown "$work/$noise-$meshing.md"
             { echo "**$what_noise, $how**"; echo; cat "$work/$noise-$meshing.md"; echo; } >> "$out/noise-fits.md"
         done
+    done
+fi
+if [ "$what" = roughen ] || [ "$what" = all ]; then
+    cargo build --release
+    work=$(mktemp -d)
+    fixtures=validation/evolver/fixtures
+    for c in doublet heldout_triplet ball12; do
+        mkdir -p "$work/wavy/$c"
+        cp "$fixtures/$c/truth.json" "$work/wavy/$c/"
+        target/release/tissuefit generate noise "$fixtures/$c/labels_10.tif" --amplitude 1 \
+            --correlation 1.5 --seed 1 --out "$work/wavy/$c/labels_10.tif" > /dev/null
+    done
+    : > "$out/noise-roughen.md"
+    for rough in ${ROUGHEN:-auto none 1.0}; do
+        template="$work/roughen-$rough.toml"
+        sed "s/^target_nodes = 400 .*/&\ndenoise_voxels = 2/" validation/evolver/fit-template.toml > "$template"
+        case $rough in
+            none) how="not roughened" ;;
+            auto) how='roughened by `forward.roughen_voxels = "auto"` (correlation 1.5)'
+                  sed -i 's/^accept_residual = .*/&\nroughen_voxels = "auto"\nroughen_correlation = 1.5/' "$template" ;;
+            *) how="roughened by the true noise, \`forward.roughen_voxels = $rough\` (correlation 1.5)"
+               sed -i "s/^accept_residual = .*/&\nroughen_voxels = $rough\nroughen_correlation = 1.5/" "$template" ;;
+        esac
+        grep -q "^denoise_voxels = 2" "$template"
+        python3 validation/evolver/run_fits.py --clusters "$work/wavy" --resolutions 10 \
+            --template "$template" --work "$work/runs-$rough" --markdown "$work/$rough.md"
+        { echo "**1 voxel RMS of wavy noise (--correlation 1.5), mesh.denoise_voxels = 2, simulated masks $how**"
+          echo; cat "$work/$rough.md"; echo; } >> "$out/noise-roughen.md"
     done
 fi
 if [ "$what" = noise-scatter ] || [ "$what" = all ]; then

@@ -46,7 +46,7 @@ pub use labels::{
 };
 pub use limits::{DEFAULT_MEMORY_LIMIT, MEMORY_LIMIT_ENV, check_voxel_memory, format_bytes, memory_limit, parse_bytes};
 pub use metadata::VoxelSizeSource;
-pub use noise::{BoundaryNoise, NoiseStats, denoise_labels, gaussian_blur, perturb_boundaries};
+pub use noise::{BoundaryNoise, NoiseStats, boundary_roughness, denoise_labels, gaussian_blur, perturb_boundaries};
 pub use overlap::{LabelOverlap, label_overlap};
 pub use tiff_read::{
     FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff, read_label_tiff_bytes,

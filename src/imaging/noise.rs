@@ -191,6 +191,44 @@ pub fn denoise_labels(volume: &LabelVolume, sigma_voxels: Real) -> Result<(Label
     Ok((LabelVolume::new(out, size, volume.origin())?, changed))
 }
 
+/// How rough a label volume's boundaries are: the voxels that a vote of σ = 2 voxels
+/// ([`denoise_labels`]) gives another label, per boundary voxel (one with a face neighbour of
+/// another label, background included). A smooth boundary loses only the voxels its curvature
+/// rounds off (about σ²/R deep); boundary noise adds its bumps, about in proportion to its
+/// amplitude (a vote of σ = 1 saturates above half a voxel of noise). The value depends on the
+/// cells' size as much as on the noise, so it says something only next to the same statistic of
+/// shapes of the same size (a fit calibrates `forward.roughen_voxels` with it on its own relaxed
+/// tissue). `None` for a volume without boundaries.
+pub fn boundary_roughness(volume: &LabelVolume) -> Result<Option<Real>, ImagingError> {
+    let labels = volume.labels();
+    let (nz, ny, nx) = labels.dim();
+    let boundary: usize = (0..nz)
+        .into_par_iter()
+        .map(|z| {
+            let mut count = 0;
+            for y in 0..ny {
+                for x in 0..nx {
+                    let own = labels[[z, y, x]];
+                    let differs = |p: [usize; 3]| labels[p] != own;
+                    let edge = (z > 0 && differs([z - 1, y, x]))
+                        || (z + 1 < nz && differs([z + 1, y, x]))
+                        || (y > 0 && differs([z, y - 1, x]))
+                        || (y + 1 < ny && differs([z, y + 1, x]))
+                        || (x > 0 && differs([z, y, x - 1]))
+                        || (x + 1 < nx && differs([z, y, x + 1]));
+                    count += usize::from(edge);
+                }
+            }
+            count
+        })
+        .sum();
+    if boundary == 0 {
+        return Ok(None);
+    }
+    let (_, changed) = denoise_labels(volume, 2.0)?;
+    Ok(Some(changed as Real / boundary as Real))
+}
+
 /// Separable Gaussian blur of standard deviation `sigma` (m) on a grid of voxel size `size` (z, y, x),
 /// kernel truncated at 3σ, zero outside the array, and never longer than the axis (taps beyond it
 /// never meet a voxel; an unbounded kernel on a strongly anisotropic grid did not fit in memory).
@@ -240,6 +278,25 @@ mod tests {
         assert!(b[[6, 6, 6]] < 1.0 && b[[6, 6, 7]] > b[[6, 7, 6]]);
         assert_eq!((b[[6, 6, 12]], b[[6, 10, 6]]), (0.0, 0.0));
         assert_eq!(gaussian_blur(f.clone(), [1.0; 3], 0.0), f);
+    }
+
+    #[test]
+    fn roughness_grows_with_the_noise_and_a_flat_boundary_has_none() {
+        let ball = Array3::from_shape_fn((28, 28, 28), |(z, y, x)| {
+            let r2 = [z, y, x].iter().map(|&i| (i as Real - 13.5).powi(2)).sum::<Real>();
+            u32::from(r2 <= 81.0)
+        });
+        let ball = LabelVolume::new(ball, [1e-6; 3], Vec3::zeros()).unwrap();
+        let clean = boundary_roughness(&ball).unwrap().unwrap();
+        let rough = |amplitude| {
+            let (v, _) = perturb_boundaries(&ball, &BoundaryNoise { amplitude, correlation: 1.5, seed: 1 }).unwrap();
+            boundary_roughness(&v).unwrap().unwrap()
+        };
+        let (half, one, two) = (rough(0.5), rough(1.0), rough(2.0));
+        assert!(clean < half && half < one && one < two, "{clean} {half} {one} {two}");
+        assert_eq!(boundary_roughness(&halves()).unwrap(), Some(0.0));
+        let empty = LabelVolume::new(Array3::zeros((4, 4, 4)), [1e-6; 3], Vec3::zeros()).unwrap();
+        assert_eq!(boundary_roughness(&empty).unwrap(), None);
     }
 
     /// Two half-spaces (labels 1 | 2) in a 24³ box.

@@ -386,6 +386,77 @@ pub struct ForwardConfig {
     /// one voxelisation and meshing per shift (run in parallel). Default 1.
     #[serde(default = "one_shift")]
     pub measure_shifts: usize,
+    /// With `measure_like_data`: the boundary noise the observed mask carries, added to every simulated
+    /// mask before it is meshed (`tissuefit generate noise` with this amplitude, each sub-voxel shift
+    /// its own fixed seed), so that the roughness a segmenter left in the data is measured in the
+    /// simulation too instead of being read as shape. RMS displacement of the boundaries in voxels
+    /// (about 1 for a typical segmentation; 0: none), or `"auto"`: estimated before the fit, by
+    /// relaxing the start point and roughening its mask until its boundaries are as rough as the
+    /// observed ones (result.json's `roughen`). The profile then allows for the scatter one draw of
+    /// that noise causes (result.json's `noise.mask`). Default 0.
+    #[serde(default)]
+    pub roughen_voxels: Roughen,
+    /// Width (Gaussian σ, voxels) of the bumps of `roughen_voxels`: 0 independent from voxel to voxel,
+    /// 1–2 the wavy boundaries of a smooth segmentation error. Default 1.5.
+    #[serde(default = "default_roughen_correlation")]
+    pub roughen_correlation: Real,
+}
+
+/// `forward.roughen_voxels`: an amplitude in voxels, or `"auto"`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, JsonSchema)]
+#[serde(untagged)]
+pub enum Roughen {
+    /// This RMS displacement (voxels).
+    Voxels(Real),
+    /// Estimated from the observed mask.
+    Estimate(RoughenEstimate),
+}
+
+/// The word `"auto"`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum RoughenEstimate {
+    Auto,
+}
+
+impl<'de> Deserialize<'de> for Roughen {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = Roughen;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("forward.roughen_voxels: a number of voxels (about 1 for a segmentation's error; 0: none) or \"auto\"")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Roughen, E> {
+                Ok(Roughen::Voxels(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Roughen, E> {
+                Ok(Roughen::Voxels(v as Real))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Roughen, E> {
+                Ok(Roughen::Voxels(v as Real))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Roughen, E> {
+                match v {
+                    "auto" => Ok(Roughen::Estimate(RoughenEstimate::Auto)),
+                    other => Err(E::custom(format!(
+                        "forward.roughen_voxels: expected a number of voxels or \"auto\"; got \"{other}\""
+                    ))),
+                }
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
+}
+
+impl Default for Roughen {
+    fn default() -> Self {
+        Roughen::Voxels(0.0)
+    }
+}
+
+fn default_roughen_correlation() -> Real {
+    1.5
 }
 
 fn one_shift() -> usize {
@@ -656,6 +727,16 @@ impl FitConfig {
                 self.forward.accept_residual
             ));
         }
+        crate::imaging::BoundaryNoise {
+            amplitude: match self.forward.roughen_voxels {
+                Roughen::Voxels(a) => a,
+                Roughen::Estimate(_) => 1.0,
+            },
+            correlation: self.forward.roughen_correlation,
+            seed: 0,
+        }
+        .check()
+        .map_err(|e| format!("forward.roughen_voxels / roughen_correlation: {e}"))?;
         if self.forward.measure_shifts == 0 {
             return Err("forward.measure_shifts: must be ≥ 1 (1: measure the relaxed tissue as it lies)".into());
         }

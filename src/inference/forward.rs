@@ -53,10 +53,10 @@
 //! angle 71.2° vs 62.9°, 8 scales; before it: sphericity −0.0026, rim angle −5.6°) and saves no steps (the coupling residual hovers, so every pass runs its max_steps); see
 //! `tests/integration/fit.rs`, `warm_start_reaches_other_metrics_than_a_cold_start_so_evaluations_start_cold`.
 
-use super::config::{ForwardConfig, ObjectiveConfig};
+use super::config::{ForwardConfig, ObjectiveConfig, Roughen};
 use super::space::ParameterSpace;
 use crate::geometry::{Real, Vec3};
-use crate::imaging::{LabelVolume, label_overlap, voxelize};
+use crate::imaging::{BoundaryNoise, LabelVolume, boundary_roughness, label_overlap, perturb_boundaries, voxelize};
 use crate::io::{Heartbeat, Watch};
 use crate::mechanics::{
     CellTypeParams, CheckpointRequest, NoObserver, Observer, Parameters, Simulation, SimulationSummary,
@@ -65,6 +65,9 @@ use crate::mesh::Tissue;
 use crate::meshing::{LabelMeshingOptions, mesh_labels};
 use crate::morphology::{MeasureSettings, measure_tissue};
 use rayon::prelude::*;
+
+/// Seed of the first measurement's roughening noise (`forward.roughen_voxels`); measurement k uses this + k.
+const ROUGHEN_SEED: u64 = 0x005e_ed0f_0000;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -326,7 +329,52 @@ pub struct ForwardModel {
     /// A caller's stop request: a relaxation in progress ends at its step (the evaluation is then
     /// not recorded, see [`super::Evaluator::evaluate_batch`]).
     pub watch: Watch,
+    /// The boundary noise (RMS voxels) added to every simulated mask before it is measured like the
+    /// data: `forward.roughen_voxels`, or its estimate ([`ForwardModel::calibrate_roughness`]); 0: none.
+    pub roughen: Real,
+    /// The objective one draw of that noise adds at the truth ([`RoughnessCalibration::mask_noise`]),
+    /// which the profile's threshold allows for; 0 without roughening.
+    pub mask_noise: Real,
 }
+
+/// What [`ForwardModel::calibrate_roughness`] found: the estimated amplitude and the boundary
+/// roughness ([`boundary_roughness`]) of the observed mask and of the start point's relaxed mask
+/// roughened by it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RoughnessCalibration {
+    /// RMS boundary displacement added to the simulated masks (voxels).
+    pub voxels: Real,
+    /// Width of its bumps (voxels), `forward.roughen_correlation`.
+    pub correlation: Real,
+    /// Whether it was estimated (`roughen_voxels = "auto"`) rather than given.
+    pub estimated: bool,
+    /// Boundary roughness of the observed mask.
+    pub observed: Real,
+    /// Boundary roughness of the start point's relaxed mask, clean and roughened (mean over the
+    /// measurements' noise seeds).
+    pub simulated_clean: Real,
+    pub simulated: Real,
+    /// Why the estimate is not to be trusted, when it is not (at a limit of its range).
+    pub warning: Option<String>,
+    /// Standard deviation of each fitted summary metric over [`MASK_NOISE_DRAWS`] single draws of
+    /// the noise on the start point's mask: how far one segmentation of the same shape can lie from
+    /// another.
+    pub metric_sd: std::collections::BTreeMap<&'static str, Real>,
+    /// Those deviations in objective units, Σ w·(sd/s)² / Σ w: what the observed mask's own noise
+    /// adds to the objective at the truth, on average. The profile's threshold adds
+    /// `noise_sigmas`² times it, so reported ranges hold what another draw of the noise would give.
+    pub mask_noise: Real,
+}
+
+/// The smallest roughened simulated cell meshed like the data (the observed mask's cells passed
+/// `mesh.min_voxels` already; a draw of the noise must not drop one).
+const SIMULATED_MIN_VOXELS: u64 = 16;
+
+/// Draws of the roughening noise whose scatter gives [`RoughnessCalibration::mask_noise`].
+pub const MASK_NOISE_DRAWS: usize = 6;
+
+/// Largest amplitude (voxels) `roughen_voxels = "auto"` considers.
+pub const MAX_ROUGHEN_VOXELS: Real = 3.0;
 
 /// The observer of an evaluation's relaxation: a [`Heartbeat`] line (the point, step, residual)
 /// when one is due (it looks at the clock every [`BEAT_STEPS`] steps only), and a stop at the end of
@@ -394,7 +442,162 @@ impl ForwardModel {
             base.numerics.contact_cutoff = l;
         }
         base.validate().map_err(|e| super::InferenceError::Config(format!("model: {e}")))?;
-        Ok(Self { observation, base, space, objective, forward, heartbeat: None, watch: Watch::default() })
+        let roughen = match forward.roughen_voxels {
+            Roughen::Voxels(a) => a,
+            Roughen::Estimate(_) => 0.0,
+        };
+        Ok(Self {
+            observation,
+            base,
+            space,
+            objective,
+            forward,
+            heartbeat: None,
+            watch: Watch::default(),
+            roughen,
+            mask_noise: 0.0,
+        })
+    }
+
+    /// Sets [`ForwardModel::roughen`] for `forward.roughen_voxels = "auto"`: relaxes the start point
+    /// `x` once (without roughening), then finds the amplitude whose noise makes that tissue's mask
+    /// as rough as the observed one ([`boundary_roughness`], averaged over the noise of the
+    /// `measure_shifts` measurements, at least 4), by bisection in [0, [`MAX_ROUGHEN_VOXELS`]]. With
+    /// a given amplitude it measures both roughnesses the same way (one relaxation too), so that a
+    /// user sees whether the amplitude fits the data. `None` when nothing is roughened; an error when
+    /// roughening is asked for without a label input measured like the data.
+    pub fn calibrate_roughness(&mut self, x: &[Real]) -> Result<Option<RoughnessCalibration>, String> {
+        let obs = &self.observation;
+        let auto = matches!(self.forward.roughen_voxels, Roughen::Estimate(_));
+        let (Some(observed), true) = (&obs.labels, self.forward.measure_like_data && obs.meshing.is_some()) else {
+            if auto || self.roughen > 0.0 {
+                return Err("forward.roughen_voxels needs a label-volume input measured like the data \
+                            (forward.measure_like_data = true): it roughens the simulated masks"
+                    .into());
+            }
+            return Ok(None);
+        };
+        if !auto && self.roughen <= 0.0 {
+            return Ok(None);
+        }
+        let grid = observed.grid();
+        let observed_roughness = boundary_roughness(observed)
+            .map_err(|e| format!("the observed mask's roughness: {e}"))?
+            .ok_or("the observed mask has no boundaries")?;
+        let (x, _) = self.space.clamp(x);
+        let params = self.space.apply(&self.base, &x);
+        let given = self.roughen;
+        self.roughen = 0.0;
+        let relaxed = self.relax(&params, &self.observation.tissue, &mut NoObserver);
+        self.roughen = given;
+        let (tissue, _) = relaxed.map_err(|(reason, _)| format!("relaxing the start point: {reason}"))?;
+        let clean = voxelize(&tissue, &grid).map_err(|e| format!("voxelising the relaxed start point: {e}"))?;
+        let seeds = self.forward.measure_shifts.max(4);
+        let correlation = self.forward.roughen_correlation;
+        let roughness_at = |amplitude: Real| -> Result<Real, String> {
+            let each: Vec<Result<Real, String>> = (0..seeds)
+                .into_par_iter()
+                .map(|k| {
+                    let noise = BoundaryNoise { amplitude, correlation, seed: ROUGHEN_SEED + k as u64 };
+                    let (v, _) = perturb_boundaries(&clean, &noise).map_err(|e| e.to_string())?;
+                    boundary_roughness(&v).map_err(|e| e.to_string())?.ok_or_else(|| "no boundaries".to_string())
+                })
+                .collect();
+            let each = each.into_iter().collect::<Result<Vec<_>, _>>()?;
+            Ok(each.iter().sum::<Real>() / each.len() as Real)
+        };
+        let simulated_clean = boundary_roughness(&clean)
+            .map_err(|e| e.to_string())?
+            .ok_or("the relaxed start point's mask has no boundaries")?;
+        let (voxels, estimated, warning) = match self.forward.roughen_voxels {
+            Roughen::Voxels(a) => (a, false, None),
+            Roughen::Estimate(_) => {
+                if observed_roughness <= simulated_clean {
+                    (0.0, true, None)
+                } else if observed_roughness >= roughness_at(MAX_ROUGHEN_VOXELS)? {
+                    let w = format!(
+                        "the observed mask is rougher than {MAX_ROUGHEN_VOXELS} voxels of boundary noise with bumps \
+                         {correlation} voxels wide make the simulated one; its noise is wider than that \
+                         (raise forward.roughen_correlation) or it is not noise"
+                    );
+                    (MAX_ROUGHEN_VOXELS, true, Some(w))
+                } else {
+                    let (mut lo, mut hi) = (0.0, MAX_ROUGHEN_VOXELS);
+                    for _ in 0..8 {
+                        let mid = 0.5 * (lo + hi);
+                        if roughness_at(mid)? < observed_roughness {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
+                    }
+                    (0.5 * (lo + hi), true, None)
+                }
+            }
+        };
+        self.roughen = voxels;
+        if voxels > 0.0
+            && let Some(options) = self.observation.meshing.as_mut()
+        {
+            // The noise moves a small cell's voxel count by ±10 % from draw to draw: a cell the data
+            // hold must not be dropped by a draw that takes it under the observed filter.
+            options.min_voxels = options.min_voxels.min(SIMULATED_MIN_VOXELS);
+        }
+        let simulated = if voxels > 0.0 { roughness_at(voxels)? } else { simulated_clean };
+        let (metric_sd, mask_noise) = if voxels > 0.0 { self.mask_scatter(&clean)? } else { Default::default() };
+        self.mask_noise = mask_noise;
+        Ok(Some(RoughnessCalibration {
+            voxels,
+            correlation,
+            estimated,
+            observed: observed_roughness,
+            simulated_clean,
+            simulated,
+            warning,
+            metric_sd,
+            mask_noise,
+        }))
+    }
+
+    /// The scatter of the fitted summary metrics over [`MASK_NOISE_DRAWS`] draws of the roughening
+    /// noise on `clean` (seeds apart from the measurements'), each measured once like the data: per
+    /// metric SD, and Σ w·(sd/s)² / Σ w over the weighted metrics.
+    fn mask_scatter(
+        &self,
+        clean: &LabelVolume,
+    ) -> Result<(std::collections::BTreeMap<&'static str, Real>, Real), String> {
+        let options = self.observation.meshing.as_ref().ok_or("no meshing options")?;
+        let each: Vec<Result<Metrics, String>> = (0..MASK_NOISE_DRAWS)
+            .into_par_iter()
+            .map(|j| {
+                let noise = BoundaryNoise {
+                    amplitude: self.roughen,
+                    correlation: self.forward.roughen_correlation,
+                    seed: ROUGHEN_SEED + 10_000 + j as u64,
+                };
+                let (v, _) = perturb_boundaries(clean, &noise).map_err(|e| e.to_string())?;
+                self.measure_voxels(&v, options).map_err(|e| format!("draw {j} of the mask noise: {e}"))
+            })
+            .collect();
+        let each = each.into_iter().collect::<Result<Vec<_>, _>>()?;
+        let mut sd = std::collections::BTreeMap::new();
+        let (mut sum, mut wsum) = (0.0, 0.0);
+        for m in Metric::SUMMARY {
+            let values: Vec<Real> = each.iter().filter_map(|e| e.get(m)).collect();
+            if values.len() < 2 {
+                continue;
+            }
+            let n = values.len() as Real;
+            let mean = values.iter().sum::<Real>() / n;
+            let s = (values.iter().map(|v| (v - mean).powi(2)).sum::<Real>() / (n - 1.0)).sqrt();
+            sd.insert(m.name(), s);
+            let w = self.objective.weight(m);
+            if w > 0.0 && self.observation.metrics.get(m).is_some() {
+                sum += w * (s / self.objective.scale(m)).powi(2);
+                wsum += w;
+            }
+        }
+        Ok((sd, if wsum > 0.0 { sum / wsum } else { 0.0 }))
     }
 
     /// Scores simulated metrics against the observed ones (see the module doc).
@@ -565,6 +768,7 @@ impl ForwardModel {
             return Ok(None);
         };
         let voxels = voxelize(tissue, &observed.grid()).map_err(|e| format!("voxelising the relaxed tissue: {e}"))?;
+        let voxels = self.roughen(voxels, 0)?;
         let meshed = mesh_labels(&voxels, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
         let volumes: std::collections::HashMap<_, Real> =
             meshed.tissue.cells().iter().map(|c| (c.id(), c.mesh().signed_volume())).collect();
@@ -594,7 +798,7 @@ impl ForwardModel {
                     .into_par_iter()
                     .map(|k| {
                         if k == 0 {
-                            return self.measure_voxels(v, options);
+                            return self.measure_voxels(&self.roughen(v.clone(), 0)?, options);
                         }
                         let o = shift_offset(k);
                         let offset = Vec3::new(o[0] * size[0], o[1] * size[1], o[2] * size[2]);
@@ -606,7 +810,7 @@ impl ForwardModel {
                         }
                         let voxels = voxelize(&shifted, &observed.grid())
                             .map_err(|e| format!("voxelising the relaxed tissue (shift {k}): {e}"))?;
-                        self.measure_voxels(&voxels, options)
+                        self.measure_voxels(&self.roughen(voxels, k)?, options)
                     })
                     .collect();
                 let each = each.into_iter().collect::<Result<Vec<_>, _>>()?;
@@ -620,6 +824,23 @@ impl ForwardModel {
             metrics.shape = Some(self.shape_term(v)?);
         }
         Ok(metrics)
+    }
+
+    /// `voxels` with the observed mask's boundary noise added (`forward.roughen_voxels`), the noise of
+    /// measurement `k` (the same field in every evaluation, so the objective does not jump between
+    /// neighbouring parameters); unchanged without it.
+    pub(crate) fn roughen(&self, voxels: LabelVolume, k: usize) -> Result<LabelVolume, String> {
+        if self.roughen <= 0.0 {
+            return Ok(voxels);
+        }
+        let noise = BoundaryNoise {
+            amplitude: self.roughen,
+            correlation: self.forward.roughen_correlation,
+            seed: ROUGHEN_SEED + k as u64,
+        };
+        perturb_boundaries(&voxels, &noise)
+            .map(|(v, _)| v)
+            .map_err(|e| format!("roughening the relaxed tissue's voxels (measurement {k}): {e}"))
     }
 
     /// Meshes voxels of a relaxed tissue like the data and measures them with the observed δ; an

@@ -32,10 +32,11 @@ mod trace;
 pub use best::{BEST_MODEL_FILE, BEST_TISSUE_FILE, BestRelaxation, RESIDUALS_FILE, write_best_outputs};
 pub use config::{
     FitConfig, FitMode, ForwardConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod,
-    ParameterConfig, PerCellConfig, ProfileConfig,
+    ParameterConfig, PerCellConfig, ProfileConfig, Roughen, RoughenEstimate,
 };
 pub use forward::{
-    Evaluation, ForwardModel, MISSING_METRIC_MISFIT, Metric, Metrics, Observation, Status, shift_offset,
+    Evaluation, ForwardModel, MAX_ROUGHEN_VOXELS, MISSING_METRIC_MISFIT, Metric, Metrics, Observation,
+    RoughnessCalibration, Status, shift_offset,
 };
 pub use optimise::{BOUND_PENALTY, Evaluator, Halt, OptimiserOutcome, optimise};
 pub use per_cell::{Iteration, PER_CELL_FILES, PerCellResult, run_per_cell};

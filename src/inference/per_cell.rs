@@ -135,6 +135,9 @@ pub struct PerCellResult {
     pub wall_seconds: Real,
     pub threads: usize,
     pub warnings: Vec<String>,
+    /// The boundary noise added to the simulated masks (`forward.roughen_voxels`); `None` when
+    /// nothing was roughened.
+    pub roughen: Option<super::forward::RoughnessCalibration>,
 }
 
 /// `best_relaxation` of [`PerCellResult`].
@@ -343,7 +346,9 @@ pub fn run_per_cell(
     let space = ParameterSpace::from_config(&config.parameters)?;
     let base = space.apply(&config.base_parameters()?, &space.initial_point());
     let empty = ParameterSpace::from_config(&BTreeMap::new())?;
-    let model = ForwardModel::new(observation, base, empty, config.objective.clone(), config.forward.clone())?;
+    let mut model = ForwardModel::new(observation, base, empty, config.objective.clone(), config.forward.clone())?;
+    let roughen = super::run::calibrate_roughness(&mut model)?;
+    let model = model;
     let mut warnings = Vec::new();
     let obs = &model.observation;
     let moving: Vec<u32> = obs.cell_labels.clone();
@@ -607,6 +612,7 @@ pub fn run_per_cell(
         wall_seconds: started.elapsed().as_secs_f64(),
         threads: rayon::current_num_threads(),
         warnings,
+        roughen,
     };
     let mut params = model.base.clone();
     params.cell_overrides = best.tensions.overrides();
@@ -657,6 +663,7 @@ fn measure_map(
             }
             let voxels =
                 voxelize(&shifted, &labels.grid()).map_err(|e| format!("voxelising the relaxed tissue: {e}"))?;
+            let voxels = model.roughen(voxels, k)?;
             let mut meshed =
                 mesh_labels(&voxels, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
             label_interfaces(&mut meshed.tissue, &voxels)

@@ -81,6 +81,11 @@ pub struct NoiseFloor {
     pub threshold: Real,
     /// Why σ is infinite (a replicate's failure), empty otherwise.
     pub reason: String,
+    /// The objective that the observed mask's own boundary noise is expected to add at the truth
+    /// (one realisation of `forward.roughen_voxels`' noise against their average; see
+    /// [`super::ForwardModel::calibrate_roughness`]); the threshold adds `noise_sigmas`² times it. 0
+    /// without roughening.
+    pub mask: Real,
 }
 
 impl NoiseFloor {
@@ -98,7 +103,18 @@ impl NoiseFloor {
         };
         let threshold = reference + config.acceptable_increase + config.noise_sigmas * std;
         let reason = failed.map(|r| r.2.clone()).unwrap_or_default();
-        Self { objectives, reference, std, threshold, reason }
+        Self { objectives, reference, std, threshold, reason, mask: 0.0 }
+    }
+
+    /// Adds the mask's own noise `mask` (objective units, see [`NoiseFloor::mask`]) to the
+    /// threshold: a range that a different draw of the segmentation's noise would move is not
+    /// narrower than that move.
+    pub fn with_mask_noise(mut self, mask: Real, config: &ProfileConfig) -> Self {
+        if mask > 0.0 {
+            self.mask = mask;
+            self.threshold += config.noise_sigmas.powi(2) * mask;
+        }
+        self
     }
 }
 
@@ -165,7 +181,8 @@ pub fn profile(
     let space = &evaluator.model().space;
     let n = space.dim();
     if config.points == 0 {
-        return Ok((Vec::new(), NoiseFloor::estimate(best_objective, &[], config)));
+        let mask = evaluator.model().mask_noise;
+        return Ok((Vec::new(), NoiseFloor::estimate(best_objective, &[], config).with_mask_noise(mask, config)));
     }
     let fitted: Vec<String> = space.fitted.iter().map(|p| p.name().to_string()).collect();
     let mut dirs: Vec<Direction> = (0..n)
@@ -214,7 +231,8 @@ pub fn profile(
     let evals = evaluator.evaluate_batch(&points, false).map_err(|_| InferenceError::Stopped)?;
     let replicates: Vec<(Real, bool, String)> =
         evals[probes..].iter().map(|e| (e.objective, e.status.usable(), e.reason.clone())).collect();
-    let noise = NoiseFloor::estimate(best_objective, &replicates, config);
+    let noise =
+        NoiseFloor::estimate(best_objective, &replicates, config).with_mask_noise(evaluator.model().mask_noise, config);
     let (threshold, reference) = (noise.threshold, noise.reference);
     let per = offsets.len();
     let slices = dirs
@@ -324,6 +342,10 @@ mod tests {
         // A smooth model (replicates equal to the best) keeps the plain threshold.
         let smooth = NoiseFloor::estimate(1.2, &[(1.2, true, String::new()), (1.2, true, String::new())], &config);
         assert_eq!((smooth.std, smooth.threshold), (0.0, 2.2));
+        // The mask's own noise (objective units) adds noise_sigmas² times itself; none adds nothing.
+        let masked = NoiseFloor::estimate(1.2, &[], &config).with_mask_noise(0.5, &config);
+        assert_eq!((masked.mask, masked.threshold), (0.5, 2.2 + 4.0 * 0.5));
+        assert_eq!(NoiseFloor::estimate(1.2, &[], &config).with_mask_noise(0.0, &config).threshold, 2.2);
         // A failed replicate: the noise is unknown, the threshold infinite, nothing closes.
         let failed = NoiseFloor::estimate(1.2, &[(1e6, false, "simulation (pass 1): diverged".into())], &config);
         assert!(failed.std.is_infinite() && failed.threshold.is_infinite() && failed.reason.contains("diverged"));

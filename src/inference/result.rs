@@ -98,6 +98,9 @@ pub struct FitResult {
     /// The relaxation at the best point that `best.vtp` and `residuals.csv` come from, and whether
     /// it failed (then the summary line and a warning say so).
     pub best_relaxation: super::best::BestRelaxation,
+    /// The boundary noise added to the simulated masks (`forward.roughen_voxels`), with the
+    /// roughness of the observed and simulated masks; `None` when nothing was roughened.
+    pub roughen: Option<super::forward::RoughnessCalibration>,
 }
 
 impl FitResult {

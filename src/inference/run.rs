@@ -2,7 +2,7 @@
 
 use super::best::{BestRelaxation, write_best_outputs};
 use super::config::FitConfig;
-use super::forward::{Evaluation, ForwardModel, Observation, Status};
+use super::forward::{Evaluation, ForwardModel, Observation, RoughnessCalibration, Status};
 use super::optimise::{Evaluator, optimise};
 use super::profile::{NoiseFloor, Slice, profile, ratio_direction, ratio_parts};
 use super::result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
@@ -145,6 +145,7 @@ pub fn run_fit_observed(
     model.heartbeat = Some(Heartbeat::new("fit", options.progress));
     model.watch = options.watch.clone();
     check_fitted_parameters_act(&model)?;
+    let roughness = calibrate_roughness(&mut model)?;
     std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
     let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;
     write_bytes_atomically(&out.join("fit.toml"), resolved.as_bytes()).map_err(|e| output_err(out, &e))?;
@@ -220,7 +221,7 @@ pub fn run_fit_observed(
     if model.watch.stopped() {
         return Err(InferenceError::Stopped);
     }
-    let result = assemble(
+    let mut result = assemble(
         &model,
         config,
         &best,
@@ -233,6 +234,7 @@ pub fn run_fit_observed(
         started,
         best_relaxation,
     );
+    result.roughen = roughness;
     let json = serde_json::to_string_pretty(&result).map_err(|e| InferenceError::Output(e.to_string()))?;
     write_bytes_atomically(&out.join("result.json"), json.as_bytes()).map_err(|e| output_err(out, &e))?;
     if options.plots {
@@ -243,6 +245,31 @@ pub fn run_fit_observed(
         }
     }
     Ok(result)
+}
+
+/// `forward.roughen_voxels` resolved before the first evaluation (see
+/// [`ForwardModel::calibrate_roughness`]), logged; `None` when nothing is roughened.
+pub(crate) fn calibrate_roughness(model: &mut ForwardModel) -> Result<Option<RoughnessCalibration>, InferenceError> {
+    let start = model.space.initial_point();
+    let calibration = model
+        .calibrate_roughness(&start)
+        .map_err(|e| InferenceError::Config(format!("forward.roughen_voxels: {e}")))?;
+    if let Some(c) = &calibration {
+        let how = if c.estimated { "estimated" } else { "given" };
+        tracing::info!(
+            "fit: simulated masks roughened by {:.2} voxels RMS of boundary noise {:.1} voxels wide ({how}); boundary \
+             roughness: observed {:.4}, start point {:.4} clean, {:.4} roughened",
+            c.voxels,
+            c.correlation,
+            c.observed,
+            c.simulated_clean,
+            c.simulated
+        );
+        if let Some(w) = &c.warning {
+            tracing::warn!("fit: forward.roughen_voxels = \"auto\": {w}");
+        }
+    }
+    Ok(calibration)
 }
 
 /// Why every evaluation of a fit was penalised, summarised (each kind of reason once, with its count
@@ -490,7 +517,10 @@ fn assemble(
                                 }
                             }
                         }
-                        let determined = lo.is_some() && hi.is_some() && !scale_open && at_bound.is_none();
+                        // A side that closes only at or beyond a search bound is not closed: the
+                        // data do not exclude the bound.
+                        let inside = lo.is_some_and(|l| l > p.bounds[0]) && hi.is_some_and(|h| h < p.bounds[1]);
+                        let determined = inside && !scale_open && at_bound.is_none();
                         let range = if scale_open {
                             p.bounds
                         } else {
@@ -573,7 +603,13 @@ fn assemble(
                     s.lower.map_or(extremes[0], |o| (value * o.exp()).max(extremes[0])),
                     s.upper.map_or(extremes[1], |o| (value * o.exp()).min(extremes[1])),
                 ],
-                Some(s.determined() && at_bound.is_none()),
+                // A side that closes only at or beyond what the bounds allow is not closed.
+                Some(
+                    s.determined()
+                        && at_bound.is_none()
+                        && s.lower.is_some_and(|o| value * o.exp() > extremes[0])
+                        && s.upper.is_some_and(|o| value * o.exp() < extremes[1]),
+                ),
             ),
             None => (extremes, None),
         };
@@ -646,7 +682,18 @@ fn assemble(
                 n.objectives.iter().map(|j| (j * 1e4).round() / 1e4).collect::<Vec<_>>(),
                 n.std,
                 fmt_threshold(n.threshold)
-            )
+            ) + &if n.mask > 0.0 {
+                format!(
+                    ", which allows {:.3} (= {}² × {:.3}) for the observed mask's own boundary noise: one draw of \
+                     forward.roughen_voxels' noise moves the objective at the truth by that much on average, so the \
+                     data cannot place the answer closer",
+                    config.profile.noise_sigmas.powi(2) * n.mask,
+                    config.profile.noise_sigmas,
+                    n.mask
+                )
+            } else {
+                String::new()
+            }
         } else {
             format!(
                 "forward-model noise at the optimum unknown: a replicate × (1 + 1e-9) of the best point failed ({}); \
@@ -664,7 +711,9 @@ fn assemble(
     // The forward model's own scatter at the optimum explains objectives up to a few σ; a best
     // objective far beyond both that and POOR_FIT_OBJECTIVE means the model misses the data.
     let sigma = noise.map_or(0.0, |n| if n.std.is_finite() { n.std } else { 0.0 });
-    let poor_floor = POOR_FIT_OBJECTIVE + config.profile.noise_sigmas * sigma;
+    let mask = noise.map_or(0.0, |n| n.mask);
+    let poor_floor =
+        POOR_FIT_OBJECTIVE + config.profile.noise_sigmas * sigma + config.profile.noise_sigmas.powi(2) * mask;
     let poor_fit = best.objective > poor_floor;
     if poor_fit {
         statements.push(format!(
@@ -705,6 +754,7 @@ fn assemble(
         noise: noise.cloned(),
         poor_fit,
         best_relaxation,
+        roughen: None,
     }
 }
 

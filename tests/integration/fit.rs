@@ -35,11 +35,25 @@ fn bad_configs_are_errors_naming_the_key() {
             "[observed]\ntissue = \"a.vtp\"\n[parameters.adhesion]\nbounds = [1e8, 1e9]\n[objective]\nshape = 1.0\n",
             "objective.shape",
         ),
+        (
+            "[observed]\ntissue = \"a.vtp\"\n[parameters.adhesion]\nbounds = [1e8, 1e9]\n[forward]\nroughen_voxels = \"automatic\"\n",
+            "forward.roughen_voxels",
+        ),
+        (
+            "[observed]\ntissue = \"a.vtp\"\n[parameters.adhesion]\nbounds = [1e8, 1e9]\n[forward]\nroughen_voxels = 12\n",
+            "forward.roughen_voxels",
+        ),
     ];
     for (text, key) in cases {
         let e = FitConfig::from_toml_str(text, "fit.toml").unwrap_err().to_string();
         assert!(e.contains(key) && e.contains("fit.toml"), "error `{e}` should name `{key}`");
     }
+    let auto = "[observed]\ntissue = \"a.vtp\"\n[parameters.adhesion]\nbounds = [1e8, 1e9]\n[forward]\nroughen_voxels = \"auto\"\n";
+    let config = FitConfig::from_toml_str(auto, "fit.toml").unwrap();
+    assert_eq!(
+        config.forward.roughen_voxels,
+        tissuefit::inference::Roughen::Estimate(tissuefit::inference::RoughenEstimate::Auto)
+    );
 }
 
 #[test]
@@ -190,31 +204,11 @@ fn a_failing_evaluation_is_penalised_with_its_reason_not_fatal() {
 /// wrong shape fails.
 #[test]
 fn shape_term_is_small_at_the_truth_and_grows_away_from_it() {
-    use tissuefit::inference::{ForwardModel, ParameterSpace, load_observation};
     let dir = tempfile::tempdir().unwrap();
-    let (initial, l_min) = initial_doublet();
-    let truth = model(ContactModel::Coupling, l_min, 1e-3, 0.5e-3, 0.0);
-    observed_labels(dir.path(), &truth, &initial, 12.0);
-    let config = write_config(
-        dir.path(),
-        &model(ContactModel::Coupling, l_min, 1e-3, 1e-3, 0.0),
-        COUPLING,
-        "method = \"nelder_mead\"\nmax_evaluations = 3",
-        0,
-    );
-    let mut config = FitConfig::load(&config).unwrap();
+    let (_, mut config) = coupled_doublet_fit(dir.path(), 3);
     config.objective.sphericity = 0.0;
     config.objective.shape = 1.0;
-    let space = ParameterSpace::from_config(&config.parameters).unwrap();
-    let observation = load_observation(&config).unwrap();
-    let m = ForwardModel::new(
-        observation,
-        config.base_parameters().unwrap(),
-        space,
-        config.objective.clone(),
-        config.forward.clone(),
-    )
-    .unwrap();
+    let m = forward_model(&config);
     let at = |gamma_lateral: Real| m.evaluate(&[gamma_lateral.ln()]);
     let (right, wrong) = (at(0.5e-3), at(1e-3));
     eprintln!(
@@ -234,6 +228,45 @@ fn shape_term_is_small_at_the_truth_and_grows_away_from_it() {
     assert!((right.objective - expected).abs() <= 1e-12 * expected.max(1.0), "{} vs {expected}", right.objective);
 }
 
+/// `forward.roughen_voxels = "auto"` reads the amplitude of a mask's boundary noise off the mask:
+/// the truth's doublet voxelised at 12 voxels per diameter, then given 1 voxel RMS of wavy noise
+/// (bumps 1.5 voxels wide, as `tissuefit generate noise` makes them), is estimated at about 1
+/// voxel from a relaxation of the fit's start point (not the truth: γ_l 0.8 vs 0.5 mN/m); the clean
+/// mask at nearly none. A calibration that ignored the data, or measured the shape instead of its
+/// roughness, fails one side.
+#[test]
+fn roughen_auto_estimates_the_boundary_noise_of_the_mask() {
+    use tissuefit::imaging::{BoundaryNoise, LabelWriteOptions, perturb_boundaries, read_labels, write_label_tiff};
+    use tissuefit::inference::{Roughen, RoughenEstimate};
+    let dir = tempfile::tempdir().unwrap();
+    let (clean, mut config) = coupled_doublet_fit(dir.path(), 1);
+    config.forward.roughen_voxels = Roughen::Estimate(RoughenEstimate::Auto);
+    let estimate = |config: &FitConfig| {
+        let mut m = forward_model(config);
+        let start = m.space.initial_point();
+        let c = m.calibrate_roughness(&start).unwrap().expect("a calibration");
+        assert!(c.estimated && c.warning.is_none(), "{c:?}");
+        assert_eq!(m.roughen, c.voxels);
+        c
+    };
+    let on_clean = estimate(&config);
+    let volume = read_labels(&clean, &Default::default()).unwrap().volume;
+    let (noisy, _) = perturb_boundaries(&volume, &BoundaryNoise { amplitude: 1.0, correlation: 1.5, seed: 7 }).unwrap();
+    let noisy_path = dir.path().join("noisy.tif");
+    write_label_tiff(&noisy_path, &noisy, &LabelWriteOptions::default()).unwrap();
+    config.observed.as_mut().expect("an observed input").labels = Some(noisy_path);
+    let on_noisy = estimate(&config);
+    eprintln!("roughness calibration: clean mask {on_clean:?}; 1 voxel of wavy noise {on_noisy:?}");
+    assert!(on_clean.voxels < 0.35, "the clean mask: {on_clean:?}");
+    assert!((0.6..=1.4).contains(&on_noisy.voxels), "1 voxel of noise: {on_noisy:?}");
+    // The roughened start point is as rough as the data (the bisection's end).
+    assert!((on_noisy.simulated - on_noisy.observed).abs() < 0.05 * on_noisy.observed, "{on_noisy:?}");
+    // One draw of a voxel of noise moves a doublet's sphericity by about 0.01 (two default scales):
+    // the profile's threshold must allow for it.
+    let sd = on_noisy.metric_sd["sphericity"];
+    assert!(sd > 0.002 && on_noisy.mask_noise > 0.1, "{on_noisy:?}");
+}
+
 /// Warm start, measured: relaxing from the equilibrium of a neighbouring evaluation instead of the
 /// observed tissue. The fit starts every evaluation cold (forward.rs, "No warm start"); this test
 /// pins down why: a warm start does not reach the same equilibrium metrics as a cold one at the same
@@ -241,29 +274,9 @@ fn shape_term_is_small_at_the_truth_and_grows_away_from_it() {
 /// hovers, and the mesh carries the history of its remeshing), by more than the fit resolves.
 #[test]
 fn warm_start_reaches_other_metrics_than_a_cold_start_so_evaluations_start_cold() {
-    use tissuefit::inference::{ForwardModel, ParameterSpace, load_observation};
     let dir = tempfile::tempdir().unwrap();
-    let (initial, l_min) = initial_doublet();
-    let truth = model(ContactModel::Coupling, l_min, 1e-3, 0.5e-3, 0.0);
-    observed_labels(dir.path(), &truth, &initial, 12.0);
-    let config = write_config(
-        dir.path(),
-        &model(ContactModel::Coupling, l_min, 1e-3, 1e-3, 0.0),
-        COUPLING,
-        "method = \"nelder_mead\"\nmax_evaluations = 3",
-        0,
-    );
-    let config = FitConfig::load(&config).unwrap();
-    let space = ParameterSpace::from_config(&config.parameters).unwrap();
-    let observation = load_observation(&config).unwrap();
-    let m = ForwardModel::new(
-        observation,
-        config.base_parameters().unwrap(),
-        space,
-        config.objective.clone(),
-        config.forward.clone(),
-    )
-    .unwrap();
+    let (_, config) = coupled_doublet_fit(dir.path(), 3);
+    let m = forward_model(&config);
     let x = |g: Real| vec![g.ln()];
     // The neighbour: 10 % off the point evaluated next.
     let (neighbour, relaxed) = m.evaluate_from(&x(0.55e-3), &m.observation.tissue);

@@ -69,8 +69,16 @@ def tabulate(row, result_path, ratio, model_error=0.05):
                 "post_hoc": post_hoc,
                 "determined": x.get("determined") if x else None,
                 "evaluations": r.get("evaluations"), "objective": r.get("objective"),
-                "poor_fit": r.get("poor_fit")})
+                "poor_fit": r.get("poor_fit"), "roughen": r.get("roughen")})
     return row
+
+
+def rough_cell(rough):
+    """result.json's `roughen` as a table cell: the amplitude, and whether it was estimated."""
+    if not rough:
+        return "0"
+    how = "estimated" if rough["estimated"] else "given"
+    return f"{rough['voxels']:.2f} ({how}; roughness {rough['observed']:.3f} observed, {rough['simulated']:.3f} simulated)"
 
 
 def main():
@@ -143,9 +151,12 @@ def main():
             json.dump(rows, fh, indent=2)
     if a.markdown:
         with open(a.markdown, "w") as fh:
+            # A column for forward.roughen_voxels when a fit roughened its simulated masks.
+            roughened = any(r.get("roughen") for r in rows)
             fh.write("| cluster | cells | vox/diam | truth | fitted | error | reported range | holds truth "
-                     "| range from the objective alone | holds truth | evaluations | wall |\n")
-            fh.write("|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+                     "| range from the objective alone | holds truth | evaluations | wall |"
+                     + (" simulated masks roughened by (voxels RMS) |" if roughened else "") + "\n")
+            fh.write("|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if roughened else "") + "\n")
             for r in rows:
                 f, rg, err, holds = r.get("fitted"), r.get("range"), r.get("error_pct"), r.get("holds")
                 fitted = "failed" if f is None else f"{f:.3f}"
@@ -158,7 +169,8 @@ def main():
                 nrng = "" if not nr else f"[{nr[0]:.3f}, {nr[1]:.3f}]"
                 nheld = "" if nh is None else ("yes" if nh else "no")
                 fh.write(f"| {r['cluster']} | {r['cells']} | {r['per_diameter']} | {r['truth']:.2f} | {fitted} | {error} | "
-                         f"{rng} | {held} | {nrng} | {nheld} | {r.get('evaluations', '')} | {r['wall_s']:.0f} s |\n")
+                         f"{rng} | {held} | {nrng} | {nheld} | {r.get('evaluations', '')} | {r['wall_s']:.0f} s |"
+                         + (f" {rough_cell(r.get('roughen'))} |" if roughened else "") + "\n")
             cover = [r["holds"] for r in rows if r.get("holds") is not None]
             ncover = [r["noise_holds"] for r in rows if r.get("noise_holds") is not None]
             fh.write(f"\nReported ranges hold the truth in {sum(cover)} of {len(cover)} fits; the ranges from the "

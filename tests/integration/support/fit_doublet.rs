@@ -99,6 +99,38 @@ pub fn observed_labels_after(
     (path, tissue)
 }
 
+/// The coupled doublet at γ_l/γ_a = 0.5 voxelised at 12 voxels per diameter into `dir` (returned:
+/// the label volume's path) and the fit config of γ_l starting at γ_l = γ_a, with
+/// `max_evaluations` and no profile, loaded.
+pub fn coupled_doublet_fit(dir: &Path, max_evaluations: usize) -> (PathBuf, FitConfig) {
+    let (initial, l_min) = initial_doublet();
+    let truth = model(ContactModel::Coupling, l_min, 1e-3, 0.5e-3, 0.0);
+    let labels = observed_labels(dir, &truth, &initial, 12.0);
+    let config = write_config(
+        dir,
+        &model(ContactModel::Coupling, l_min, 1e-3, 1e-3, 0.0),
+        COUPLING,
+        &format!("method = \"nelder_mead\"\nmax_evaluations = {max_evaluations}"),
+        0,
+    );
+    (labels, FitConfig::load(&config).unwrap())
+}
+
+/// The forward model of `config` (its observation loaded and meshed).
+pub fn forward_model(config: &FitConfig) -> tissuefit::inference::ForwardModel {
+    use tissuefit::inference::{ForwardModel, ParameterSpace, load_observation};
+    let space = ParameterSpace::from_config(&config.parameters).unwrap();
+    let observation = load_observation(config).unwrap();
+    ForwardModel::new(
+        observation,
+        config.base_parameters().unwrap(),
+        space,
+        config.objective.clone(),
+        config.forward.clone(),
+    )
+    .unwrap()
+}
+
 /// Writes the model and the fit config; returns the config's path.
 pub fn write_config(
     dir: &Path,
