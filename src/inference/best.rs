@@ -172,7 +172,7 @@ fn measure_simulated(model: &ForwardModel, tissue: &crate::mesh::Tissue) -> Resu
         (Some(observed), Some(options), true) => {
             let voxels = crate::imaging::voxelize(tissue, &observed.grid())
                 .map_err(|e| format!("voxelising the relaxed tissue: {e}"))?;
-            let voxels = model.roughen(voxels, 0)?;
+            let voxels = model.roughen(&voxels, 0)?;
             let meshed = crate::meshing::mesh_labels(&voxels, options)
                 .map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
             if meshed.tissue.is_empty() {

@@ -63,13 +63,19 @@ use crate::mechanics::{
 };
 use crate::mesh::Tissue;
 use crate::meshing::{LabelMeshingOptions, mesh_labels};
-use crate::morphology::{MeasureSettings, measure_tissue};
+use crate::morphology::{Distribution, MeasureSettings, measure_tissue};
 use rayon::prelude::*;
+use serde::Serialize;
+use std::borrow::Cow;
+use std::time::Instant;
 
 /// Seed of the first measurement's roughening noise (`forward.roughen_voxels`); measurement k uses this + k.
 const ROUGHEN_SEED: u64 = 0x005e_ed0f_0000;
-use serde::Serialize;
-use std::time::Instant;
+
+/// Draw `k` of the roughening noise (seed [`ROUGHEN_SEED`] + k).
+fn noise_draw(amplitude: Real, correlation: Real, k: u64) -> BoundaryNoise {
+    BoundaryNoise { amplitude, correlation, seed: ROUGHEN_SEED + k }
+}
 
 /// Misfit (in scales) of a metric that the data have and the simulation lacks.
 pub const MISSING_METRIC_MISFIT: Real = 10.0;
@@ -460,7 +466,7 @@ impl ForwardModel {
     }
 
     /// Sets [`ForwardModel::roughen`] for `forward.roughen_voxels = "auto"`: relaxes the start point
-    /// `x` once (without roughening), then finds the amplitude whose noise makes that tissue's mask
+    /// `x` once (as an evaluation would; nothing is roughened yet), then finds the amplitude whose noise makes that tissue's mask
     /// as rough as the observed one ([`boundary_roughness`], averaged over the noise of the
     /// `measure_shifts` measurements, at least 4), by bisection in [0, [`MAX_ROUGHEN_VOXELS`]]. With
     /// a given amplitude it measures both roughnesses the same way (one relaxation too), so that a
@@ -486,11 +492,10 @@ impl ForwardModel {
             .ok_or("the observed mask has no boundaries")?;
         let (x, _) = self.space.clamp(x);
         let params = self.space.apply(&self.base, &x);
-        let given = self.roughen;
-        self.roughen = 0.0;
-        let relaxed = self.relax(&params, &self.observation.tissue, &mut NoObserver);
-        self.roughen = given;
-        let (tissue, _) = relaxed.map_err(|(reason, _)| format!("relaxing the start point: {reason}"))?;
+        // As an evaluation relaxes (with "auto" nothing is roughened yet).
+        let (tissue, _) = self
+            .relax(&params, &self.observation.tissue, &mut NoObserver)
+            .map_err(|(reason, _)| format!("relaxing the start point: {reason}"))?;
         let clean = voxelize(&tissue, &grid).map_err(|e| format!("voxelising the relaxed start point: {e}"))?;
         let seeds = self.forward.measure_shifts.max(4);
         let correlation = self.forward.roughen_correlation;
@@ -498,8 +503,8 @@ impl ForwardModel {
             let each: Vec<Result<Real, String>> = (0..seeds)
                 .into_par_iter()
                 .map(|k| {
-                    let noise = BoundaryNoise { amplitude, correlation, seed: ROUGHEN_SEED + k as u64 };
-                    let (v, _) = perturb_boundaries(&clean, &noise).map_err(|e| e.to_string())?;
+                    let (v, _) = perturb_boundaries(&clean, &noise_draw(amplitude, correlation, k as u64))
+                        .map_err(|e| e.to_string())?;
                     boundary_roughness(&v).map_err(|e| e.to_string())?.ok_or_else(|| "no boundaries".to_string())
                 })
                 .collect();
@@ -570,11 +575,7 @@ impl ForwardModel {
         let each: Vec<Result<Metrics, String>> = (0..MASK_NOISE_DRAWS)
             .into_par_iter()
             .map(|j| {
-                let noise = BoundaryNoise {
-                    amplitude: self.roughen,
-                    correlation: self.forward.roughen_correlation,
-                    seed: ROUGHEN_SEED + 10_000 + j as u64,
-                };
+                let noise = noise_draw(self.roughen, self.forward.roughen_correlation, 10_000 + j as u64);
                 let (v, _) = perturb_boundaries(clean, &noise).map_err(|e| e.to_string())?;
                 self.measure_voxels(&v, options).map_err(|e| format!("draw {j} of the mask noise: {e}"))
             })
@@ -583,13 +584,7 @@ impl ForwardModel {
         let mut sd = std::collections::BTreeMap::new();
         let (mut sum, mut wsum) = (0.0, 0.0);
         for m in Metric::SUMMARY {
-            let values: Vec<Real> = each.iter().filter_map(|e| e.get(m)).collect();
-            if values.len() < 2 {
-                continue;
-            }
-            let n = values.len() as Real;
-            let mean = values.iter().sum::<Real>() / n;
-            let s = (values.iter().map(|v| (v - mean).powi(2)).sum::<Real>() / (n - 1.0)).sqrt();
+            let Some(s) = Distribution::of(each.iter().filter_map(|e| e.get(m))).std else { continue };
             sd.insert(m.name(), s);
             let w = self.objective.weight(m);
             if w > 0.0 && self.observation.metrics.get(m).is_some() {
@@ -768,7 +763,7 @@ impl ForwardModel {
             return Ok(None);
         };
         let voxels = voxelize(tissue, &observed.grid()).map_err(|e| format!("voxelising the relaxed tissue: {e}"))?;
-        let voxels = self.roughen(voxels, 0)?;
+        let voxels = self.roughen(&voxels, 0)?;
         let meshed = mesh_labels(&voxels, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
         let volumes: std::collections::HashMap<_, Real> =
             meshed.tissue.cells().iter().map(|c| (c.id(), c.mesh().signed_volume())).collect();
@@ -798,7 +793,7 @@ impl ForwardModel {
                     .into_par_iter()
                     .map(|k| {
                         if k == 0 {
-                            return self.measure_voxels(&self.roughen(v.clone(), 0)?, options);
+                            return self.measure_voxels(&*self.roughen(v, 0)?, options);
                         }
                         let o = shift_offset(k);
                         let offset = Vec3::new(o[0] * size[0], o[1] * size[1], o[2] * size[2]);
@@ -810,7 +805,7 @@ impl ForwardModel {
                         }
                         let voxels = voxelize(&shifted, &observed.grid())
                             .map_err(|e| format!("voxelising the relaxed tissue (shift {k}): {e}"))?;
-                        self.measure_voxels(&self.roughen(voxels, k)?, options)
+                        self.measure_voxels(&*self.roughen(&voxels, k)?, options)
                     })
                     .collect();
                 let each = each.into_iter().collect::<Result<Vec<_>, _>>()?;
@@ -828,18 +823,13 @@ impl ForwardModel {
 
     /// `voxels` with the observed mask's boundary noise added (`forward.roughen_voxels`), the noise of
     /// measurement `k` (the same field in every evaluation, so the objective does not jump between
-    /// neighbouring parameters); unchanged without it.
-    pub(crate) fn roughen(&self, voxels: LabelVolume, k: usize) -> Result<LabelVolume, String> {
+    /// neighbouring parameters); borrowed unchanged without it.
+    pub(crate) fn roughen<'v>(&self, voxels: &'v LabelVolume, k: usize) -> Result<Cow<'v, LabelVolume>, String> {
         if self.roughen <= 0.0 {
-            return Ok(voxels);
+            return Ok(Cow::Borrowed(voxels));
         }
-        let noise = BoundaryNoise {
-            amplitude: self.roughen,
-            correlation: self.forward.roughen_correlation,
-            seed: ROUGHEN_SEED + k as u64,
-        };
-        perturb_boundaries(&voxels, &noise)
-            .map(|(v, _)| v)
+        perturb_boundaries(voxels, &noise_draw(self.roughen, self.forward.roughen_correlation, k as u64))
+            .map(|(v, _)| Cow::Owned(v))
             .map_err(|e| format!("roughening the relaxed tissue's voxels (measurement {k}): {e}"))
     }
 

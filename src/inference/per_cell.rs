@@ -663,7 +663,7 @@ fn measure_map(
             }
             let voxels =
                 voxelize(&shifted, &labels.grid()).map_err(|e| format!("voxelising the relaxed tissue: {e}"))?;
-            let voxels = model.roughen(voxels, k)?;
+            let voxels = model.roughen(&voxels, k)?;
             let mut meshed =
                 mesh_labels(&voxels, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
             label_interfaces(&mut meshed.tissue, &voxels)
