@@ -14,6 +14,7 @@
 #
 # Run from anywhere, after building the binary:
 #   cargo build --release && .ci/slurm-test.sh
+# `.ci/slurm-test.sh --install-only` only installs Slurm when it is missing (.ci/prefetch.sh).
 # Environment:
 #   TISSUEFIT_BIN               the binary (default: target/release/tissuefit in this repo)
 #   TISSUEFIT_SLURM_OPTIONAL=1  exit 0 with a message (instead of failing) when Slurm is missing and
@@ -32,11 +33,6 @@ started=$SECONDS
 
 say() { echo "slurm-test: $*" >&2; }
 die() { say "FAILED: $*"; exit 1; }
-
-if [ ! -x "$bin" ]; then
-    die "no tissuefit binary at $bin (build it with \`cargo build --release\` or set TISSUEFIT_BIN)"
-fi
-bin=$(cd "$(dirname "$bin")" && pwd)/$(basename "$bin")
 
 # --- 1. Slurm and munge --------------------------------------------------------------------------
 # Daemons live in /usr/sbin, which a non-login root shell may not have on PATH.
@@ -58,6 +54,13 @@ if ! have_slurm; then
         die "Slurm (sbatch, slurmctld, slurmd, munged) is not installed and cannot be installed here (needs root and apt-get); set TISSUEFIT_SLURM_OPTIONAL=1 to skip"
     fi
 fi
+if [ "${1:-}" = --install-only ]; then
+    exit 0
+fi
+if [ ! -x "$bin" ]; then
+    die "no tissuefit binary at $bin (build it with \`cargo build --release\` or set TISSUEFIT_BIN)"
+fi
+bin=$(cd "$(dirname "$bin")" && pwd)/$(basename "$bin")
 say "$(slurmd -V)"
 
 # --- 2. A one-node cluster in a temporary directory ----------------------------------------------

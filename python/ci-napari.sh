@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # Tests of the napari plugin, headless: python/ci-napari.sh WHEEL
+# (`python/ci-napari.sh --system-packages-only` only installs the Debian packages: .ci/prefetch.sh)
 #
 # Makes a venv, installs WHEEL with its napari extra plus napari's Qt backend (PyQt5) and the test
 # tools, installs the Debian packages a headless Qt + OpenGL needs when missing (Xvfb, the xcb libraries
@@ -8,11 +9,15 @@
 # VENV (default a new temporary folder, removed at the end), PYTEST_ARGS (extra pytest arguments).
 set -euo pipefail
 
-if [ $# -ne 1 ] || [ ! -f "$1" ]; then
-    echo "usage: $0 path/to/tissuefit-*.whl" >&2
+SYSTEM_ONLY=0
+if [ "${1:-}" = --system-packages-only ]; then
+    SYSTEM_ONLY=1
+elif [ $# -ne 1 ] || [ ! -f "$1" ]; then
+    echo "usage: $0 path/to/tissuefit-*.whl   (or --system-packages-only)" >&2
     exit 2
+else
+    WHEEL=$(cd "$(dirname "$1")" && pwd)/$(basename "$1")
 fi
-WHEEL=$(cd "$(dirname "$1")" && pwd)/$(basename "$1")
 REPO=$(cd "$(dirname "$0")/.." && pwd)
 PYTHON=${PYTHON:-python3}
 
@@ -40,6 +45,9 @@ if [ -n "$MISSING" ]; then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q $MISSING
 else
     say "Debian packages present: $PKGS"
+fi
+if [ "$SYSTEM_ONLY" = 1 ]; then
+    exit 0
 fi
 
 # --- venv with the wheel, napari and the test tools
