@@ -18,7 +18,11 @@
 #                                        the simulated masks roughened by forward.roughen_voxels = "auto",
 #                                        not at all, and by the true 1 voxel (about an hour; ROUGHEN="auto none"
 #                                        narrows it)
-# Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|noise-scatter|roughen|all]   (default all)
+#   docs/src/generated/noise-roughen-seeds.md  the doublet and held-out triplet of noise-roughen.md under
+#                                        other draws of the noise (SEEDS, default "2 3"), "auto" and not
+#                                        roughened (about 16 minutes)
+# Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|noise-scatter|roughen|roughen-seeds|all]
+# (default all)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 what=${1:-all}
@@ -107,6 +111,36 @@ if [ "$what" = roughen ] || [ "$what" = all ]; then
             --template "$template" --work "$work/runs-$rough" --markdown "$work/$rough.md"
         { echo "**1 voxel RMS of wavy noise (--correlation 1.5), mesh.denoise_voxels = 2, simulated masks $how**"
           echo; cat "$work/$rough.md"; echo; } >> "$out/noise-roughen.md"
+    done
+fi
+if [ "$what" = roughen-seeds ] || [ "$what" = all ]; then
+    # The doublet and held-out triplet of noise-roughen.md under other draws of the same noise
+    # (SEEDS, default "2 3"), roughened "auto" and not at all: how much one draw moves a few-cell fit.
+    cargo build --release
+    work=$(mktemp -d)
+    fixtures=validation/evolver/fixtures
+    : > "$out/noise-roughen-seeds.md"
+    for seed in ${SEEDS:-2 3}; do
+        for c in doublet heldout_triplet; do
+            mkdir -p "$work/wavy-$seed/$c"
+            cp "$fixtures/$c/truth.json" "$work/wavy-$seed/$c/"
+            target/release/tissuefit generate noise "$fixtures/$c/labels_10.tif" --amplitude 1 \
+                --correlation 1.5 --seed "$seed" --out "$work/wavy-$seed/$c/labels_10.tif" > /dev/null
+        done
+        for rough in auto none; do
+            template="$work/roughen-$seed-$rough.toml"
+            sed "s/^target_nodes = 400 .*/&\ndenoise_voxels = 2/" validation/evolver/fit-template.toml > "$template"
+            how="not roughened"
+            if [ "$rough" = auto ]; then
+                how='roughened by `forward.roughen_voxels = "auto"` (correlation 1.5)'
+                sed -i 's/^accept_residual = .*/&\nroughen_voxels = "auto"\nroughen_correlation = 1.5/' "$template"
+            fi
+            grep -q "^denoise_voxels = 2" "$template"
+            python3 validation/evolver/run_fits.py --clusters "$work/wavy-$seed" --resolutions 10 \
+                --template "$template" --work "$work/runs-$seed-$rough" --markdown "$work/$seed-$rough.md"
+            { echo "**Noise seed $seed: 1 voxel RMS of wavy noise (--correlation 1.5), mesh.denoise_voxels = 2, simulated masks $how**"
+              echo; cat "$work/$seed-$rough.md"; echo; } >> "$out/noise-roughen-seeds.md"
+        done
     done
 fi
 if [ "$what" = noise-scatter ] || [ "$what" = all ]; then

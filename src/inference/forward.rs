@@ -447,7 +447,11 @@ impl ForwardModel {
             base.numerics.min_edge_length = l;
             base.numerics.contact_cutoff = l;
         }
-        base.validate().map_err(|e| super::InferenceError::Config(format!("model: {e}")))?;
+        // The base model's warnings (unit slips, adhesion beyond the tension, the vertex quadrature's
+        // bias) concern the evaluations near it.
+        for w in base.validate().map_err(|e| super::InferenceError::Config(format!("model: {e}")))? {
+            tracing::warn!("model: {w}");
+        }
         let roughen = match forward.roughen_voxels {
             Roughen::Voxels(a) => a,
             Roughen::Estimate(_) => 0.0,

@@ -287,8 +287,13 @@ fn config_check_against_a_tissue_derives_the_repulsion_and_warns_when_a_set_one_
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
+    // Both also warn that the derived cutoff c = l_min = 0.571 µm makes Table 2's ω adhere at
+    // w/(2γ) = 0.081, where the vertex quadrature's contact angles are biased.
+    let quadrature = "contact_quadrature = \"vertices\" with spring adhesion (cell_types[0].faces.apical: w/(2γ) = ωc²/(4γ) = 0.081)";
     let stderr = check(&weak);
-    assert!(stderr.contains("its weakest repulsion ξ = 1.000e9 Pa/m") && stderr.contains("(1 warnings)"), "{stderr}");
+    assert!(stderr.contains("its weakest repulsion ξ = 1.000e9 Pa/m") && stderr.contains("(2 warnings)"), "{stderr}");
+    assert!(stderr.contains(quadrature), "{stderr}");
     let stderr = check(&unset);
-    assert!(stderr.contains("note: cell_types[0].faces.*.repulsion = ") && stderr.contains("(0 warnings)"), "{stderr}");
+    assert!(stderr.contains("note: cell_types[0].faces.*.repulsion = ") && stderr.contains("(1 warnings)"), "{stderr}");
+    assert!(stderr.contains(quadrature), "{stderr}");
 }

@@ -334,7 +334,8 @@ pub struct Numerics {
     /// face's exact mean of Φ with d linear between its corners; nodes are searched out to c plus
     /// the longest edge). With vertices the energy changes when nodes slide along an unchanged
     /// surface, which pushes the contact line of adhering cells off Young–Dupré (see the docs book:
-    /// Design notes, Spring contacts and Young–Dupré).
+    /// Design notes, Spring contacts and Young–Dupré); validation warns about it from w/(2γ) = ωc²/(4γ)
+    /// = 0.05 on an epithelial face.
     ///
     /// Default [`ContactQuadrature::Vertices`].
     #[serde(default)]

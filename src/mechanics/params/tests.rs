@@ -280,6 +280,35 @@ fn adhesion_energy_above_the_tension_is_flagged() {
 }
 
 #[test]
+fn spring_adhesion_with_the_vertex_quadrature_is_warned_about_from_a_twentieth() {
+    let bias = |p: &Parameters| p.validate().expect("valid").into_iter().find(|w| w.contains("settle off Young–Dupré"));
+    // Table 2's ω = 1e9 Pa/m at c = 0.2 µm: w/(2γ) = 1e9·(2e-7)²/(4·1e-3) = 0.01, below 0.05.
+    let mut params = Parameters::default();
+    assert_eq!(bias(&params), None);
+    // w/(2γ) = 0.3 on the lateral faces: named, with the value and the remedy.
+    params.cell_types[0].faces.lateral.adhesion = 0.3 * 4.0 * 1e-3 / (2e-7 * 2e-7);
+    let w = bias(&params).expect("warned");
+    assert!(w.contains("cell_types[0].faces.lateral") && w.contains("= 0.300"), "{w}");
+    assert!(w.contains("contact_quadrature = \"faces\""), "{w}");
+    // Just below a twentieth: not warned; just above: warned.
+    params.cell_types[0].faces.lateral.adhesion = 0.049 * 4.0 * 1e-3 / (2e-7 * 2e-7);
+    assert_eq!(bias(&params), None);
+    params.cell_types[0].faces.lateral.adhesion = 0.051 * 4.0 * 1e-3 / (2e-7 * 2e-7);
+    assert!(bias(&params).is_some());
+    // Not with the face quadrature, nor with coupling contacts (their cells do not adhere by springs).
+    params.numerics.contact_quadrature = ContactQuadrature::Faces;
+    assert_eq!(bias(&params), None);
+    params.numerics.contact_quadrature = ContactQuadrature::Vertices;
+    params.numerics.contact_model = ContactModel::Coupling;
+    assert_eq!(bias(&params), None);
+    // Nor for an immobile kind's adhesion (the ECM's).
+    params.numerics.contact_model = ContactModel::Spring;
+    params.cell_types[0].faces.lateral.adhesion = 1e9;
+    params.cell_types[1].faces.basal.adhesion = 1e11;
+    assert_eq!(bias(&params), None);
+}
+
+#[test]
 fn pressure_is_capped() {
     let mut cell_type = CellTypeParams::default();
     // Compressed to half its target volume: K ln 2 ≈ 1733 Pa, below the 2500 Pa cap.

@@ -4,6 +4,11 @@ use super::writing::{fmt_real, fmt_real_short, unit_of};
 use super::*;
 use std::collections::HashMap;
 
+/// w/(2γ) from which spring adhesion with the vertex quadrature is warned about: the lower end of
+/// the adhesions users fit (issue 20's regime: 0.05–0.6); the defaults' ω = 1e9 Pa/m at c = 0.2 µm
+/// (w/(2γ) = 0.01 at γ = 1 mN/m) stays below it.
+const VERTEX_QUADRATURE_WARN_RATIO: Real = 0.05;
+
 impl Parameters {
     /// Returns (errors, warnings).
     pub(super) fn check(&self) -> (Vec<String>, Vec<String>) {
@@ -194,8 +199,47 @@ impl Parameters {
                     ));
                 }
             }
+            if let Some(w) = self.vertex_quadrature_bias(&type_valid) {
+                report.warnings.push(w);
+            }
         }
         (report.errors, report.warnings)
+    }
+
+    /// A warning when spring contacts adhere noticeably (w/(2γ) = ωc²/(4γ) ≥
+    /// [`VERTEX_QUADRATURE_WARN_RATIO`] on a face of an epithelial cell type) with the vertex quadrature,
+    /// whose contact angles settle off Young–Dupré (docs book: Design notes, "Spring contacts and
+    /// Young–Dupré"): a run or fit that reads contact angles or w/(2γ) should use the face quadrature.
+    fn vertex_quadrature_bias(&self, type_valid: &[bool]) -> Option<String> {
+        let n = &self.numerics;
+        if n.contact_model != ContactModel::Spring || n.contact_quadrature != ContactQuadrature::Vertices {
+            return None;
+        }
+        let c = n.contact_cutoff;
+        let (index, face_type, ratio) = self
+            .cell_types
+            .iter()
+            .enumerate()
+            .filter(|(i, t)| t.kind == CellKind::Epithelial && type_valid[*i])
+            .flat_map(|(i, t)| {
+                t.faces
+                    .iter()
+                    .filter(|(_, f)| f.surface_tension > 0.0)
+                    .map(move |(ft, f)| (i, ft, f.adhesion_well_depth(c) / f.surface_tension))
+            })
+            .reduce(|a, b| if b.2 > a.2 { b } else { a })?;
+        (ratio >= VERTEX_QUADRATURE_WARN_RATIO).then(|| {
+            format!(
+                "numerics.contact_quadrature = \"vertices\" with spring adhesion (cell_types[{index}].faces.{}: \
+                 w/(2γ) = ωc²/(4γ) = {}): with the vertex quadrature adhering cells' contact angles settle off \
+                 Young–Dupré (measured on doublets at w/(2γ) = 0.3: 0.5–6.3° too small from R = 2 to 10 µm, 15.7° \
+                 at R = 10 µm from an over-adhered start), so angles and a fitted w/(2γ) are biased; set \
+                 numerics.contact_quadrature = \"faces\" (about 2.5× the contact cost per step) where they matter \
+                 (docs book: Design notes, \"Spring contacts and Young–Dupré\")",
+                face_type.name(),
+                fmt_real_short(ratio),
+            )
+        })
     }
 }
 
