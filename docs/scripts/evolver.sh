@@ -85,32 +85,46 @@ if [ "$what" = noise ] || [ "$what" = all ]; then
         done
     done
 fi
+# wavy_masks SEED DIR CLUSTER...: each cluster's 10 voxels-per-diameter mask with 1 voxel RMS of wavy
+# noise (correlation 1.5, seed SEED), with its truth, in DIR/CLUSTER.
+wavy_masks() {
+    local seed=$1 dir=$2 c
+    shift 2
+    for c in "$@"; do
+        mkdir -p "$dir/$c"
+        cp "validation/evolver/fixtures/$c/truth.json" "$dir/$c/"
+        target/release/tissuefit generate noise "validation/evolver/fixtures/$c/labels_10.tif" --amplitude 1 \
+            --correlation 1.5 --seed "$seed" --out "$dir/$c/labels_10.tif" > /dev/null
+    done
+}
+# roughen_fits DIR ROUGH WORK PREFIX OUT: fits of DIR's masks (denoise_voxels = 2) with the simulated
+# masks roughened by ROUGH (auto, none or an RMS in voxels), their table appended to OUT under a
+# heading that starts with PREFIX.
+roughen_fits() {
+    local dir=$1 rough=$2 work=$3 prefix=$4 out_file=$5 how
+    mkdir -p "$work"
+    local template="$work/template.toml"
+    sed "s/^target_nodes = 400 .*/&\ndenoise_voxels = 2/" validation/evolver/fit-template.toml > "$template"
+    case $rough in
+        none) how="not roughened" ;;
+        auto) how='roughened by `forward.roughen_voxels = "auto"` (correlation 1.5)'
+              sed -i 's/^accept_residual = .*/&\nroughen_voxels = "auto"\nroughen_correlation = 1.5/' "$template" ;;
+        *) how="roughened by the true noise, \`forward.roughen_voxels = $rough\` (correlation 1.5)"
+           sed -i "s/^accept_residual = .*/&\nroughen_voxels = $rough\nroughen_correlation = 1.5/" "$template" ;;
+    esac
+    grep -q "^denoise_voxels = 2" "$template"
+    python3 validation/evolver/run_fits.py --clusters "$dir" --resolutions 10 \
+        --template "$template" --work "$work/runs" --markdown "$work/table.md"
+    { echo "**${prefix}1 voxel RMS of wavy noise (--correlation 1.5), mesh.denoise_voxels = 2, simulated masks $how**"
+      echo; cat "$work/table.md"; echo; } >> "$out_file"
+}
 if [ "$what" = roughen ] || [ "$what" = all ]; then
     cargo build --release
     work=$(mktemp -d)
-    fixtures=validation/evolver/fixtures
-    for c in doublet heldout_triplet ball12; do
-        mkdir -p "$work/wavy/$c"
-        cp "$fixtures/$c/truth.json" "$work/wavy/$c/"
-        target/release/tissuefit generate noise "$fixtures/$c/labels_10.tif" --amplitude 1 \
-            --correlation 1.5 --seed 1 --out "$work/wavy/$c/labels_10.tif" > /dev/null
-    done
+    wavy_masks 1 "$work/wavy" doublet heldout_triplet ball12
     : > "$out/noise-roughen.md"
     for rough in ${ROUGHEN:-auto none 1.0}; do
-        template="$work/roughen-$rough.toml"
-        sed "s/^target_nodes = 400 .*/&\ndenoise_voxels = 2/" validation/evolver/fit-template.toml > "$template"
-        case $rough in
-            none) how="not roughened" ;;
-            auto) how='roughened by `forward.roughen_voxels = "auto"` (correlation 1.5)'
-                  sed -i 's/^accept_residual = .*/&\nroughen_voxels = "auto"\nroughen_correlation = 1.5/' "$template" ;;
-            *) how="roughened by the true noise, \`forward.roughen_voxels = $rough\` (correlation 1.5)"
-               sed -i "s/^accept_residual = .*/&\nroughen_voxels = $rough\nroughen_correlation = 1.5/" "$template" ;;
-        esac
-        grep -q "^denoise_voxels = 2" "$template"
-        python3 validation/evolver/run_fits.py --clusters "$work/wavy" --resolutions 10 \
-            --template "$template" --work "$work/runs-$rough" --markdown "$work/$rough.md"
-        { echo "**1 voxel RMS of wavy noise (--correlation 1.5), mesh.denoise_voxels = 2, simulated masks $how**"
-          echo; cat "$work/$rough.md"; echo; } >> "$out/noise-roughen.md"
+        roughen_fits "$work/wavy" "$rough" "$work/$rough" "" "$out/noise-roughen.md"
     done
 fi
 if [ "$what" = roughen-seeds ] || [ "$what" = all ]; then
@@ -118,28 +132,11 @@ if [ "$what" = roughen-seeds ] || [ "$what" = all ]; then
     # (SEEDS, default "2 3"), roughened "auto" and not at all: how much one draw moves a few-cell fit.
     cargo build --release
     work=$(mktemp -d)
-    fixtures=validation/evolver/fixtures
     : > "$out/noise-roughen-seeds.md"
     for seed in ${SEEDS:-2 3}; do
-        for c in doublet heldout_triplet; do
-            mkdir -p "$work/wavy-$seed/$c"
-            cp "$fixtures/$c/truth.json" "$work/wavy-$seed/$c/"
-            target/release/tissuefit generate noise "$fixtures/$c/labels_10.tif" --amplitude 1 \
-                --correlation 1.5 --seed "$seed" --out "$work/wavy-$seed/$c/labels_10.tif" > /dev/null
-        done
+        wavy_masks "$seed" "$work/wavy-$seed" doublet heldout_triplet
         for rough in auto none; do
-            template="$work/roughen-$seed-$rough.toml"
-            sed "s/^target_nodes = 400 .*/&\ndenoise_voxels = 2/" validation/evolver/fit-template.toml > "$template"
-            how="not roughened"
-            if [ "$rough" = auto ]; then
-                how='roughened by `forward.roughen_voxels = "auto"` (correlation 1.5)'
-                sed -i 's/^accept_residual = .*/&\nroughen_voxels = "auto"\nroughen_correlation = 1.5/' "$template"
-            fi
-            grep -q "^denoise_voxels = 2" "$template"
-            python3 validation/evolver/run_fits.py --clusters "$work/wavy-$seed" --resolutions 10 \
-                --template "$template" --work "$work/runs-$seed-$rough" --markdown "$work/$seed-$rough.md"
-            { echo "**Noise seed $seed: 1 voxel RMS of wavy noise (--correlation 1.5), mesh.denoise_voxels = 2, simulated masks $how**"
-              echo; cat "$work/$seed-$rough.md"; echo; } >> "$out/noise-roughen-seeds.md"
+            roughen_fits "$work/wavy-$seed" "$rough" "$work/$seed-$rough" "Noise seed $seed: " "$out/noise-roughen-seeds.md"
         done
     done
 fi
