@@ -204,6 +204,47 @@ def test_an_unconverged_fit_warns_and_says_so(demo, tmp_path):
     assert result.result["stop_reason"].startswith("evaluation budget of 6 spent")
 
 
+def test_a_per_cell_fit_returns_its_map_with_intervals_and_flags_what_a_doublet_leaves_open(demo, tmp_path):
+    # One refinement iteration on the demo doublet (coupled contacts, faces typed by contact), two
+    # sub-voxel placements per measurement so that every interval has its spread.
+    labels, voxel_size = demo
+    config = f"""
+mode = "per_cell"
+[observed.meshing]
+target_nodes = 200
+seed = 0
+[model_overrides.numerics]
+contact_model = "coupling"
+polarity = "contacts"
+dynamics = "overdamped"
+damping = 3e-9
+[model_overrides.simulation]
+mode = "equilibrium"
+method = "fire"
+max_steps = 1500
+settle_steps = 500
+[forward]
+accept_residual = 1e9
+measure_shifts = 2
+[per_cell]
+iterations = 1
+tolerance = 0.5
+free_tension = 1e-3
+"""
+    result = tf.fit(labels, voxel_size, config=config, out=tmp_path / "map")
+    assert result.ok and result.result["mode"] == "per_cell" and result.tissue is not None and len(result.tissue) == 2
+    assert list(result.cells["cell"]) == [1, 2] and list(result.interfaces["cell_b"]) == [0, 2, 0]
+    # The free tensions average to the free tension asked for; each has an interval.
+    assert np.mean(result.cells["free_tension_mn_per_m"]) == pytest.approx(1.0)
+    assert np.all(result.cells["free_tension_sd_mn_per_m"] > 0)
+    # A doublet fixes only the sum of its two lateral tensions: flagged, no number.
+    assert list(result.cells["lateral_determined"]) == [False, False]
+    assert np.all(np.isnan(result.cells["lateral_tension_mn_per_m"]))
+    assert np.all(result.interfaces["tension_sd_mn_per_m"] > 0)
+    assert set(result.interfaces["sd_source"]) == {"placements"}
+    assert result.interfaces_frame().shape[0] == 3
+
+
 def test_a_fit_stopped_by_its_callback_raises_cancelled_and_resumes_to_the_same_result(demo, tmp_path):
     labels, voxel_size = demo
     seen: list[tuple] = []

@@ -544,6 +544,26 @@ class FitResult:
     """``trace.csv``: every evaluation (parameters, metrics, objective, status) as numpy columns."""
     residuals: dict[str, np.ndarray] = field(default_factory=dict)
     """``residuals.csv``: per cell, the observed and simulated metrics at the best point."""
+    cells: dict[str, np.ndarray] = field(default_factory=dict)
+    """A per-cell fit's (``mode = "per_cell"``) ``cells.csv``: per cell, its free and lateral tension
+    (mN/m, N/m) with their sd (NaN and ``lateral_determined`` False where the interfaces do not fix a
+    cell's own lateral tension), the simulated pressure; empty for a global fit."""
+    interfaces: dict[str, np.ndarray] = field(default_factory=dict)
+    """A per-cell fit's ``interfaces.csv``: per interface (``cell_b`` 0: the medium), the refined
+    ``tension_mn_per_m`` with ``tension_sd_mn_per_m`` and its parts, the direct estimate, the
+    mismatch; empty for a global fit."""
+
+    def cells_frame(self) -> Any:
+        """:attr:`cells` as a pandas DataFrame (needs pandas)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.cells)
+
+    def interfaces_frame(self) -> Any:
+        """:attr:`interfaces` as a pandas DataFrame (needs pandas)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.interfaces)
 
     @property
     def ok(self) -> bool:
@@ -612,7 +632,12 @@ def fit(
     result = json.loads(result_text)
     problems = []
     if not result["converged"]:
-        problems.append(f"not converged ({result.get('stop_reason')})")
+        why = result.get("stop_reason") or (
+            f"mismatch {result['rms_mismatch']:.4f} above per_cell.tolerance {result['tolerance']}"
+            if result.get("mode") == "per_cell"
+            else "see result.json"
+        )
+        problems.append(f"not converged ({why})")
     if result.get("poor_fit"):
         problems.append("a poor fit (the best objective lies far above the forward model's noise)")
     if result["best_relaxation"]["failed"]:
@@ -624,7 +649,8 @@ def fit(
             NotConverged,
             stacklevel=2,
         )
-    best = Path(folder) / "best.vtp"
+    # A per-cell fit's relaxed tissue at its answer is relaxed.vtp.
+    best = Path(folder) / ("relaxed.vtp" if result.get("mode") == "per_cell" else "best.vtp")
     return FitResult(
         converged=bool(result["converged"]),
         poor_fit=bool(result.get("poor_fit", False)),
@@ -635,6 +661,8 @@ def fit(
         out=folder,
         trace=_read_csv_columns(Path(folder) / "trace.csv"),
         residuals=_read_csv_columns(Path(folder) / "residuals.csv"),
+        cells=_read_csv_columns(Path(folder) / "cells.csv") if result.get("mode") == "per_cell" else {},
+        interfaces=_read_csv_columns(Path(folder) / "interfaces.csv") if result.get("mode") == "per_cell" else {},
     )
 
 

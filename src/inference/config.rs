@@ -99,6 +99,67 @@ pub struct PerCellConfig {
     /// one. Faster to settle, but the result then depends on the path. Default false.
     #[serde(default)]
     pub warm_start: bool,
+    /// The error of the map that neither the mismatch nor the placements show (the forward model's
+    /// measurement bias), added to each refined tension's `tension_sd` as a relative standard error
+    /// m = √(floor² + (coefficient × voxel size / mean cell diameter)²): `cell_cell = 0.3` with no
+    /// floor adds 3 % at 10 voxels per diameter, 1.5 % at 20 (a mesh input, with no voxel, gets the
+    /// floor). Defaults calibrated on Surface Evolver truths so that ±1 sd holds 68 % of them (the
+    /// docs book, Per-cell maps; `docs/scripts/per-cell.sh coverage`).
+    #[serde(default)]
+    pub model_error: ModelErrorConfig,
+}
+
+/// `per_cell.model_error`: relative standard errors, a coefficient per (voxel size / mean cell
+/// diameter) and a floor, for cell–cell and for cell–medium interfaces. The defaults are
+/// `validation/per_cell/coverage.py`'s calibration on seeds 1–4 of its Surface Evolver truths
+/// (12 clusters of 4–6 cells at 10 and 20 voxels per diameter), rounded.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ModelErrorConfig {
+    /// Cell–cell interfaces: the relative error per voxel size over cell diameter.
+    #[serde(default = "default_model_error_cell_cell")]
+    pub cell_cell: Real,
+    /// Cell–medium interfaces (free surfaces): the same.
+    #[serde(default = "default_model_error_cell_medium")]
+    pub cell_medium: Real,
+    /// The relative error that does not shrink with the voxel size, cell–cell.
+    #[serde(default = "default_model_error_cell_cell_floor")]
+    pub cell_cell_floor: Real,
+    /// The same, cell–medium.
+    #[serde(default = "default_model_error_cell_medium_floor")]
+    pub cell_medium_floor: Real,
+}
+
+impl Default for ModelErrorConfig {
+    fn default() -> Self {
+        toml::from_str("").expect("all defaults")
+    }
+}
+
+impl ModelErrorConfig {
+    /// The relative model error of a cell–cell (`free` false) or cell–medium interface at
+    /// `resolution` = voxel size / mean cell diameter (`None`: a mesh input, the floor alone).
+    pub fn at(&self, free: bool, resolution: Option<Real>) -> Real {
+        let (coefficient, floor) =
+            if free { (self.cell_medium, self.cell_medium_floor) } else { (self.cell_cell, self.cell_cell_floor) };
+        (floor.powi(2) + (coefficient * resolution.unwrap_or(0.0)).powi(2)).sqrt()
+    }
+}
+
+fn default_model_error_cell_cell() -> Real {
+    0.34
+}
+
+fn default_model_error_cell_medium() -> Real {
+    0.30
+}
+
+fn default_model_error_cell_cell_floor() -> Real {
+    0.011
+}
+
+fn default_model_error_cell_medium_floor() -> Real {
+    0.008
 }
 
 fn default_per_cell_step() -> Real {
@@ -673,6 +734,20 @@ impl FitConfig {
                 "per_cell.step: a fraction in (0, 1] of the correction per iteration; got {}",
                 pc.step
             ));
+        }
+        let m = &pc.model_error;
+        for (key, v) in [
+            ("cell_cell", m.cell_cell),
+            ("cell_medium", m.cell_medium),
+            ("cell_cell_floor", m.cell_cell_floor),
+            ("cell_medium_floor", m.cell_medium_floor),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!(
+                    "per_cell.model_error.{key}: a relative error (0.02 = 2 %; the coefficients per voxel size over \
+                     cell diameter: 0.3 = 3 % at 10 voxels per diameter), finite and ≥ 0; got {v}"
+                ));
+            }
         }
         if let Some(g) = pc.free_tension {
             if !(g.is_finite() && g > 0.0) {

@@ -31,8 +31,8 @@ mod trace;
 
 pub use best::{BEST_MODEL_FILE, BEST_TISSUE_FILE, BestRelaxation, RESIDUALS_FILE, write_best_outputs};
 pub use config::{
-    FitConfig, FitMode, ForwardConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig, OptimizerMethod,
-    ParameterConfig, PerCellConfig, ProfileConfig, Roughen, RoughenEstimate,
+    FitConfig, FitMode, ForwardConfig, ModelErrorConfig, ObjectiveConfig, ObservedConfig, OptimizerConfig,
+    OptimizerMethod, ParameterConfig, PerCellConfig, ProfileConfig, Roughen, RoughenEstimate,
 };
 pub use forward::{
     Evaluation, ForwardModel, MAX_ROUGHEN_VOXELS, MISSING_METRIC_MISFIT, Metric, Metrics, Observation,

@@ -31,9 +31,13 @@
 //! diameter, with single iterations off by up to 15 %, so the refinement cannot resolve biases below
 //! that; it is why the correction is damped and the answer is the best iteration, not the last.
 //!
-//! Intervals: each interface's tension carries the direct estimate's first-order uncertainty
-//! (`tension_sd` of the observed map, propagated relatively); their coverage has not been measured
-//! against truths yet.
+//! Intervals: each interface's `tension_sd` combines, relative to the tension, the mismatch left at
+//! the answer r, the spread s of one measurement over the n sub-voxel placements the relaxed tissue
+//! was measured at (the observed mask is one placement, the simulated map a mean of n), and a model
+//! error m for what neither shows — the measurement's bias that the relaxed tissue reproduces at
+//! the wrong tensions — a floor and a part proportional to voxel size over cell diameter, calibrated
+//! on Surface Evolver truths (`per_cell.model_error`): σ² = r² + s²(1 + 1/n) + m². Its coverage on
+//! held-out truths is measured by `docs/scripts/per-cell.sh coverage`.
 
 use super::InferenceError;
 use super::config::{FitConfig, FitMode};
@@ -127,7 +131,13 @@ pub struct PerCellResult {
     /// Rms of (a_i + a_j − T_ij)/T_ij of the observed map against the start's per-cell tensions: how
     /// far the data's map is from one per-cell tensions can make.
     pub additive_residual_rms: Option<Real>,
-    pub uncertainty: &'static str,
+    /// What `tension_sd` is, and where its coverage was measured.
+    pub uncertainty: String,
+    /// The observed mask's mean cell diameter over its voxel size (the model error scales with its
+    /// inverse); `None` for a mesh input.
+    pub voxels_per_diameter: Option<Real>,
+    /// `per_cell.model_error` at this resolution: the relative errors added to `tension_sd`.
+    pub model_error: ModelErrorAt,
     /// Empty in this mode (the answer is in cells.csv and interfaces.csv).
     pub parameters: BTreeMap<String, Real>,
     pub ratios: BTreeMap<String, Real>,
@@ -138,6 +148,13 @@ pub struct PerCellResult {
     /// The boundary noise added to the simulated masks (`forward.roughen_voxels`); `None` when
     /// nothing was roughened.
     pub roughen: Option<super::forward::RoughnessCalibration>,
+}
+
+/// `model_error` of [`PerCellResult`]: the relative model errors of this run's interfaces.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ModelErrorAt {
+    pub cell_cell: Real,
+    pub cell_medium: Real,
 }
 
 /// `best_relaxation` of [`PerCellResult`].
@@ -171,7 +188,14 @@ struct CellRow {
     free_tension_mn_per_m: Option<Real>,
     lateral_tension_mn_per_m: Option<Real>,
     free_tension_n_per_m: Option<Real>,
+    /// Empty where the cell–cell interfaces do not determine the cell's own lateral tension (a
+    /// doublet's two cells, a chain's: only their sums are known, in interfaces.csv).
     lateral_tension_n_per_m: Option<Real>,
+    /// Standard uncertainties: the free surface's `tension_sd`; the lateral tension's from the
+    /// interfaces' `tension_sd` through the least squares a_i + a_j = T_ij (independent errors).
+    free_tension_sd_mn_per_m: Option<Real>,
+    lateral_tension_sd_mn_per_m: Option<Real>,
+    lateral_determined: bool,
     /// The direct estimate's (the refinement's start), mN/m.
     direct_free_tension_mn_per_m: Option<Real>,
     direct_lateral_tension_mn_per_m: Option<Real>,
@@ -189,10 +213,22 @@ struct InterfaceRow {
     cell_b: u32,
     /// The model's tension of the interface (f_a for the medium, a_a + a_b between cells).
     tension_mn_per_m: Option<Real>,
+    /// The standard uncertainty of `tension` (see [`relative_uncertainty`]).
     tension_sd_mn_per_m: Option<Real>,
     tension_n_per_m: Option<Real>,
-    /// The direct estimate of the observed tissue, scaled to the same free tension.
+    tension_sd_n_per_m: Option<Real>,
+    /// "placements": `tension_sd` from the spread over sub-voxel placements; "direct estimate": from
+    /// the observed direct estimate's first-order uncertainty (too narrow; one placement measured).
+    sd_source: &'static str,
+    /// The parts of `tension_sd` (relative): the spread of one measurement over `placements`
+    /// sub-voxel placements, and the model error added (`per_cell.model_error`).
+    placement_sd: Option<Real>,
+    placements: Option<usize>,
+    model_error: Option<Real>,
+    /// The direct estimate of the observed tissue, scaled to the same free tension, and its
+    /// first-order uncertainty (force-balance residuals).
     direct_mn_per_m: Option<Real>,
+    direct_sd_mn_per_m: Option<Real>,
     /// The direct estimates of the observed and the relaxed tissue at the answer, relative to their
     /// mean cell–medium tension; mismatch = simulated/observed − 1.
     observed_relative: Option<Real>,
@@ -327,6 +363,81 @@ struct Best {
     relaxed: Tissue,
     simulated: BTreeMap<Key, Real>,
     pressure: BTreeMap<u32, Real>,
+    /// Each interface's spread over the placements the relaxed tissue was measured at.
+    spread: BTreeMap<Key, Spread>,
+}
+
+/// The observed mask's voxel size over its moving cells' mean equivalent diameter (`None` for a
+/// mesh input): the resolution the model error scales with.
+fn resolution(obs: &Observation) -> Option<Real> {
+    let voxel = obs.labels.as_ref()?.voxel_size().iter().copied().fold(0.0, Real::max);
+    let d: Vec<Real> = obs
+        .tissue
+        .cells()
+        .iter()
+        .filter(|c| obs.cell_labels.contains(&c.id().0))
+        .map(|c| (6.0 * c.mesh().signed_volume().abs() / std::f64::consts::PI).cbrt())
+        .collect();
+    let mean = d.iter().sum::<Real>() / d.len().max(1) as Real;
+    (mean > 0.0 && voxel > 0.0).then(|| voxel / mean)
+}
+
+/// The standard uncertainty of each cell's lateral tension a_i fitted to a_i + a_j = T_ij over
+/// `rows` ((i, j), sd of T_ij), with independent errors: the i-th row of the pseudo-inverse A⁺
+/// weighted by the sds. `None` (left out) for a cell the rows do not determine: one with a
+/// component in A's null space (a doublet's two cells, the cells of a chain), whose a_i only the
+/// sums fix.
+fn lateral_uncertainty(cells: &[u32], rows: &[((u32, u32), Real)]) -> BTreeMap<u32, Real> {
+    let column: BTreeMap<u32, usize> = cells.iter().enumerate().map(|(k, &c)| (c, k)).collect();
+    let rows: Vec<(usize, usize, Real)> =
+        rows.iter().filter_map(|&((a, b), sd)| Some((*column.get(&a)?, *column.get(&b)?, sd))).collect();
+    if rows.is_empty() {
+        return BTreeMap::new();
+    }
+    let mut a = DMatrix::<Real>::zeros(rows.len(), cells.len());
+    for (r, &(i, j, _)) in rows.iter().enumerate() {
+        a[(r, i)] = 1.0;
+        a[(r, j)] = 1.0;
+    }
+    let svd = a.svd(true, true);
+    let Some(v_t) = svd.v_t.clone() else { return BTreeMap::new() };
+    let largest = svd.singular_values.iter().copied().fold(0.0, Real::max);
+    let tol = 1e-9 * largest.max(1.0);
+    // Rows of Vᵀ with a zero singular value span the null space (Vᵀ has min(rows, cells) rows; with
+    // fewer rows than cells the rest of the space is null too).
+    let rank_rows: Vec<usize> = (0..svd.singular_values.len()).filter(|&k| svd.singular_values[k] > tol).collect();
+    let Ok(pinv) = svd.pseudo_inverse(tol) else { return BTreeMap::new() };
+    let mut out = BTreeMap::new();
+    for (k, &c) in cells.iter().enumerate() {
+        // e_k lies in the row space iff its projection onto the non-null right singular vectors is e_k.
+        let in_row_space: Real = rank_rows.iter().map(|&q| v_t[(q, k)].powi(2)).sum();
+        if (in_row_space - 1.0).abs() > 1e-6 {
+            continue;
+        }
+        let var: Real = rows.iter().enumerate().map(|(r, &(_, _, sd))| (pinv[(k, r)] * sd).powi(2)).sum();
+        out.insert(c, var.sqrt());
+    }
+    out
+}
+
+/// `uncertainty` of the result: what `tension_sd` is for this run.
+fn uncertainty_note(best: &Best, shifts: usize) -> String {
+    let how = "tension_sd: the refined tension's standard uncertainty, σ² = r² + s²(1 + 1/n) + m² relative to it, \
+               with r the interface's mismatch at the answer, s the spread of its measurement over n sub-voxel \
+               placements of the relaxed tissue and m the model error (per_cell.model_error: a floor and a \
+               coefficient × voxel size / mean cell diameter; the floor alone for a mesh input)";
+    if best.spread.is_empty() {
+        format!(
+            "{how}; this run measured {shifts} placement(s), so s is the observed direct estimate's first-order \
+             uncertainty instead, which is known to be too narrow (set forward.measure_shifts ≥ 2); \
+             sd_source says which per interface"
+        )
+    } else {
+        format!(
+            "{how}; interfaces no two placements determined use the direct estimate's first-order uncertainty \
+             instead (sd_source); coverage measured on Surface Evolver truths: the docs book, Per-cell maps"
+        )
+    }
 }
 
 /// Runs the per-cell fit of `config` on `observation` into `out` (created if needed).
@@ -414,6 +525,19 @@ pub fn run_per_cell(
     for w in warnings.iter().skip(observed_map.warnings.len()) {
         tracing::warn!("{w}");
     }
+    if obs.labels.is_none()
+        || obs.meshing.is_none()
+        || !model.forward.measure_like_data
+        || model.forward.measure_shifts < 2
+    {
+        let w = "the intervals (tension_sd) need the spread of each measurement over sub-voxel placements, which \
+                 this run does not measure (a mesh input, measure_like_data = false or forward.measure_shifts < 2): \
+                 they fall back to the direct estimate's first-order uncertainty, known to be too narrow; for a \
+                 label input set forward.measure_shifts ≥ 2"
+            .to_string();
+        tracing::warn!("{w}");
+        warnings.push(w);
+    }
     if observed.keys().all(|&(_, b)| b == 0) {
         return Err(InferenceError::Observed(
             "the direct estimate determined no cell–cell interface between moving cells: there is no map to refine"
@@ -494,14 +618,14 @@ pub fn run_per_cell(
                 } else {
                     "unconverged"
                 };
-                measure_map(&model, &tissue, &settings, &params).map(|(map, pressure)| (tissue, map, pressure))
+                measure_map(&model, &tissue, &settings, &params).map(|m| (tissue, m))
             }
         };
         if model.watch.stopped() {
             progress.finish();
             return Err(InferenceError::Stopped);
         }
-        let (tissue, simulated, pressure) = match measured {
+        let (tissue, Measured { map: simulated, pressure, spread }) = match measured {
             Ok(m) if row.relaxation != "unconverged" => m,
             Ok(_) => {
                 row.reason = format!(
@@ -544,6 +668,7 @@ pub fn run_per_cell(
                 relaxed: tissue.clone(),
                 simulated: simulated.clone(),
                 pressure,
+                spread,
             });
         }
         if rms <= config.per_cell.tolerance {
@@ -603,9 +728,12 @@ pub fn run_per_cell(
         cells: moving.len(),
         interfaces: observed.len(),
         additive_residual_rms,
-        uncertainty: "tension_sd: the observed direct estimate's first-order uncertainty (force-balance residuals, \
-                      cluster-robust by junction line), carried relatively to the refined tension; coverage not \
-                      yet measured against truths",
+        uncertainty: uncertainty_note(&best, model.forward.measure_shifts),
+        voxels_per_diameter: resolution(obs).map(|r| 1.0 / r),
+        model_error: ModelErrorAt {
+            cell_cell: config.per_cell.model_error.at(false, resolution(obs)),
+            cell_medium: config.per_cell.model_error.at(true, resolution(obs)),
+        },
         parameters: BTreeMap::new(),
         ratios: BTreeMap::new(),
         best_relaxation: BestRelaxationNote { failed: false, reason: String::new() },
@@ -628,7 +756,7 @@ fn measure_map(
     tissue: &Tissue,
     settings: &TensionSettings,
     params: &Parameters,
-) -> Result<(TensionsByInterface, BTreeMap<u32, Real>), String> {
+) -> Result<Measured, String> {
     let obs = &model.observation;
     let pressure: BTreeMap<u32, Real> = tissue
         .cells()
@@ -642,7 +770,7 @@ fn measure_map(
     let (Some(labels), Some(options), true) = (&obs.labels, &obs.meshing, model.forward.measure_like_data) else {
         let map = estimate_tensions(tissue, settings)
             .map_err(|e| format!("the direct estimate of the relaxed tissue: {e}"))?;
-        return Ok((tensions_of(&map), pressure));
+        return Ok(Measured { map: tensions_of(&map), pressure, spread: BTreeMap::new() });
     };
     // Like the data, at `forward.measure_shifts` sub-voxel placements (in parallel), each interface's
     // tension averaged over the placements that determine it (combined in shift order: the same on
@@ -673,15 +801,58 @@ fn measure_map(
             Ok(tensions_of(&map))
         })
         .collect();
-    let mut sums: BTreeMap<Key, (Real, usize)> = BTreeMap::new();
+    let mut values: BTreeMap<Key, Vec<Real>> = BTreeMap::new();
     for map in each {
         for (k, t) in map? {
-            let e = sums.entry(k).or_insert((0.0, 0));
-            e.0 += t;
-            e.1 += 1;
+            values.entry(k).or_default().push(t);
         }
     }
-    Ok((sums.into_iter().map(|(k, (t, n))| (k, t / n as Real)).collect(), pressure))
+    let map = values.iter().map(|(k, v)| (*k, v.iter().sum::<Real>() / v.len() as Real)).collect();
+    let spread = values.iter().filter_map(|(k, v)| Some((*k, Spread::of(v)?))).collect();
+    Ok(Measured { map, pressure, spread })
+}
+
+/// A relaxed tissue measured like the data: its determined tensions (each the mean over the
+/// placements that determine it), its moving cells' pressures (Pa), and each interface's spread
+/// over the placements (only where ≥ 2 placements determine it).
+struct Measured {
+    map: TensionsByInterface,
+    pressure: BTreeMap<u32, Real>,
+    spread: BTreeMap<Key, Spread>,
+}
+
+/// How one interface's measured tension scatters over the sub-voxel placements of one tissue.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Spread {
+    /// The sample standard deviation relative to the mean.
+    relative_sd: Real,
+    /// Placements that determined the interface (≥ 2).
+    placements: usize,
+}
+
+impl Spread {
+    fn of(values: &[Real]) -> Option<Spread> {
+        let n = values.len();
+        if n < 2 {
+            return None;
+        }
+        let mean = values.iter().sum::<Real>() / n as Real;
+        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<Real>() / (n - 1) as Real;
+        let relative_sd = var.sqrt() / mean.abs();
+        relative_sd.is_finite().then_some(Spread { relative_sd, placements: n })
+    }
+}
+
+/// The relative standard uncertainty of an interface's refined tension, from what the refinement
+/// measured at its answer: `mismatch` = simulated/observed − 1 there (a bias the last correction
+/// left; it counts in full) and the spread of one measurement over sub-voxel placements. The
+/// observed mask is one placement (its measurement error has the spread's sd), the simulated map
+/// the mean over `placements` (sd/√n), and the answer errs by their difference:
+/// σ² = r² + s²·(1 + 1/n) + m², with m the model error that neither shows
+/// (`per_cell.model_error`, relative).
+fn relative_uncertainty(mismatch: Real, spread: Spread, model_error: Real) -> Real {
+    (mismatch.powi(2) + spread.relative_sd.powi(2) * (1.0 + 1.0 / spread.placements as Real) + model_error.powi(2))
+        .sqrt()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -701,29 +872,8 @@ fn write_outputs(
     let io = |path: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", path.display()));
     let obs = &model.observation;
     let t = &best.tensions;
+    let model_error = result.model_error;
     let mn = |v: Option<Real>| v.map(|x| x * 1e3);
-    let cells: Vec<CellRow> = obs
-        .tissue
-        .cells()
-        .iter()
-        .filter(|c| obs.cell_labels.contains(&c.id().0))
-        .map(|c| {
-            let id = c.id().0;
-            let p = best.pressure.get(&id).copied();
-            CellRow {
-                cell: id,
-                free_tension_mn_per_m: mn(t.free.get(&id).copied()),
-                lateral_tension_mn_per_m: mn(t.lateral.get(&id).copied()),
-                free_tension_n_per_m: t.free.get(&id).copied(),
-                lateral_tension_n_per_m: t.lateral.get(&id).copied(),
-                direct_free_tension_mn_per_m: mn(start.free.get(&id).copied()),
-                direct_lateral_tension_mn_per_m: mn(start.lateral.get(&id).copied()),
-                pressure_pa: p,
-                pressure_kpa: p.map(|p| p * 1e-3),
-                volume_um3: c.mesh().signed_volume() * 1e18,
-            }
-        })
-        .collect();
     let interfaces: Vec<InterfaceRow> = observed_map
         .interfaces
         .iter()
@@ -733,18 +883,70 @@ fn write_outputs(
             let tension = t.of(k);
             let o = observed.get(&k).copied();
             let s = best.simulated.get(&k).copied();
-            let relative_sd = f.tension_sd.zip(f.tension).map(|(sd, t)| sd / t);
+            let direct_relative_sd = f.tension_sd.zip(f.tension).map(|(sd, t)| sd / t);
+            let mismatch = o.zip(s).map(|(o, s)| s / o - 1.0);
+            let model_error = if f.cell_b == 0 { model_error.cell_medium } else { model_error.cell_cell };
+            let spread = best.spread.get(&k).copied();
+            let (relative_sd, sd_source) = match (spread, mismatch) {
+                (Some(spread), Some(r)) => (Some(relative_uncertainty(r, spread, model_error)), "placements"),
+                _ => (
+                    direct_relative_sd.map(|d| (mismatch.unwrap_or(0.0).powi(2) + d * d + model_error.powi(2)).sqrt()),
+                    "direct estimate",
+                ),
+            };
+            let sd = tension.zip(relative_sd).map(|(t, r)| t * r);
             InterfaceRow {
                 cell_a: f.cell_a,
                 cell_b: f.cell_b,
                 tension_mn_per_m: mn(tension),
-                tension_sd_mn_per_m: mn(tension.zip(relative_sd).map(|(t, r)| t * r)),
+                tension_sd_mn_per_m: mn(sd),
                 tension_n_per_m: tension,
+                tension_sd_n_per_m: sd,
+                sd_source,
+                placement_sd: spread.map(|s| s.relative_sd),
+                placements: spread.map(|s| s.placements),
+                model_error: Some(model_error),
                 direct_mn_per_m: mn(o.map(|o| o * scale)),
+                direct_sd_mn_per_m: mn(o.zip(direct_relative_sd).map(|(o, r)| o * scale * r)),
                 observed_relative: o,
                 simulated_relative: s,
-                mismatch: o.zip(s).map(|(o, s)| s / o - 1.0),
+                mismatch,
                 area_um2: f.area * 1e12,
+            }
+        })
+        .collect();
+    // Each cell's lateral tension and its sd, where the cell–cell interfaces determine it.
+    let cell_cell: Vec<((u32, u32), Real)> = interfaces
+        .iter()
+        .filter(|r| r.cell_b != 0)
+        .filter_map(|r| Some(((r.cell_a, r.cell_b), r.tension_sd_n_per_m?)))
+        .collect();
+    let lateral_sd = lateral_uncertainty(&obs.cell_labels, &cell_cell);
+    let cells: Vec<CellRow> = obs
+        .tissue
+        .cells()
+        .iter()
+        .filter(|c| obs.cell_labels.contains(&c.id().0))
+        .map(|c| {
+            let id = c.id().0;
+            let p = best.pressure.get(&id).copied();
+            let free_sd =
+                interfaces.iter().find(|r| r.cell_a == id && r.cell_b == 0).and_then(|r| r.tension_sd_n_per_m);
+            let lateral_sd = lateral_sd.get(&id).copied();
+            CellRow {
+                cell: id,
+                free_tension_mn_per_m: mn(t.free.get(&id).copied()),
+                lateral_tension_mn_per_m: mn(lateral_sd.and(t.lateral.get(&id).copied())),
+                free_tension_sd_mn_per_m: mn(free_sd),
+                lateral_tension_sd_mn_per_m: mn(lateral_sd),
+                lateral_determined: lateral_sd.is_some(),
+                free_tension_n_per_m: t.free.get(&id).copied(),
+                lateral_tension_n_per_m: lateral_sd.and(t.lateral.get(&id).copied()),
+                direct_free_tension_mn_per_m: mn(start.free.get(&id).copied()),
+                direct_lateral_tension_mn_per_m: mn(start.lateral.get(&id).copied()),
+                pressure_pa: p,
+                pressure_kpa: p.map(|p| p * 1e-3),
+                volume_um3: c.mesh().signed_volume() * 1e18,
             }
         })
         .collect();
@@ -827,4 +1029,52 @@ fn write_outputs(
     let direct: Vec<Real> = interfaces.iter().filter_map(|r| r.direct_mn_per_m).collect();
     let refined: Vec<Real> = interfaces.iter().filter_map(|r| r.tension_mn_per_m).collect();
     super::plot::plot_tension_histogram(&out.join("tension_histogram.png"), &direct, &refined)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spread_needs_two_placements_and_is_relative_to_the_mean() {
+        assert_eq!(Spread::of(&[]), None);
+        assert_eq!(Spread::of(&[1.0]), None);
+        // Mean 2, sample sd √2.
+        let s = Spread::of(&[1.0, 3.0]).unwrap();
+        assert_eq!(s.placements, 2);
+        assert!((s.relative_sd - 2f64.sqrt() / 2.0).abs() < 1e-12, "{s:?}");
+        assert_eq!(Spread::of(&[0.0, 0.0]), None, "no relative spread of a zero mean");
+    }
+
+    #[test]
+    fn the_uncertainty_adds_mismatch_placements_and_model_error_in_quadrature() {
+        let spread = Spread { relative_sd: 0.04, placements: 4 };
+        // 0.03² + 0.04² · 1.25 + 0.05² = 0.0009 + 0.002 + 0.0025.
+        let sd = relative_uncertainty(0.03, spread, 0.05);
+        assert!((sd - 0.0054f64.sqrt()).abs() < 1e-12, "{sd}");
+        // A sign of the mismatch does not matter; more placements narrow only the simulated part.
+        assert_eq!(relative_uncertainty(-0.03, spread, 0.05), sd);
+        let many = relative_uncertainty(0.0, Spread { relative_sd: 0.04, placements: 1000 }, 0.0);
+        assert!((many - 0.04 * (1.001f64).sqrt()).abs() < 1e-12, "{many}");
+    }
+
+    #[test]
+    fn lateral_tensions_are_uncertain_by_the_least_squares_and_left_out_where_undetermined() {
+        // A triplet's three interfaces determine the three cells: a = A⁻¹T, A⁻¹ = ½[[1,1,−1],…],
+        // so with equal sds σ each a_i has σ·√3/2.
+        let triplet = lateral_uncertainty(&[1, 2, 3], &[((1, 2), 0.1), ((1, 3), 0.1), ((2, 3), 0.1)]);
+        assert_eq!(triplet.len(), 3);
+        for sd in triplet.values() {
+            assert!((sd - 0.1 * 3f64.sqrt() / 2.0).abs() < 1e-12, "{triplet:?}");
+        }
+        // A doublet and a chain fix only sums: no cell is determined.
+        assert!(lateral_uncertainty(&[1, 2], &[((1, 2), 0.1)]).is_empty());
+        assert!(lateral_uncertainty(&[1, 2, 3], &[((1, 2), 0.1), ((2, 3), 0.1)]).is_empty());
+        // A triangle with a tail: the tail's cell follows from its one interface and its neighbour;
+        // a cell with no interface at all is not determined.
+        let tail = lateral_uncertainty(&[1, 2, 3, 4, 5], &[((1, 2), 0.1), ((1, 3), 0.1), ((2, 3), 0.1), ((3, 4), 0.2)]);
+        assert_eq!(tail.keys().copied().collect::<Vec<_>>(), vec![1, 2, 3, 4]);
+        // a_4 = T_34 − a_3: variance 0.2² + 3·0.1²/4.
+        assert!((tail[&4] - (0.04f64 + 0.0075).sqrt()).abs() < 1e-12, "{tail:?}");
+    }
 }

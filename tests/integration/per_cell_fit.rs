@@ -169,6 +169,26 @@ fn a_per_cell_fit_maps_evolvers_hetero4_at_10_voxels_the_same_on_one_and_two_thr
     }
     let snippet = std::fs::read_to_string(out.join("cell_overrides.toml")).unwrap();
     assert_eq!(snippet.matches("[[cell_overrides]]").count(), 4, "{snippet}");
+    // Each interval is the mismatch left, the spread over the 2 placements and the model error
+    // (per voxel size over the ~8 µm cells' diameter at 0.8 µm voxels: ~10 voxels per diameter),
+    // combined in quadrature: rebuild it from its parts.
+    let per_diameter = result["voxels_per_diameter"].as_f64().unwrap();
+    assert!((8.0..12.0).contains(&per_diameter), "{per_diameter}");
+    let config = FitConfig::from_toml_str(&std::fs::read_to_string(&config).unwrap(), "fit.toml").unwrap();
+    let m = config.per_cell.model_error;
+    for r in &interfaces {
+        assert_eq!(r["sd_source"], "placements", "{r:?}");
+        assert_eq!(number(r, "placements"), 2.0, "{r:?}");
+        let (coefficient, floor) =
+            if r["cell_b"] == "0" { (m.cell_medium, m.cell_medium_floor) } else { (m.cell_cell, m.cell_cell_floor) };
+        let want = (floor.powi(2) + (coefficient / per_diameter).powi(2)).sqrt();
+        assert!((number(r, "model_error") - want).abs() < 1e-12, "{r:?}");
+        let (mismatch, s) = (number(r, "mismatch"), number(r, "placement_sd"));
+        let want = (mismatch.powi(2) + 1.5 * s * s + number(r, "model_error").powi(2)).sqrt();
+        let sd = number(r, "tension_sd_mn_per_m") / number(r, "tension_mn_per_m");
+        assert!(s > 0.0 && (sd / want - 1.0).abs() < 1e-9, "{r:?}: {sd} against {want}");
+    }
+    assert!(result["uncertainty"].as_str().unwrap().contains("placements"), "{result}");
 }
 
 #[test]
@@ -180,6 +200,10 @@ fn bad_per_cell_settings_are_refused_naming_the_key() {
         ("[per_cell]\ntolerance = 0.0\n", "per_cell.tolerance"),
         ("[per_cell]\nfree_tension = 1.0\n", "per_cell.free_tension"),
         ("[per_cell]\niteration = 3\n", "unknown field `iteration`"),
+        ("[per_cell]\nmodel_error = { cell_cell = -1.0 }\n", "per_cell.model_error.cell_cell"),
+        ("[per_cell]\nmodel_error = { cell_medium = nan }\n", "per_cell.model_error.cell_medium"),
+        ("[per_cell]\nmodel_error = { cell_cell_floor = -0.01 }\n", "per_cell.model_error.cell_cell_floor"),
+        ("[per_cell]\nmodel_error = { cell = 1.0 }\n", "unknown field `cell`"),
     ] {
         let e = FitConfig::from_toml_str(&format!("{base}{extra}"), "fit.toml").unwrap_err().to_string();
         assert!(e.contains(want), "{extra}: {e}");

@@ -50,6 +50,7 @@ class Cluster:
     radius: float  # radius of the ball around each seed that clips its Voronoi cell
     ratio: float | None  # gamma_l / gamma_a = T_cc / (2 gamma_a) when it is one number
     pair_tension: dict = field(default_factory=dict)  # (i, j) -> T_ij, i < j (0-based)
+    per_cell: list | None = None  # additive clusters: the per-cell a_i with T_ij = a_i + a_j
     description: str = ""
 
     def tension(self, i: int, j: int) -> float:
@@ -88,6 +89,25 @@ def ball_seeds(n: int, rng: np.random.Generator, spacing: float) -> np.ndarray:
         force -= 0.05 * pts_a  # gentle pull to the centre keeps the cluster compact
         pts_a += 0.2 * force
     return pts_a - pts_a.mean(axis=0)
+
+
+def random_additive(seed: int, cells: int) -> Cluster:
+    """A cluster of `cells` (4: tetrahedral, more: packed in a ball) whose cell-cell tensions are
+    additive, T_ij = a_i + a_j with per-cell a_i drawn uniformly from [0.3, 0.85] (so T in
+    [0.6, 1.7] < 2 gamma_a: every contact stays a contact): the truths a per-cell map can make
+    exactly, for measuring the coverage of its intervals (docs/scripts/per-cell.sh coverage)."""
+    rng = np.random.default_rng(1000 + seed)
+    d = 1.0
+    seeds = tetrahedron(d) if cells == 4 else ball_seeds(cells, rng, d)
+    a = rng.uniform(0.3, 0.85, cells)
+    cl = Cluster(f"additive{cells}_s{seed}", seeds, 0.8 * d if cells == 4 else 0.75 * d, None,
+                 description=f"{cells} cells, additive tensions a_i + a_j, a = "
+                             + ", ".join(f"{x:.3f}" for x in a) + f" (seed {seed})")
+    for i in range(cells):
+        for j in range(i + 1, cells):
+            cl.pair_tension[(i, j)] = float(a[i] + a[j])
+    cl.per_cell = [float(x) for x in a]
+    return cl
 
 
 def make_clusters() -> dict[str, Cluster]:
@@ -476,6 +496,7 @@ def make(cl: Cluster, out: str, diameter_um: float, refine: int, hessian: bool) 
         "median_force_balance": float(np.median([ln["balance"] for ln in lines])) if lines else None,
         "p99_force_balance": float(np.percentile([ln["balance"] for ln in lines], 99)) if lines else None,
         "interfaces": pairs,
+        "per_cell_lateral": None if cl.per_cell is None else {str(i + 1): a for i, a in enumerate(cl.per_cell)},
         "evolver": {"vertices": int(len(xyz)), "facets": int(len(tri)), "refine": refine, "hessian": hessian},
     }
     with open(os.path.join(out, "truth.json"), "w") as fh:
@@ -486,12 +507,19 @@ def make(cl: Cluster, out: str, diameter_um: float, refine: int, hessian: bool) 
 def main() -> None:
     clusters = make_clusters()
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("kind", choices=sorted(clusters) + ["all"])
+    ap.add_argument("kind", choices=sorted(clusters) + ["all", "additive"],
+                    help="a named cluster, all of them, or `additive` (random additive tensions: --seed, --cells)")
+    ap.add_argument("--seed", type=int, default=1, help="with `additive`: the draw of seeds and tensions")
+    ap.add_argument("--cells", type=int, default=4, help="with `additive`: the number of cells")
     ap.add_argument("--out", required=True, help="output folder (with `all`: one sub-folder per cluster)")
     ap.add_argument("--diameter", type=float, default=8.0, help="mean equivalent cell diameter in micrometres")
     ap.add_argument("--refine", type=int, default=3, help="refinement passes (each quadruples the facets)")
     ap.add_argument("--no-hessian", action="store_true", help="gradient steps only (no Hessian polish)")
     args = ap.parse_args()
+    if args.kind == "additive":
+        cl = random_additive(args.seed, args.cells)
+        clusters[cl.name] = cl
+        args.kind = cl.name
     kinds = sorted(clusters) if args.kind == "all" else [args.kind]
     for k in kinds:
         out = os.path.join(args.out, k) if args.kind == "all" else args.out
