@@ -40,7 +40,7 @@ pub struct FitArgs {
 
 /// A fit config, or the fit of a pipeline file (recognised by its `[input]` table) with the
 /// pipeline's output unit.
-fn load_config(path: &Path) -> anyhow::Result<(FitConfig, Option<OutputUnit>)> {
+pub(super) fn load_config(path: &Path) -> anyhow::Result<(FitConfig, Option<OutputUnit>)> {
     if !crate::pipeline::is_pipeline_file(path) {
         return Ok((FitConfig::load(path)?, None));
     }

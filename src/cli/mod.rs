@@ -4,6 +4,7 @@ mod bench;
 mod config;
 mod convert;
 mod fit;
+mod fit_series;
 mod generate;
 mod inspect;
 mod label_args;
@@ -76,6 +77,11 @@ pub enum Command {
     /// one → DIR/trace.csv, result.json, objective.png, landscape.png. Exits with 1 when the optimiser
     /// stopped on its budget instead of converging.
     Fit(fit::FitArgs),
+    /// Map a time series of label volumes in order with the per-cell fit: cells tracked by overlap
+    /// (one id through the series), each frame started from the previous frame's answer →
+    /// DIR/tNNN/, tracks.csv, series_cells.csv, series_interfaces.csv, series.json. Exits with 1
+    /// when a frame failed or did not converge.
+    FitSeries(fit_series::FitSeriesArgs),
     /// Synthetic inputs: `generate labels` writes a label volume (sphere, ellipsoid, cube, doublet,
     /// aggregate); `generate mesh` writes a tissue (sphere, cube, vesicle, sheet, tube, spheroid).
     #[command(subcommand)]
@@ -163,6 +169,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Voxelize(args) => voxelize::run(&args),
         Command::Generate(cmd) => generate::run(&cmd),
         Command::Fit(args) => fit::run(&args),
+        Command::FitSeries(args) => fit_series::run(&args),
         Command::Run(args) => run::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Sweep(args) => sweep::run(&args),

@@ -71,6 +71,9 @@ pub enum ImagingError {
     BackgroundCell { cell: CellId },
     #[error("cannot generate labels: {0}")]
     Generate(String),
+    /// Labels that cannot be matched across the frames of a series.
+    #[error("matching labels across frames: {0}")]
+    Tracking(String),
     /// A declared size beyond the memory limit (see `limits.rs`), or an unreadable limit.
     #[error("{0}")]
     Limit(String),

@@ -13,6 +13,8 @@
 //!   `image-label.properties` (`zarr_properties.rs`), for `tissuefit measure --zarr-properties`.
 //! - [`voxelize`]: closed cell surfaces → labels, by exact ray–triangle crossings along x.
 //! - [`label_overlap`]: per-label IoU and χ = 1 − IoU of two label volumes on one grid.
+//! - [`match_labels`]: the labels of one frame of a series matched to the previous frame's tracks by
+//!   overlap (`track.rs`); [`relabel`] renumbers a volume.
 //! - [`generate_labels`]: synthetic label volumes (sphere, ellipsoid, cube, doublet, aggregate);
 //!   [`perturb_boundaries`]: segmentation-like noise on a volume's boundaries (`noise.rs`).
 //! - [`BorderPolicy`], [`DEFAULT_MIN_VOXELS`]: which labels count as cells (debris, cut cells at
@@ -32,6 +34,7 @@ mod npy_read;
 mod overlap;
 mod tiff_read;
 mod tiff_write;
+mod track;
 mod volume;
 mod voxelize;
 mod zarr_properties;
@@ -47,11 +50,13 @@ pub use labels::{
 pub use limits::{DEFAULT_MEMORY_LIMIT, MEMORY_LIMIT_ENV, check_voxel_memory, format_bytes, memory_limit, parse_bytes};
 pub use metadata::VoxelSizeSource;
 pub use noise::{BoundaryNoise, NoiseStats, boundary_roughness, denoise_labels, gaussian_blur, perturb_boundaries};
+pub(crate) use overlap::check_same_grid;
 pub use overlap::{LabelOverlap, label_overlap};
 pub use tiff_read::{
     FALLBACK_VOXEL_SIZE, LabelRead, LabelReadOptions, MAX_EXPANSION, read_label_tiff, read_label_tiff_bytes,
 };
 pub use tiff_write::{LabelDtype, LabelWriteOptions, TiffCompression, write_label_tiff};
+pub use track::{FrameTracks, TrackedLabel, match_labels, relabel};
 pub use volume::{AnisotropyError, LabelInfo, LabelMask, LabelVolume, MAX_ANISOTROPY, VoxelGrid};
 pub use voxelize::{VoxelizeStats, voxelize, voxelize_with_stats};
 pub use zarr_properties::{

@@ -34,17 +34,15 @@ impl LabelOverlap {
     }
 }
 
-/// Per-label overlap of every non-zero label found in `a` or `b`, sorted by label. Both volumes must
-/// be on the same grid (shape, voxel size and origin); compare on a common grid by voxelising.
-/// The count is one pass over both volumes, z slices in parallel, merged in order (thread-independent).
-pub fn label_overlap(a: &LabelVolume, b: &LabelVolume) -> Result<Vec<LabelOverlap>, ImagingError> {
+/// An error unless `a` and `b` lie on the same grid (shape, voxel size and origin); `what` is the
+/// verb the message uses ("compare", "match"), `remedy` what to do.
+pub(crate) fn check_same_grid(a: &LabelVolume, b: &LabelVolume, what: &str, remedy: &str) -> Result<(), ImagingError> {
     let (ga, gb) = (a.grid(), b.grid());
     let same_origin = (ga.origin - gb.origin).norm() <= 1e-9 * ga.voxel_size.iter().copied().fold(0.0, Real::max);
     let same_size = ga.voxel_size.iter().zip(&gb.voxel_size).all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs());
     if ga.shape != gb.shape || !same_origin || !same_size {
         return Err(ImagingError::Grid(format!(
-            "cannot compare label volumes on different grids: shape {:?} vs {:?}, voxel size {:?} vs {:?} m, origin {:?} vs {:?} m; \
-             voxelise one tissue on the other's grid first (`tissuefit voxelize --like`)",
+            "cannot {what} label volumes on different grids: shape {:?} vs {:?}, voxel size {:?} vs {:?} m, origin {:?} vs {:?} m; {remedy}",
             ga.shape,
             gb.shape,
             ga.voxel_size,
@@ -53,6 +51,14 @@ pub fn label_overlap(a: &LabelVolume, b: &LabelVolume) -> Result<Vec<LabelOverla
             gb.origin.as_slice()
         )));
     }
+    Ok(())
+}
+
+/// Per-label overlap of every non-zero label found in `a` or `b`, sorted by label. Both volumes must
+/// be on the same grid (shape, voxel size and origin); compare on a common grid by voxelising.
+/// The count is one pass over both volumes, z slices in parallel, merged in order (thread-independent).
+pub fn label_overlap(a: &LabelVolume, b: &LabelVolume) -> Result<Vec<LabelOverlap>, ImagingError> {
+    check_same_grid(a, b, "compare", "voxelise one tissue on the other's grid first (`tissuefit voxelize --like`)")?;
     let per_slice: Vec<BTreeMap<u32, [u64; 3]>> = a
         .labels()
         .axis_iter(Axis(0))

@@ -39,7 +39,7 @@ pub use forward::{
     RoughnessCalibration, Status, shift_offset,
 };
 pub use optimise::{BOUND_PENALTY, Evaluator, Halt, OptimiserOutcome, optimise};
-pub use per_cell::{Iteration, PER_CELL_FILES, PerCellResult, run_per_cell};
+pub use per_cell::{CellTensions, Iteration, PER_CELL_FILES, PerCellResult, run_per_cell, run_per_cell_from};
 pub use plot::{plot_landscape, plot_objective};
 pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};
 pub use result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};

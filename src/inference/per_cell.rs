@@ -148,6 +148,12 @@ pub struct PerCellResult {
     /// The boundary noise added to the simulated masks (`forward.roughen_voxels`); `None` when
     /// nothing was roughened.
     pub roughen: Option<super::forward::RoughnessCalibration>,
+    /// Cells whose start was a previous time point's answer ([`run_per_cell_from`]); 0 when every
+    /// cell started from the direct estimate.
+    pub previous_frame_cells: usize,
+    /// The per-cell tensions of the answer (N/m; also in cells.csv and cell_overrides.toml).
+    #[serde(skip)]
+    pub answer: CellTensions,
 }
 
 /// `model_error` of [`PerCellResult`]: the relative model errors of this run's interfaces.
@@ -196,7 +202,10 @@ struct CellRow {
     free_tension_sd_mn_per_m: Option<Real>,
     lateral_tension_sd_mn_per_m: Option<Real>,
     lateral_determined: bool,
-    /// The direct estimate's (the refinement's start), mN/m.
+    /// Where the refinement started this cell: "direct estimate", or "previous frame" (a time
+    /// series' previous answer, `tissuefit fit-series`).
+    start: &'static str,
+    /// The direct estimate's, mN/m.
     direct_free_tension_mn_per_m: Option<Real>,
     direct_lateral_tension_mn_per_m: Option<Real>,
     /// The relaxed simulation's pressure at the answer.
@@ -237,14 +246,17 @@ struct InterfaceRow {
     area_um2: Real,
 }
 
-/// The per-cell tensions being refined (N/m), by cell label.
-#[derive(Clone, Debug)]
-struct Tensions {
-    free: BTreeMap<u32, Real>,
-    lateral: BTreeMap<u32, Real>,
+/// Per-cell tensions (N/m) by cell label: what the refinement adjusts, a per-cell fit's answer
+/// ([`PerCellResult::answer`]) and the start of the next time point's fit ([`run_per_cell_from`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CellTensions {
+    /// Each cell's free (cell–medium) tension.
+    pub free: BTreeMap<u32, Real>,
+    /// Each cell's lateral tension a_i (a cell–cell interface's tension is a_i + a_j).
+    pub lateral: BTreeMap<u32, Real>,
 }
 
-impl Tensions {
+impl CellTensions {
     /// The model's tension of interface `k`.
     fn of(&self, (a, b): Key) -> Option<Real> {
         if b == 0 { self.free.get(&a).copied() } else { Some(self.lateral.get(&a)? + self.lateral.get(&b)?) }
@@ -359,7 +371,7 @@ struct Best {
     iteration: usize,
     rms: Real,
     max: Real,
-    tensions: Tensions,
+    tensions: CellTensions,
     relaxed: Tissue,
     simulated: BTreeMap<Key, Real>,
     pressure: BTreeMap<u32, Real>,
@@ -446,6 +458,19 @@ pub fn run_per_cell(
     observation: Observation,
     out: &Path,
     options: &FitOptions,
+) -> Result<PerCellResult, InferenceError> {
+    run_per_cell_from(config, observation, out, options, None)
+}
+
+/// [`run_per_cell`] started, for the cells that `previous` has tensions for, from those (a previous
+/// time point's answer, its cells labelled by track) instead of the direct estimate; the other
+/// cells start from the direct estimate, and the whole start is scaled to the free tension.
+pub fn run_per_cell_from(
+    config: &FitConfig,
+    observation: Observation,
+    out: &Path,
+    options: &FitOptions,
+    previous: Option<&CellTensions>,
 ) -> Result<PerCellResult, InferenceError> {
     debug_assert_eq!(config.mode, FitMode::PerCell);
     let started = Instant::now();
@@ -554,7 +579,7 @@ pub fn run_per_cell(
         observed.iter().filter(|((_, b), _)| *b != 0).map(|(k, t)| (*k, t * scale)).collect();
     let half_mean = cell_cell.iter().map(|(_, t)| t).sum::<Real>() / (2 * cell_cell.len()) as Real;
     let prior: BTreeMap<u32, Real> = moving.iter().map(|&c| (c, half_mean)).collect();
-    let mut tensions = Tensions {
+    let mut tensions = CellTensions {
         free: moving.iter().map(|&c| (c, observed.get(&(c, 0)).map_or(free_tension, |t| t * scale))).collect(),
         lateral: lateral_fit(&moving, &cell_cell, &prior),
     };
@@ -566,6 +591,24 @@ pub fn run_per_cell(
         let r: Vec<Real> = cell_cell.iter().filter_map(|&(k, t)| Some(start.of(k)? / t - 1.0)).collect();
         (!r.is_empty()).then(|| (r.iter().map(|x| x * x).sum::<Real>() / r.len() as Real).sqrt())
     };
+    // A previous time point's answer replaces the direct estimate where it has the cell.
+    let mut previous_frame = std::collections::BTreeSet::new();
+    if let Some(previous) = previous {
+        for c in &moving {
+            for (from, to) in [(&previous.free, &mut tensions.free), (&previous.lateral, &mut tensions.lateral)] {
+                if let Some(&v) = from.get(c).filter(|v| v.is_finite() && **v > 0.0) {
+                    to.insert(*c, v.max(floor));
+                    previous_frame.insert(*c);
+                }
+            }
+        }
+        tensions.rescale(free_tension);
+        tracing::info!(
+            "{} of {} cells start from the previous time point's answer, the others from the direct estimate",
+            previous_frame.len(),
+            moving.len()
+        );
+    }
 
     std::fs::create_dir_all(out).map_err(|e| output_err(out, &e))?;
     let resolved = toml::to_string(config).map_err(|e| InferenceError::Output(e.to_string()))?;
@@ -741,10 +784,25 @@ pub fn run_per_cell(
         threads: rayon::current_num_threads(),
         warnings,
         roughen,
+        previous_frame_cells: previous_frame.len(),
+        answer: best.tensions.clone(),
     };
     let mut params = model.base.clone();
     params.cell_overrides = best.tensions.overrides();
-    write_outputs(out, &model, &params, &observed_map, &observed, &start, &best, &trace, &result, scale, options)?;
+    write_outputs(
+        out,
+        &model,
+        &params,
+        &observed_map,
+        &observed,
+        &start,
+        &previous_frame,
+        &best,
+        &trace,
+        &result,
+        scale,
+        options,
+    )?;
     Ok(result)
 }
 
@@ -862,7 +920,8 @@ fn write_outputs(
     params: &Parameters,
     observed_map: &TensionMap,
     observed: &BTreeMap<Key, Real>,
-    start: &Tensions,
+    start: &CellTensions,
+    previous_frame: &std::collections::BTreeSet<u32>,
     best: &Best,
     trace: &[Iteration],
     result: &PerCellResult,
@@ -940,6 +999,7 @@ fn write_outputs(
                 free_tension_sd_mn_per_m: mn(free_sd),
                 lateral_tension_sd_mn_per_m: mn(lateral_sd),
                 lateral_determined: lateral_sd.is_some(),
+                start: if previous_frame.contains(&id) { "previous frame" } else { "direct estimate" },
                 free_tension_n_per_m: t.free.get(&id).copied(),
                 lateral_tension_n_per_m: lateral_sd.and(t.lateral.get(&id).copied()),
                 direct_free_tension_mn_per_m: mn(start.free.get(&id).copied()),

@@ -6,6 +6,7 @@
 //! Layering: `io ← {inference, render} ← stages ← pipeline ← cli`.
 
 pub mod fit;
+pub mod fit_series;
 pub mod measure;
 pub mod mesh;
 pub mod model_tables;

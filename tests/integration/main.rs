@@ -20,6 +20,7 @@ mod direct_tensions;
 mod division;
 mod fit;
 mod fit_safety;
+mod fit_series;
 mod fuzz_inputs;
 mod fuzz_replay;
 mod generate_mesh;

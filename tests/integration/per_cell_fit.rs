@@ -15,7 +15,7 @@ fn fixture(name: &str) -> PathBuf {
 }
 
 /// The model of the "compact-embryo" preset (coupled contacts, faces typed by contact).
-const MODEL: &str = r#"
+pub(crate) const MODEL: &str = r#"
 [model_overrides.numerics]
 contact_model = "coupling"
 polarity = "contacts"
