@@ -12,6 +12,11 @@
 #                                       per_cell.model_error, seeds 5-8 are held out and scored with the
 #                                       binary's defaults (validation/per_cell/coverage.py; ~45 min)
 #                                       -> docs/src/generated/per-cell-coverage.md (+ .json)
+#   docs/scripts/per-cell.sh series     `tissuefit fit-series` warm (each frame's direct estimate
+#                                       times the previous frame's correction) and --cold on 6 Evolver time series of 5 cells, 4 frames,
+#                                       tensions drifting by up to ±30 % (made first, ~15 min; mapped ~25 min;
+#                                       validation/per_cell/series.py)
+#                                       -> docs/src/generated/per-cell-series.md (+ .json)
 # TRUTHS=DIR keeps the Evolver clusters between runs (default: a temporary folder).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -25,5 +30,9 @@ case "${1:-accuracy}" in
         truths=${TRUTHS:-$work/truths}
         python3 validation/per_cell/coverage.py target/release/tissuefit "$truths" "$work/fits" \
             --markdown docs/src/generated/per-cell-coverage.md --json docs/src/generated/per-cell-coverage.json ;;
-    *) echo "usage: $0 [accuracy|coverage]" >&2; exit 2 ;;
+    series)
+        truths=${TRUTHS:-$work/truths}
+        python3 validation/per_cell/series.py target/release/tissuefit "$truths" "$work/series" \
+            --markdown docs/src/generated/per-cell-series.md --json docs/src/generated/per-cell-series.json ;;
+    *) echo "usage: $0 [accuracy|coverage|series]" >&2; exit 2 ;;
 esac

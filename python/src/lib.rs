@@ -510,6 +510,63 @@ fn fit(
     std::fs::read_to_string(&path).map_err(|e| error(format!("reading {}: {e}", path.display())))
 }
 
+/// Maps a time series in order with the per-cell fit (`tissuefit fit-series`) into `out`: frames
+/// as label files (`files`) or arrays (`arrays`, with their voxel size and origin), not both.
+/// Returns series.json's text.
+#[pyfunction]
+#[pyo3(signature = (config, base, origin, out, *, files = Vec::new(), arrays = Vec::new(), voxel_size_m = None, origin_m = None, cold = false, min_iou = None, resume = false, progress = None))]
+#[allow(clippy::too_many_arguments)]
+fn fit_series(
+    py: Python<'_>,
+    config: &str,
+    base: PathBuf,
+    origin: &str,
+    out: PathBuf,
+    files: Vec<PathBuf>,
+    arrays: Vec<PyReadonlyArray3<'_, u32>>,
+    voxel_size_m: Option<[Real; 3]>,
+    origin_m: Option<[Real; 3]>,
+    cold: bool,
+    min_iou: Option<Real>,
+    resume: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    use stages::fit_series::SeriesFrame;
+    let (config, _) = fit_config(config, &base, origin)?;
+    let frames: Vec<SeriesFrame> = match (files.is_empty(), arrays.is_empty()) {
+        (false, true) => files.into_iter().map(SeriesFrame::File).collect(),
+        (true, false) => {
+            let Some(v) = voxel_size_m else {
+                return Err(error("label arrays need their voxel_size (z, y, x) in µm"));
+            };
+            arrays
+                .into_iter()
+                .enumerate()
+                .map(|(k, a)| {
+                    Ok(SeriesFrame::Labels { name: format!("frames[{k}]"), volume: volume_from(a, v, origin_m)? })
+                })
+                .collect::<PyResult<_>>()?
+        }
+        (true, true) => return Err(error("fit_series: no frames; give the label volumes of the series in time order")),
+        (false, false) => return Err(error("fit_series: give label files or arrays, not both")),
+    };
+    let call = CallWatch::new(progress);
+    let options = stages::fit_series::SeriesOptions {
+        min_iou,
+        cold,
+        fit: FitOptions { resume, progress: false, plots: true, watch: call.watch.clone(), ..Default::default() },
+    };
+    py.detach(|| stages::fit_series::run(&config, &frames, &out, &options)).map_err(|e| {
+        if call.watch.stopped() {
+            call.fail(format!("{}; the series folder is {}", InferenceError::Stopped, out.display()))
+        } else {
+            call.fail(e)
+        }
+    })?;
+    let path = out.join("series.json");
+    std::fs::read_to_string(&path).map_err(|e| error(format!("reading {}: {e}", path.display())))
+}
+
 /// What [`tensions`] returns.
 type Tensions<'py> = (Vec<Bound<'py, PyArray1<f64>>>, Bound<'py, PyArray1<f64>>, String);
 
@@ -592,6 +649,7 @@ fn _tissuefit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(measure_labels_json, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_series, m)?)?;
     m.add_function(wrap_pyfunction!(tensions, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
     Ok(())

@@ -245,6 +245,48 @@ free_tension = 1e-3
     assert result.interfaces_frame().shape[0] == 3
 
 
+def test_a_series_of_arrays_keeps_each_cell_its_id_and_starts_with_the_previous_correction(demo, tmp_path):
+    # Frame 1: the demo doublet one voxel on, its two labels swapped, as the next time point's
+    # segmentation numbers them.
+    labels, voxel_size = demo
+    moved = np.roll(labels, 1, axis=2)
+    assert not labels[:, :, -1].any()
+    swapped = np.where(moved == 1, 2, np.where(moved == 2, 1, 0)).astype(labels.dtype)
+    config = """
+mode = "per_cell"
+[observed.meshing]
+target_nodes = 200
+[model_overrides.numerics]
+contact_model = "coupling"
+polarity = "contacts"
+dynamics = "overdamped"
+damping = 3e-9
+[model_overrides.simulation]
+mode = "equilibrium"
+method = "fire"
+max_steps = 1500
+settle_steps = 500
+[forward]
+accept_residual = 1e9
+measure_shifts = 2
+[per_cell]
+iterations = 1
+tolerance = 0.5
+free_tension = 1e-3
+"""
+    series = tf.fit_series([labels, swapped], voxel_size, config=config, out=tmp_path / "series")
+    assert series.succeeded and len(series.result["frames"]) == 2
+    later = series.tracks["frame"] == 1
+    assert dict(zip(series.tracks["label"][later], series.tracks["track"][later])) == {1: 2, 2: 1}
+    assert list(series.cells["frame"]) == [0, 0, 1, 1] and list(series.cells["cell"]) == [1, 2, 1, 2]
+    assert list(series.cells["start"]) == ["direct estimate"] * 2 + ["corrected by previous frame"] * 2
+    assert series.result["frames"][1]["previous_frame_cells"] == 2
+    second = series.frame(1)
+    assert second.ok and list(second.cells["cell"]) == [1, 2]
+    with pytest.raises(tf.TissuefitError, match="not a mix"):
+        tf.fit_series([labels, tmp_path / "x.tif"], voxel_size, config=config)
+
+
 def test_a_fit_stopped_by_its_callback_raises_cancelled_and_resumes_to_the_same_result(demo, tmp_path):
     labels, voxel_size = demo
     seen: list[tuple] = []

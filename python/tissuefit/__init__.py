@@ -46,11 +46,13 @@ __all__ = [
     "FitResult",
     "Measurement",
     "NotConverged",
+    "SeriesResult",
     "Simulation",
     "Tissue",
     "TissuefitError",
     "VoxelSize",
     "fit",
+    "fit_series",
     "mesh",
     "measure",
     "read_labels",
@@ -649,8 +651,14 @@ def fit(
             NotConverged,
             stacklevel=2,
         )
+    return _fit_result(folder, result)
+
+
+def _fit_result(folder: str, result: dict) -> FitResult:
+    """The :class:`FitResult` of a finished fit folder whose result.json is ``result``."""
     # A per-cell fit's relaxed tissue at its answer is relaxed.vtp.
-    best = Path(folder) / ("relaxed.vtp" if result.get("mode") == "per_cell" else "best.vtp")
+    per_cell = result.get("mode") == "per_cell"
+    best = Path(folder) / ("relaxed.vtp" if per_cell else "best.vtp")
     return FitResult(
         converged=bool(result["converged"]),
         poor_fit=bool(result.get("poor_fit", False)),
@@ -661,8 +669,116 @@ def fit(
         out=folder,
         trace=_read_csv_columns(Path(folder) / "trace.csv"),
         residuals=_read_csv_columns(Path(folder) / "residuals.csv"),
-        cells=_read_csv_columns(Path(folder) / "cells.csv") if result.get("mode") == "per_cell" else {},
-        interfaces=_read_csv_columns(Path(folder) / "interfaces.csv") if result.get("mode") == "per_cell" else {},
+        cells=_read_csv_columns(Path(folder) / "cells.csv") if per_cell else {},
+        interfaces=_read_csv_columns(Path(folder) / "interfaces.csv") if per_cell else {},
+    )
+
+
+@dataclass(frozen=True)
+class SeriesResult:
+    """A time series mapped by :func:`fit_series` (``series.json`` and the files beside it in ``out``).
+
+    ``succeeded``: every frame's map converged and is no poor fit; ``result``: series.json (per
+    frame: converged, iterations, the start's and the answer's mismatch, cells started with the
+    previous frame's correction, tracks that begin and end); ``cells`` / ``interfaces``: every frame's
+    cells.csv / interfaces.csv with ``frame`` and ``file`` columns in front (cell ids are track ids,
+    one id per cell through the series); ``tracks``: each frame's labels and their tracks (``iou``
+    with the cell continued, ``parent`` of a new track)."""
+
+    succeeded: bool
+    result: dict
+    out: str
+    cells: dict[str, np.ndarray] = field(default_factory=dict)
+    interfaces: dict[str, np.ndarray] = field(default_factory=dict)
+    tracks: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def frame(self, k: int) -> FitResult:
+        """Frame ``k``'s per-cell fit (its folder ``tNNN``); an error for a frame whose fit failed."""
+        f = self.result["frames"][k]
+        if f["error"]:
+            raise TissuefitError(f"frame {k} ({f['file']}) has no map: {f['error']}")
+        folder = os.path.join(self.out, f["folder"])
+        with open(os.path.join(folder, "result.json")) as fh:
+            return _fit_result(folder, json.load(fh))
+
+    def cells_frame(self) -> Any:
+        """:attr:`cells` as a pandas DataFrame (needs pandas)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.cells)
+
+    def interfaces_frame(self) -> Any:
+        """:attr:`interfaces` as a pandas DataFrame (needs pandas)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.interfaces)
+
+
+def fit_series(
+    frames: Sequence[Union[Any, PathLike]],
+    voxel_size: Union[float, Sequence[float], None] = None,
+    config: Union[PathLike, Mapping[str, Any], None] = None,
+    *,
+    out: Optional[PathLike] = None,
+    cold: bool = False,
+    min_iou: Optional[float] = None,
+    resume: bool = False,
+    progress: Optional[Progress] = None,
+) -> SeriesResult:
+    """Maps a time series of label volumes in order with the per-cell fit, as ``tissuefit
+    fit-series`` does: each frame's cells matched to the previous frame's by overlap (one id per
+    cell through the series), each frame started from its direct estimate times the correction the
+    previous frame's refinement found (``cold``: the direct estimate alone).
+
+    ``frames``: label files, or label arrays [z, y, x] on one grid with ``voxel_size`` in µm (not a
+    mix). ``config``: a per-cell fit config (``mode = "per_cell"``) as a path, TOML text or dict;
+    its ``[observed]`` meshing and voxel size apply to every frame and may be left out.
+    ``min_iou``: the overlap at or above which a cell continues one of the previous frame (default
+    0.3). ``out``: the series folder (default a new temporary folder). ``resume``: frames whose
+    folder holds a finished fit are read back, not run again. A frame that did not converge or
+    failed leaves ``succeeded`` False with a :class:`NotConverged` warning."""
+    if config is None:
+        raise TissuefitError("fit_series: give a per-cell fit config (a path, TOML text or a dict)")
+    frames = list(frames)
+    text, base, config_name = _config(config, "fit config")
+    folder = os.fspath(out) if out is not None else tempfile.mkdtemp(prefix="tissuefit-series-")
+    paths = [f for f in frames if isinstance(f, (str, os.PathLike))]
+    if paths and len(paths) != len(frames):
+        raise TissuefitError("fit_series: give every frame as a file or every frame as an array, not a mix")
+    files = [str(Path(f).resolve()) for f in paths]
+    arrays = [] if paths else [_labels_u32(f) for f in frames]
+    if arrays and voxel_size is None:
+        raise TissuefitError("fit_series: label arrays need their voxel_size (µm, one number or (z, y, x))")
+    text_out = _native.fit_series(
+        text,
+        base,
+        config_name,
+        folder,
+        files=files,
+        arrays=arrays,
+        voxel_size_m=_voxel_size(voxel_size) if arrays else None,
+        origin_m=_origin(voxel_size) if arrays else None,
+        cold=cold,
+        min_iou=min_iou,
+        resume=resume,
+        progress=progress,
+    )
+    result = json.loads(text_out)
+    bad = [f"frame {f['frame']}" for f in result["frames"] if not f["succeeded"]]
+    if bad:
+        warnings.warn(
+            f"the series in {folder}: {', '.join(bad)} did not converge, are poor fits or failed "
+            "(SeriesResult.succeeded is False); see series.json",
+            NotConverged,
+            stacklevel=2,
+        )
+    return SeriesResult(
+        succeeded=bool(result["succeeded"]),
+        result=result,
+        out=folder,
+        cells=_read_csv_columns(Path(folder) / "series_cells.csv"),
+        interfaces=_read_csv_columns(Path(folder) / "series_interfaces.csv"),
+        tracks=_read_csv_columns(Path(folder) / "tracks.csv"),
     )
 
 

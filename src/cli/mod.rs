@@ -78,7 +78,7 @@ pub enum Command {
     /// stopped on its budget instead of converging.
     Fit(fit::FitArgs),
     /// Map a time series of label volumes in order with the per-cell fit: cells tracked by overlap
-    /// (one id through the series), each frame started from the previous frame's answer →
+    /// (one id through the series), each frame started with the previous frame's correction →
     /// DIR/tNNN/, tracks.csv, series_cells.csv, series_interfaces.csv, series.json. Exits with 1
     /// when a frame failed or did not converge.
     FitSeries(fit_series::FitSeriesArgs),

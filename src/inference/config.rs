@@ -608,6 +608,22 @@ impl FitConfig {
         Ok(config)
     }
 
+    /// Reads a config file that may leave `[observed]` out (its input comes from elsewhere: the
+    /// frames of `tissuefit fit-series`); everything else is checked as [`FitConfig::load`] does.
+    pub fn load_without_observed(path: &Path) -> Result<Self, InferenceError> {
+        let text = crate::io::read_text_capped(path, crate::io::MAX_CONFIG_FILE)
+            .map_err(|e| InferenceError::Config(format!("reading {}: {e}", path.display())))?;
+        let origin = path.display();
+        let mut config: Self = toml::from_str(&text).map_err(|e| InferenceError::Config(format!("{origin}: {e}")))?;
+        match config.observed {
+            None => config.check_settings(),
+            Some(_) => config.check(),
+        }
+        .map_err(|e| InferenceError::Config(format!("{origin}: {e}")))?;
+        config.resolve_paths(path.parent().unwrap_or(Path::new(".")));
+        Ok(config)
+    }
+
     /// Makes the config's relative paths (observed tissue or labels, model) relative to `base`.
     pub fn resolve_paths(&mut self, base: &Path) {
         let fix = |p: &mut PathBuf| {

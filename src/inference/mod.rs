@@ -39,6 +39,7 @@ pub use forward::{
     RoughnessCalibration, Status, shift_offset,
 };
 pub use optimise::{BOUND_PENALTY, Evaluator, Halt, OptimiserOutcome, optimise};
+pub(crate) use per_cell::ratios;
 pub use per_cell::{CellTensions, Iteration, PER_CELL_FILES, PerCellResult, run_per_cell, run_per_cell_from};
 pub use plot::{plot_landscape, plot_objective};
 pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};

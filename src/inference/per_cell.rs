@@ -148,12 +148,14 @@ pub struct PerCellResult {
     /// The boundary noise added to the simulated masks (`forward.roughen_voxels`); `None` when
     /// nothing was roughened.
     pub roughen: Option<super::forward::RoughnessCalibration>,
-    /// Cells whose start was a previous time point's answer ([`run_per_cell_from`]); 0 when every
-    /// cell started from the direct estimate.
+    /// Cells whose start was their direct estimate times a previous time point's correction
+    /// ([`run_per_cell_from`]); 0 when every cell started from the direct estimate alone.
     pub previous_frame_cells: usize,
-    /// The per-cell tensions of the answer (N/m; also in cells.csv and cell_overrides.toml).
+    /// Per cell, the answer over the direct estimate it started from (free and lateral): the
+    /// correction of the measurement's bias the refinement found, which the next time point of a
+    /// series starts with ([`run_per_cell_from`]).
     #[serde(skip)]
-    pub answer: CellTensions,
+    pub correction: CellTensions,
 }
 
 /// `model_error` of [`PerCellResult`]: the relative model errors of this run's interfaces.
@@ -202,12 +204,14 @@ struct CellRow {
     free_tension_sd_mn_per_m: Option<Real>,
     lateral_tension_sd_mn_per_m: Option<Real>,
     lateral_determined: bool,
-    /// Where the refinement started this cell: "direct estimate", or "previous frame" (a time
-    /// series' previous answer, `tissuefit fit-series`).
+    /// Where the refinement started this cell: "direct estimate", or "corrected by previous frame"
+    /// (the direct estimate times the previous time point's correction, `tissuefit fit-series`).
     start: &'static str,
     /// The direct estimate's, mN/m.
     direct_free_tension_mn_per_m: Option<Real>,
     direct_lateral_tension_mn_per_m: Option<Real>,
+    direct_free_tension_n_per_m: Option<Real>,
+    direct_lateral_tension_n_per_m: Option<Real>,
     /// The relaxed simulation's pressure at the answer.
     pressure_pa: Option<Real>,
     pressure_kpa: Option<Real>,
@@ -233,7 +237,7 @@ struct InterfaceRow {
     /// sub-voxel placements, and the model error added (`per_cell.model_error`).
     placement_sd: Option<Real>,
     placements: Option<usize>,
-    model_error: Option<Real>,
+    model_error: Real,
     /// The direct estimate of the observed tissue, scaled to the same free tension, and its
     /// first-order uncertainty (force-balance residuals).
     direct_mn_per_m: Option<Real>,
@@ -289,6 +293,11 @@ impl CellTensions {
         let s = target / mean;
         self.free.values_mut().chain(self.lateral.values_mut()).for_each(|v| *v *= s);
     }
+}
+
+/// `a[c] / b[c]` for every cell in both with a positive, finite ratio.
+pub(crate) fn ratios(a: &BTreeMap<u32, Real>, b: &BTreeMap<u32, Real>) -> BTreeMap<u32, Real> {
+    a.iter().filter_map(|(c, x)| Some((*c, x / b.get(c)?))).filter(|(_, r)| r.is_finite() && *r > 0.0).collect()
 }
 
 /// The determined tensions of a map, by interface (relative to its gauge).
@@ -462,15 +471,17 @@ pub fn run_per_cell(
     run_per_cell_from(config, observation, out, options, None)
 }
 
-/// [`run_per_cell`] started, for the cells that `previous` has tensions for, from those (a previous
-/// time point's answer, its cells labelled by track) instead of the direct estimate; the other
-/// cells start from the direct estimate, and the whole start is scaled to the free tension.
+/// [`run_per_cell`] whose start, for the cells that `carried` has factors for, is the direct
+/// estimate times those factors (a previous time point's [`PerCellResult::correction`], its cells
+/// labelled by track): the measurement's bias changes slowly with the shapes, so the previous
+/// correction carries over while the direct estimate follows the tensions' change. Other cells
+/// start from the direct estimate; the whole start is scaled to the free tension.
 pub fn run_per_cell_from(
     config: &FitConfig,
     observation: Observation,
     out: &Path,
     options: &FitOptions,
-    previous: Option<&CellTensions>,
+    carried: Option<&CellTensions>,
 ) -> Result<PerCellResult, InferenceError> {
     debug_assert_eq!(config.mode, FitMode::PerCell);
     let started = Instant::now();
@@ -591,20 +602,21 @@ pub fn run_per_cell_from(
         let r: Vec<Real> = cell_cell.iter().filter_map(|&(k, t)| Some(start.of(k)? / t - 1.0)).collect();
         (!r.is_empty()).then(|| (r.iter().map(|x| x * x).sum::<Real>() / r.len() as Real).sqrt())
     };
-    // A previous time point's answer replaces the direct estimate where it has the cell.
+    // A previous time point's correction applied to the direct estimate where it has the cell.
     let mut previous_frame = std::collections::BTreeSet::new();
-    if let Some(previous) = previous {
+    if let Some(carried) = carried {
         for c in &moving {
-            for (from, to) in [(&previous.free, &mut tensions.free), (&previous.lateral, &mut tensions.lateral)] {
-                if let Some(&v) = from.get(c).filter(|v| v.is_finite() && **v > 0.0) {
-                    to.insert(*c, v.max(floor));
+            for (from, to) in [(&carried.free, &mut tensions.free), (&carried.lateral, &mut tensions.lateral)] {
+                let factor = from.get(c).copied().filter(|v| v.is_finite() && *v > 0.0);
+                if let (Some(factor), Some(v)) = (factor, to.get_mut(c)) {
+                    *v = (*v * factor).max(floor);
                     previous_frame.insert(*c);
                 }
             }
         }
         tensions.rescale(free_tension);
         tracing::info!(
-            "{} of {} cells start from the previous time point's answer, the others from the direct estimate",
+            "{} of {} cells start from the direct estimate times the previous time point's correction",
             previous_frame.len(),
             moving.len()
         );
@@ -756,6 +768,7 @@ pub fn run_per_cell_from(
         ));
     }
     let start_mismatch = trace.first().map_or(Real::NAN, |r| r.rms_mismatch);
+    let resolution = resolution(obs);
     let result = PerCellResult {
         mode: "per_cell",
         converged,
@@ -772,10 +785,10 @@ pub fn run_per_cell_from(
         interfaces: observed.len(),
         additive_residual_rms,
         uncertainty: uncertainty_note(&best, model.forward.measure_shifts),
-        voxels_per_diameter: resolution(obs).map(|r| 1.0 / r),
+        voxels_per_diameter: resolution.map(|r| 1.0 / r),
         model_error: ModelErrorAt {
-            cell_cell: config.per_cell.model_error.at(false, resolution(obs)),
-            cell_medium: config.per_cell.model_error.at(true, resolution(obs)),
+            cell_cell: config.per_cell.model_error.at(false, resolution),
+            cell_medium: config.per_cell.model_error.at(true, resolution),
         },
         parameters: BTreeMap::new(),
         ratios: BTreeMap::new(),
@@ -785,7 +798,10 @@ pub fn run_per_cell_from(
         warnings,
         roughen,
         previous_frame_cells: previous_frame.len(),
-        answer: best.tensions.clone(),
+        correction: CellTensions {
+            free: ratios(&best.tensions.free, &start.free),
+            lateral: ratios(&best.tensions.lateral, &start.lateral),
+        },
     };
     let mut params = model.base.clone();
     params.cell_overrides = best.tensions.overrides();
@@ -964,7 +980,7 @@ fn write_outputs(
                 sd_source,
                 placement_sd: spread.map(|s| s.relative_sd),
                 placements: spread.map(|s| s.placements),
-                model_error: Some(model_error),
+                model_error,
                 direct_mn_per_m: mn(o.map(|o| o * scale)),
                 direct_sd_mn_per_m: mn(o.zip(direct_relative_sd).map(|(o, r)| o * scale * r)),
                 observed_relative: o,
@@ -999,11 +1015,13 @@ fn write_outputs(
                 free_tension_sd_mn_per_m: mn(free_sd),
                 lateral_tension_sd_mn_per_m: mn(lateral_sd),
                 lateral_determined: lateral_sd.is_some(),
-                start: if previous_frame.contains(&id) { "previous frame" } else { "direct estimate" },
+                start: if previous_frame.contains(&id) { "corrected by previous frame" } else { "direct estimate" },
                 free_tension_n_per_m: t.free.get(&id).copied(),
                 lateral_tension_n_per_m: lateral_sd.and(t.lateral.get(&id).copied()),
                 direct_free_tension_mn_per_m: mn(start.free.get(&id).copied()),
                 direct_lateral_tension_mn_per_m: mn(start.lateral.get(&id).copied()),
+                direct_free_tension_n_per_m: start.free.get(&id).copied(),
+                direct_lateral_tension_n_per_m: start.lateral.get(&id).copied(),
                 pressure_pa: p,
                 pressure_kpa: p.map(|p| p * 1e-3),
                 volume_um3: c.mesh().signed_volume() * 1e18,

@@ -1,9 +1,11 @@
 //! A time series of label volumes mapped in order (`tissuefit fit-series`, issue 25): each frame's
 //! labels matched to the previous frame's by overlap ([`crate::imaging::match_labels`]) and renumbered
 //! to their tracks, so that a cell keeps its id through the series; each frame's per-cell map
-//! started from the previous frame's answer for the cells it tracks (the direct estimate for new
-//! cells), since tensions change little between time points and the answer already carries the
-//! measurement's bias the refinement took out.
+//! started, for the cells it tracks, from its own direct estimate times the correction the previous
+//! frame's refinement found (its answer over its direct estimate): the measurement's bias changes
+//! slowly with the shapes while the direct estimate follows the tensions. (Starting from the
+//! previous answer itself was tried first and measured worse: on a series whose tensions drift by
+//! up to 10 % per frame it started further off than the direct estimate alone.)
 //!
 //! Files in the output folder: `tNNN/` (each frame's per-cell fit, its cell ids the track ids),
 //! `tracks.csv` (each frame's labels and their tracks), `series_cells.csv` and
@@ -26,12 +28,36 @@ pub const SERIES_FILES: [&str; 4] = ["tracks.csv", "series_cells.csv", "series_i
 /// The IoU at or above which a cell of one frame continues a cell of the previous frame.
 pub const DEFAULT_MIN_IOU: Real = 0.3;
 
+/// One frame of a series: a label file, or a volume in memory (the Python API) with the name its
+/// messages and tables use.
+#[derive(Clone, Debug)]
+pub enum SeriesFrame {
+    File(PathBuf),
+    Labels { name: String, volume: LabelVolume },
+}
+
+impl SeriesFrame {
+    fn name(&self) -> String {
+        match self {
+            SeriesFrame::File(p) => p.display().to_string(),
+            SeriesFrame::Labels { name, .. } => name.clone(),
+        }
+    }
+
+    fn read(&self, options: &crate::imaging::LabelReadOptions) -> Result<LabelVolume, String> {
+        match self {
+            SeriesFrame::File(p) => read_labels(p, options).map(|r| r.volume).map_err(|e| e.to_string()),
+            SeriesFrame::Labels { volume, .. } => Ok(volume.clone()),
+        }
+    }
+}
+
 /// How a series is run.
 #[derive(Clone, Debug, Default)]
 pub struct SeriesOptions {
     /// See [`DEFAULT_MIN_IOU`].
     pub min_iou: Option<Real>,
-    /// Start every frame from its direct estimate instead of the previous frame's answer.
+    /// Start every frame from its direct estimate alone, without the previous frame's correction.
     pub cold: bool,
     /// Each frame's fit (`resume` skips the frames whose folder holds a finished fit).
     pub fit: FitOptions,
@@ -59,7 +85,7 @@ pub struct FrameOutcome {
     pub start_mismatch: Option<Real>,
     pub rms_mismatch: Option<Real>,
     pub cells: Option<usize>,
-    /// Cells started from the previous frame's answer.
+    /// Cells started with the previous frame's correction.
     pub previous_frame_cells: usize,
     /// Tracks that begin (labels no previous cell continues) and end at this frame.
     pub new_tracks: Vec<u32>,
@@ -115,7 +141,8 @@ fn err(message: impl Into<String>) -> StageError {
     StageError::new("fit-series", message)
 }
 
-/// The answer a finished frame folder holds (`cell_overrides.toml`), and its `result.json`.
+/// The correction a finished frame folder holds (its answer in `cell_overrides.toml` over the
+/// direct estimate in `cells.csv`), and its `result.json`.
 fn read_finished(dir: &Path) -> Option<(CellTensions, serde_json::Value)> {
     let result: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).ok()?).ok()?;
@@ -134,16 +161,36 @@ fn read_finished(dir: &Path) -> Option<(CellTensions, serde_json::Value)> {
             answer.lateral.insert(o.id, a);
         }
     }
-    Some((answer, result))
+    #[derive(serde::Deserialize)]
+    struct Direct {
+        cell: u32,
+        direct_free_tension_n_per_m: Option<Real>,
+        direct_lateral_tension_n_per_m: Option<Real>,
+    }
+    let mut start = CellTensions::default();
+    for row in csv::Reader::from_path(dir.join("cells.csv")).ok()?.deserialize::<Direct>() {
+        let row = row.ok()?;
+        if let Some(f) = row.direct_free_tension_n_per_m {
+            start.free.insert(row.cell, f);
+        }
+        if let Some(a) = row.direct_lateral_tension_n_per_m {
+            start.lateral.insert(row.cell, a);
+        }
+    }
+    let correction = CellTensions {
+        free: crate::inference::ratios(&answer.free, &start.free),
+        lateral: crate::inference::ratios(&answer.lateral, &start.lateral),
+    };
+    Some((correction, result))
 }
 
 /// Maps `frames` (label volumes on one grid, in time order) with the per-cell fit of `config`
 /// (`mode = "per_cell"`; its `[observed]` says how each frame is read and meshed, its `labels` is
 /// replaced by each frame) into `out`. A frame whose fit fails is recorded and the series goes on
-/// (the next frame starts from the last answer); only a stop request ends it early.
+/// (the next frame starts with the last correction found); only a stop request ends it early.
 pub fn run(
     config: &FitConfig,
-    frames: &[PathBuf],
+    frames: &[SeriesFrame],
     out: &Path,
     options: &SeriesOptions,
 ) -> Result<SeriesResult, StageError> {
@@ -161,20 +208,20 @@ pub fn run(
     if !(min_iou > 0.0 && min_iou <= 1.0) {
         return Err(err(format!("--min-iou {min_iou}: give a value in (0, 1]")));
     }
-    let observed = config.observed().map_err(|e| err(e.to_string()))?;
-    if observed.labels.is_none() {
+    let observed = config.observed.as_ref();
+    if observed.is_some_and(|o| o.tissue.is_some()) {
         return Err(err(
             "the fit config's [observed] reads a tissue file; a time series is label volumes: use `labels` \
              (its meshing and voxel size apply to every frame)",
         ));
     }
-    let read_options = observed.read_options();
+    let read_options = observed.map(|o| o.read_options()).unwrap_or_default();
+    let meshing = observed.map(|o| o.meshing.clone()).unwrap_or_default();
     // Every frame readable and on the first one's grid before any is mapped (a series refused at
     // its last frame would have cost the others' fits).
     let mut first: Option<LabelVolume> = None;
-    for (k, file) in frames.iter().enumerate() {
-        let volume =
-            read_labels(file, &read_options).map_err(|e| err(format!("frame {k}: {}: {e}", file.display())))?.volume;
+    for (k, frame) in frames.iter().enumerate() {
+        let volume = frame.read(&read_options).map_err(|e| err(format!("frame {k}: {}: {e}", frame.name())))?;
         match &first {
             None => first = Some(volume),
             Some(f) => crate::imaging::check_same_grid(
@@ -183,20 +230,20 @@ pub fn run(
                 "map",
                 "the frames of a series must share one grid (crop or resample them alike)",
             )
-            .map_err(|e| err(format!("frame {k}: {} against frame 0: {e}", file.display())))?,
+            .map_err(|e| err(format!("frame {k}: {} against frame 0: {e}", frame.name())))?,
         }
     }
     drop(first);
     std::fs::create_dir_all(out).map_err(|e| err(format!("{}: {e}", out.display())))?;
     let mut previous: Option<LabelVolume> = None;
-    let mut answer: Option<CellTensions> = None;
+    let mut correction: Option<CellTensions> = None;
     let mut next_track = 1;
     let mut outcomes = Vec::new();
     let mut track_rows = Vec::new();
-    for (k, file) in frames.iter().enumerate() {
+    for (k, frame) in frames.iter().enumerate() {
         let t0 = Instant::now();
-        let name = file.display().to_string();
-        let volume = read_labels(file, &read_options).map_err(|e| err(format!("frame {k}: {name}: {e}")))?.volume;
+        let name = frame.name();
+        let volume = frame.read(&read_options).map_err(|e| err(format!("frame {k}: {name}: {e}")))?;
         let tracks = match &previous {
             None => FrameTracks::first(&volume),
             Some(p) => match_labels(p, &volume, min_iou, &mut next_track)
@@ -250,10 +297,10 @@ pub fn run(
             outcome.cells = result["cells"].as_u64().map(|n| n as usize);
             outcome.previous_frame_cells = result["previous_frame_cells"].as_u64().unwrap_or(0) as usize;
             tracing::info!("frame {k} ({name}): finished in {}, not run again", dir.display());
-            answer = Some(done);
+            correction = Some(done);
         } else {
-            let start = if options.cold { None } else { answer.as_ref() };
-            let fitted = observe_labels(tracked.clone(), &observed.meshing, &name).and_then(|observation| {
+            let start = if options.cold { None } else { correction.as_ref() };
+            let fitted = observe_labels(tracked.clone(), &meshing, &name).and_then(|observation| {
                 crate::inference::run_per_cell_from(config, observation, &dir, &options.fit, start)
             });
             match fitted {
@@ -266,7 +313,7 @@ pub fn run(
                     outcome.rms_mismatch = Some(r.rms_mismatch);
                     outcome.cells = Some(r.cells);
                     outcome.previous_frame_cells = r.previous_frame_cells;
-                    answer = Some(r.answer);
+                    correction = Some(r.correction);
                 }
                 Err(InferenceError::Stopped) => return Err(err("stopped")),
                 Err(e) => outcome.error = e.to_string(),

@@ -1,6 +1,6 @@
 //! `tissuefit fit-series` (issue 25, time-lapse): a series of label volumes mapped in order, cells
-//! tracked by overlap through relabelling and motion, each frame started from the previous frame's
-//! answer, resumable, and refusing what it cannot map.
+//! tracked by overlap through relabelling and motion, each frame started with the previous frame's
+//! correction, resumable, and refusing what it cannot map.
 
 use crate::support::cli::tissuefit;
 use crate::support::run_dirs::{csv_maps as rows, number};
@@ -72,7 +72,7 @@ fn a_series_tracks_renumbered_moving_cells_and_starts_each_frame_from_the_last_a
         [("4", "1"), ("1", "2"), ("2", "3"), ("3", "4")].iter().map(|(a, b)| (a.to_string(), b.to_string())).collect();
     assert_eq!(frame1, want);
     assert!(tracks.iter().filter(|r| r["frame"] == "1").all(|r| number(r, "iou") > 0.6), "{tracks:?}");
-    // Frame 1 started from frame 0's answer, its cells under their track ids.
+    // Frame 1 started with frame 0's correction, its cells under their track ids.
     let series: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("series.json")).unwrap()).unwrap();
     assert_eq!(series["frames"][0]["previous_frame_cells"], 0);
@@ -81,7 +81,7 @@ fn a_series_tracks_renumbered_moving_cells_and_starts_each_frame_from_the_last_a
     let cells = rows(&out.join("series_cells.csv"));
     assert_eq!(cells.len(), 8);
     for r in &cells {
-        let want = if r["frame"] == "0" { "direct estimate" } else { "previous frame" };
+        let want = if r["frame"] == "0" { "direct estimate" } else { "corrected by previous frame" };
         assert_eq!(r["start"], want, "{r:?}");
     }
     // The same tissue one voxel on maps to the same tensions per track (within the forward
@@ -101,6 +101,7 @@ fn a_series_tracks_renumbered_moving_cells_and_starts_each_frame_from_the_last_a
     }
     // Resumed: nothing runs again, the same tables.
     let before = std::fs::read_to_string(out.join("series_cells.csv")).unwrap();
+    let before_interfaces = std::fs::read_to_string(out.join("series_interfaces.csv")).unwrap();
     let (code, stderr) = run(&["--resume"]);
     assert_eq!(code, Some(1), "{stderr}");
     assert_eq!(stderr.matches("not run again").count(), 2, "{stderr}");
@@ -108,6 +109,14 @@ fn a_series_tracks_renumbered_moving_cells_and_starts_each_frame_from_the_last_a
         serde_json::from_str(&std::fs::read_to_string(out.join("series.json")).unwrap()).unwrap();
     assert!(series["frames"].as_array().unwrap().iter().all(|f| f["resumed"] == true), "{series}");
     assert_eq!(std::fs::read_to_string(out.join("series_cells.csv")).unwrap(), before);
+    // Interrupted after frame 0: the correction read back from its files starts frame 1 exactly
+    // as the uninterrupted series did.
+    std::fs::remove_dir_all(out.join("t001")).unwrap();
+    let (code, stderr) = run(&["--resume"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert_eq!(stderr.matches("not run again").count(), 1, "{stderr}");
+    assert_eq!(std::fs::read_to_string(out.join("series_cells.csv")).unwrap(), before);
+    assert_eq!(std::fs::read_to_string(out.join("series_interfaces.csv")).unwrap(), before_interfaces);
 }
 
 #[test]

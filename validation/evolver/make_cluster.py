@@ -91,18 +91,27 @@ def ball_seeds(n: int, rng: np.random.Generator, spacing: float) -> np.ndarray:
     return pts_a - pts_a.mean(axis=0)
 
 
-def random_additive(seed: int, cells: int) -> Cluster:
+def random_additive(seed: int, cells: int, frame: int = 0, frames: int = 1, drift: float = 0.3) -> Cluster:
     """A cluster of `cells` (4: tetrahedral, more: packed in a ball) whose cell-cell tensions are
     additive, T_ij = a_i + a_j with per-cell a_i drawn uniformly from [0.3, 0.85] (so T in
     [0.6, 1.7] < 2 gamma_a: every contact stays a contact): the truths a per-cell map can make
-    exactly, for measuring the coverage of its intervals (docs/scripts/per-cell.sh coverage)."""
+    exactly, for measuring the coverage of its intervals (docs/scripts/per-cell.sh coverage).
+
+    A time series (`frame` of `frames`): each a_i drifts linearly by a factor 1 + r_i from the
+    first frame to the last, r_i drawn from [-drift, drift] after the a_i (frame 0 is the plain
+    draw), the seeds and volumes kept; for `tissuefit fit-series` (docs/scripts/per-cell.sh series)."""
     rng = np.random.default_rng(1000 + seed)
     d = 1.0
     seeds = tetrahedron(d) if cells == 4 else ball_seeds(cells, rng, d)
     a = rng.uniform(0.3, 0.85, cells)
-    cl = Cluster(f"additive{cells}_s{seed}", seeds, 0.8 * d if cells == 4 else 0.75 * d, None,
+    if frames > 1:
+        r = rng.uniform(-drift, drift, cells)
+        a = a * (1 + r * frame / (frames - 1))
+    label = f"additive{cells}_s{seed}" + (f"_f{frame}" if frames > 1 else "")
+    cl = Cluster(label, seeds, 0.8 * d if cells == 4 else 0.75 * d, None,
                  description=f"{cells} cells, additive tensions a_i + a_j, a = "
-                             + ", ".join(f"{x:.3f}" for x in a) + f" (seed {seed})")
+                             + ", ".join(f"{x:.3f}" for x in a) + f" (seed {seed}"
+                             + (f", frame {frame} of {frames}" if frames > 1 else "") + ")")
     for i in range(cells):
         for j in range(i + 1, cells):
             cl.pair_tension[(i, j)] = float(a[i] + a[j])
@@ -511,13 +520,18 @@ def main() -> None:
                     help="a named cluster, all of them, or `additive` (random additive tensions: --seed, --cells)")
     ap.add_argument("--seed", type=int, default=1, help="with `additive`: the draw of seeds and tensions")
     ap.add_argument("--cells", type=int, default=4, help="with `additive`: the number of cells")
+    ap.add_argument("--frame", type=int, default=0, help="with `additive` and --frames: the time point (0-based)")
+    ap.add_argument("--frames", type=int, default=1,
+                    help="with `additive`: a time series of this many frames whose a_i drift linearly")
+    ap.add_argument("--drift", type=float, default=0.3,
+                    help="with --frames: each a_i changes by a factor 1 + r, r in [-drift, drift], over the series")
     ap.add_argument("--out", required=True, help="output folder (with `all`: one sub-folder per cluster)")
     ap.add_argument("--diameter", type=float, default=8.0, help="mean equivalent cell diameter in micrometres")
     ap.add_argument("--refine", type=int, default=3, help="refinement passes (each quadruples the facets)")
     ap.add_argument("--no-hessian", action="store_true", help="gradient steps only (no Hessian polish)")
     args = ap.parse_args()
     if args.kind == "additive":
-        cl = random_additive(args.seed, args.cells)
+        cl = random_additive(args.seed, args.cells, args.frame, args.frames, args.drift)
         clusters[cl.name] = cl
         args.kind = cl.name
     kinds = sorted(clusters) if args.kind == "all" else [args.kind]
