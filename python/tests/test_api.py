@@ -204,11 +204,9 @@ def test_an_unconverged_fit_warns_and_says_so(demo, tmp_path):
     assert result.result["stop_reason"].startswith("evaluation budget of 6 spent")
 
 
-def test_a_per_cell_fit_returns_its_map_with_intervals_and_flags_what_a_doublet_leaves_open(demo, tmp_path):
-    # One refinement iteration on the demo doublet (coupled contacts, faces typed by contact), two
-    # sub-voxel placements per measurement so that every interval has its spread.
-    labels, voxel_size = demo
-    config = f"""
+# One refinement iteration on a doublet (coupled contacts, faces typed by contact), two sub-voxel
+# placements per measurement so that every interval has its spread.
+PER_CELL_DOUBLET = """
 mode = "per_cell"
 [observed.meshing]
 target_nodes = 200
@@ -231,6 +229,11 @@ iterations = 1
 tolerance = 0.5
 free_tension = 1e-3
 """
+
+
+def test_a_per_cell_fit_returns_its_map_with_intervals_and_flags_what_a_doublet_leaves_open(demo, tmp_path):
+    labels, voxel_size = demo
+    config = PER_CELL_DOUBLET
     result = tf.fit(labels, voxel_size, config=config, out=tmp_path / "map")
     assert result.ok and result.result["mode"] == "per_cell" and result.tissue is not None and len(result.tissue) == 2
     assert list(result.cells["cell"]) == [1, 2] and list(result.interfaces["cell_b"]) == [0, 2, 0]
@@ -252,28 +255,7 @@ def test_a_series_of_arrays_keeps_each_cell_its_id_and_starts_with_the_previous_
     moved = np.roll(labels, 1, axis=2)
     assert not labels[:, :, -1].any()
     swapped = np.where(moved == 1, 2, np.where(moved == 2, 1, 0)).astype(labels.dtype)
-    config = """
-mode = "per_cell"
-[observed.meshing]
-target_nodes = 200
-[model_overrides.numerics]
-contact_model = "coupling"
-polarity = "contacts"
-dynamics = "overdamped"
-damping = 3e-9
-[model_overrides.simulation]
-mode = "equilibrium"
-method = "fire"
-max_steps = 1500
-settle_steps = 500
-[forward]
-accept_residual = 1e9
-measure_shifts = 2
-[per_cell]
-iterations = 1
-tolerance = 0.5
-free_tension = 1e-3
-"""
+    config = PER_CELL_DOUBLET
     series = tf.fit_series([labels, swapped], voxel_size, config=config, out=tmp_path / "series")
     assert series.succeeded and len(series.result["frames"]) == 2
     later = series.tracks["frame"] == 1
