@@ -50,23 +50,15 @@ impl FrameTracks {
 
     /// The first frame of a series: every label is its own track.
     pub fn first(volume: &LabelVolume) -> FrameTracks {
-        let counts = label_counts(volume);
         FrameTracks {
-            labels: counts
+            labels: volume
+                .label_stats()
                 .into_iter()
-                .map(|(label, voxels)| TrackedLabel { label, track: label, iou: None, parent: None, voxels })
+                .map(|l| TrackedLabel { label: l.label, track: l.label, iou: None, parent: None, voxels: l.voxels })
                 .collect(),
             ended: Vec::new(),
         }
     }
-}
-
-fn label_counts(volume: &LabelVolume) -> BTreeMap<u32, u64> {
-    let mut counts = BTreeMap::new();
-    for &l in volume.labels().iter().filter(|&&l| l != 0) {
-        *counts.entry(l).or_insert(0u64) += 1;
-    }
-    counts
 }
 
 /// Matches the labels of `current` to `previous`, whose labels are already track ids (the previous
