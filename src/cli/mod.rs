@@ -86,9 +86,10 @@ pub enum Command {
     /// aggregate); `generate mesh` writes a tissue (sphere, cube, vesicle, sheet, tube, spheroid).
     #[command(subcommand)]
     Generate(generate::GenerateCommand),
-    /// Run a pipeline file: mesh → measure → (simulate) → (fit) into a run directory with a manifest
-    /// (input hashes, resolved config, timings); unchanged stages are skipped. Exits with 1 when the fit
-    /// did not converge or is a poor fit, or a `[demo]` truth was not recovered.
+    /// Run a pipeline file: mesh → measure → (simulate) → (fit, or the per-cell maps of a `[series]` of
+    /// frames) into a run directory with a manifest (input hashes, resolved config, timings);
+    /// unchanged stages are skipped. Exits with 1 when the fit did not converge or is a poor fit, a
+    /// series frame failed or did not converge, or a `[demo]` truth was not recovered.
     Run(run::RunArgs),
     /// Draw a tissue into a PNG picture (software rendering; colour by cell, kind or face type).
     Render(render::RenderArgs),

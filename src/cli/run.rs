@@ -33,6 +33,7 @@ pub(super) fn watch_interrupts() {
             let next = match stage.as_str() {
                 "fit" => "to resume it: the evaluations already in its trace.csv are kept",
                 "simulate" => "to resume it from its last checkpoint (or from the start if it wrote none)",
+                "series" => "to resume it: the frames it finished are read back, not mapped again",
                 _ => "to redo it",
             };
             eprintln!(
@@ -52,7 +53,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
     OutputPolicy::new().input("PIPELINE", &args.pipeline).folder(
         "--out",
         &out,
-        &["config.resolved.toml", "manifest.json", "mesh/", "measure/", "simulate/", "fit/"],
+        &["config.resolved.toml", "manifest.json", "mesh/", "measure/", "simulate/", "fit/", "series/"],
     )?;
     watch_interrupts();
     let print = |line: &str| println!("{line}");
@@ -77,6 +78,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<Outcome> {
         println!(
             "fit: BEST-POINT RELAXATION FAILED ({reason}): no {}/fit/best.vtp; the fitted values stand, the \
              relaxed tissue and residuals.csv's simulated columns do not",
+            out.display()
+        );
+        ok = false;
+    }
+    if outcome.series_succeeded == Some(false) {
+        println!(
+            "series: some frame failed, did not converge or is a poor fit (see {}/series/series.json)",
             out.display()
         );
         ok = false;

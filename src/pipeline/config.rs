@@ -43,6 +43,11 @@ pub struct PipelineConfig {
     /// The fit config of `tissuefit fit` without `[observed]`: the observed tissue is `[input]`
     /// meshed with `[mesh]`.
     pub fit: Option<FitConfig>,
+    /// A time series: `[input] labels` is its first frame and `frames` the later ones. With it the
+    /// fit (`mode = "per_cell"`) maps every frame in order, as `tissuefit fit-series` does, into the
+    /// `series/` stage folder instead of fitting one tissue into `fit/`. Default: absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub series: Option<SeriesSection>,
     /// How the run's files for people are written (the length unit). Default: SI.
     #[serde(default, skip_serializing_if = "OutputSection::is_default")]
     pub output: OutputSection,
@@ -84,6 +89,24 @@ impl OutputSection {
             format!("output.length_unit = {:?}\n", self.length_unit.name())
         }
     }
+}
+
+/// `[series]`: the later frames of a time series whose first frame is `[input] labels`, mapped in
+/// order by the per-cell fit (the options of `tissuefit fit-series`).
+#[derive(Clone, Debug, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SeriesSection {
+    /// The label volumes of the later time points, in time order, on the grid of `input.labels`
+    /// (any label format). Relative to the pipeline file. At least one.
+    pub frames: Vec<PathBuf>,
+    /// The overlap (intersection over union, in (0, 1]) at or above which a cell continues a cell of
+    /// the previous frame and keeps its id. Default 0.3.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_iou: Option<Real>,
+    /// Start every frame from its own direct estimate, without the previous frame's correction.
+    /// Default false (each frame's direct estimate times the previous frame's correction).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cold: bool,
 }
 
 /// `[input]`: a label volume (`labels`), an already meshed tissue (`mesh`) or a synthetic tissue
@@ -293,6 +316,9 @@ impl PipelineConfig {
         if let Some(f) = &mut config.fit {
             f.model.as_mut().map(fix);
         }
+        if let Some(s) = &mut config.series {
+            s.frames.iter_mut().for_each(fix);
+        }
         let origin = path.display();
         let mut files: Vec<(&str, &Path)> = config.input.source().into_iter().collect();
         if let Some(p) = &config.input.nuclei {
@@ -304,9 +330,14 @@ impl PipelineConfig {
         if let Some(p) = config.fit.as_ref().and_then(|f| f.model.as_ref()) {
             files.push(("fit.model", p.as_path()));
         }
+        let frame_keys: Vec<String> =
+            config.series.iter().flat_map(|s| (0..s.frames.len()).map(|k| format!("series.frames[{k}]"))).collect();
+        for (key, file) in frame_keys.iter().zip(config.series.iter().flat_map(|s| &s.frames)) {
+            files.push((key.as_str(), file.as_path()));
+        }
         for (key, file) in files {
             // An OME-Zarr label input is a folder; an HDF5 one may name a dataset (FILE.h5/DATASET).
-            let label_input = matches!(key, "input.labels" | "input.nuclei");
+            let label_input = matches!(key, "input.labels" | "input.nuclei") || key.starts_with("series.frames");
             let exists =
                 file.is_file() || (label_input && (file.is_dir() || crate::imaging::split_hdf5_path(file).is_some()));
             if !exists {
@@ -459,7 +490,15 @@ impl PipelineConfig {
                 return Err("fit.objective.shape: the shape term compares voxels and needs `input.labels`".into());
             }
         }
+        if let Some(series) = &self.series {
+            series.check(self)?;
+        }
         if let Some(demo) = &self.demo {
+            if self.series.is_some() {
+                return Err("demo: the truth is compared with a fit of one tissue; a [series] maps every frame \
+                            (compare series/series_interfaces.csv with your truths instead)"
+                    .into());
+            }
             if self.fit.is_none() {
                 return Err("demo: the truth is compared with a fit; add a [fit] section".into());
             }
@@ -489,6 +528,45 @@ impl PipelineConfig {
     /// The resolved config as TOML (defaults filled in, paths resolved).
     pub fn to_toml_string(&self) -> Result<String, PipelineError> {
         toml::to_string(self).map_err(|e| PipelineError::Config(format!("writing the resolved config: {e}")))
+    }
+}
+
+impl SeriesSection {
+    /// The series' frames in order: `input.labels`, then `frames`.
+    pub fn all_frames<'a>(&'a self, input: &'a InputSection) -> impl Iterator<Item = &'a Path> {
+        input.labels.as_deref().into_iter().chain(self.frames.iter().map(PathBuf::as_path))
+    }
+
+    fn check(&self, pipeline: &PipelineConfig) -> Result<(), String> {
+        if pipeline.input.labels.is_none() {
+            return Err("series: a time series is label volumes; its first frame is `input.labels` (this pipeline's \
+                        input is a mesh or a generated tissue)"
+                .into());
+        }
+        if self.frames.is_empty() {
+            return Err("series.frames: give the later frames' label volumes in time order (at least one; \
+                        `input.labels` is the first)"
+                .into());
+        }
+        match &pipeline.fit {
+            None => {
+                return Err("series: the frames are mapped by the per-cell fit: add a [fit] section with \
+                            `mode = \"per_cell\"`"
+                    .into());
+            }
+            Some(f) if f.mode != crate::inference::FitMode::PerCell => {
+                return Err("series: a time series is mapped by the per-cell fit: set `mode = \"per_cell\"` in [fit] \
+                            (a global fit of each frame is a pipeline per frame, or a sweep over input.labels)"
+                    .into());
+            }
+            Some(_) => {}
+        }
+        if let Some(v) = self.min_iou
+            && !(v > 0.0 && v <= 1.0)
+        {
+            return Err(format!("series.min_iou: give a value in (0, 1]; got {v}"));
+        }
+        Ok(())
     }
 }
 
@@ -754,6 +832,40 @@ mod tests {
         assert!(e.contains("p.toml:5"), "{e}");
         assert!(e.contains("mesh.target_node"), "{e}");
         assert!(e.contains("did you mean `target_nodes`"), "{e}");
+    }
+
+    #[test]
+    fn a_series_needs_label_frames_and_a_per_cell_fit() {
+        let per_cell = "[fit]\nmode = \"per_cell\"\n";
+        let parse = |text: &str| PipelineConfig::from_toml_str(text, Path::new("p.toml"));
+        let ok = format!("[input]\nlabels = \"t0.tif\"\n[series]\nframes = [\"t1.tif\", \"t2.tif\"]\n{per_cell}");
+        let config = parse(&ok).unwrap();
+        let series = config.series.as_ref().unwrap();
+        let frames: Vec<&Path> = series.all_frames(&config.input).collect();
+        assert_eq!(frames, [Path::new("t0.tif"), Path::new("t1.tif"), Path::new("t2.tif")]);
+        for (text, key) in [
+            ("[input]\nlabels = \"t0.tif\"\n[series]\nframes = [\"t1.tif\"]\n".to_string(), "add a [fit] section"),
+            (
+                "[input]\nlabels = \"t0.tif\"\n[series]\nframes = [\"t1.tif\"]\n[fit]\nmode = \"global\"\n\
+                 [fit.parameters.surface_tension_lateral]\nbounds = [1e-4, 1e-3]\n"
+                    .to_string(),
+                "set `mode = \"per_cell\"`",
+            ),
+            (format!("[input]\nlabels = \"t0.tif\"\n[series]\nframes = []\n{per_cell}"), "series.frames"),
+            (format!("[input]\nmesh = \"t0.vtp\"\n[series]\nframes = [\"t1.tif\"]\n{per_cell}"), "input.labels"),
+            (
+                format!("[input]\nlabels = \"t0.tif\"\n[series]\nframes = [\"t1.tif\"]\nmin_iou = 0.0\n{per_cell}"),
+                "series.min_iou",
+            ),
+            (
+                format!("[input]\nlabels = \"t0.tif\"\n[series]\nframe = [\"t1.tif\"]\n{per_cell}"),
+                "did you mean `frames`",
+            ),
+            (format!("{ok}[demo]\ntruth = {{ surface_tension_lateral = 1e-3 }}\n"), "demo:"),
+        ] {
+            let e = parse(&text).unwrap_err().to_string();
+            assert!(e.contains(key), "{text}: {e}");
+        }
     }
 
     #[test]

@@ -32,8 +32,8 @@ pub mod sweep;
 mod sweep_plot;
 
 pub use config::{
-    DemoSection, InputSection, MeasureSection, OutputSection, PipelineConfig, SimulateSection, fit_config,
-    is_pipeline_file, nearest,
+    DemoSection, InputSection, MeasureSection, OutputSection, PipelineConfig, SeriesSection, SimulateSection,
+    fit_config, is_pipeline_file, nearest,
 };
 pub use manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file};
 pub use reference::{REFERENCE_SECTIONS, config_reference};

@@ -8,6 +8,7 @@ use super::manifest::{FileHash, Manifest, StageRecord, StageStatus, hash_file, h
 use super::stages::{MESH_TISSUE, run_measure, run_mesh, run_simulate};
 use crate::geometry::Real;
 use crate::io::write_bytes_atomically;
+use crate::stages::fit_series::{SeriesFrame, SeriesOptions};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -103,6 +104,9 @@ pub struct PipelineOutcome {
     /// The reason when the fit's relaxation at its best point failed (result.json's
     /// `best_relaxation`): no `fit/best.vtp` then.
     pub fit_best_failed: Option<String>,
+    /// `Some(succeeded)` when a `[series]` is configured: every frame was mapped, converged and no
+    /// poor fit (series.json's `succeeded`). The fit fields are `None` then.
+    pub series_succeeded: Option<bool>,
     /// `Some(reached)` when a simulate stage is configured: the run reached its goal (a relaxation
     /// and its reference converged, no cell passed through another; see
     /// [`crate::stages::simulate::RunSummary::reached_goal`]).
@@ -203,6 +207,13 @@ fn run_locked(
     };
     let simulate_model_hash = model_hash(&simulate_model)?;
     let fit_model_hash = model_hash(&fit_model)?;
+    // A series' later frames are inputs of its stage.
+    let mut frame_hashes = Vec::new();
+    for path in config.series.iter().flat_map(|s| &s.frames) {
+        let h = hash_file(path)?;
+        inputs.push(FileHash { path: path.clone(), blake3: h.clone() });
+        frame_hashes.push(h);
+    }
 
     // We hold the lock, so a stage still `running` belongs to a run that has ended: killed (kill -9,
     // a time limit) before it could say so.
@@ -280,8 +291,41 @@ fn run_locked(
     let mut fit_converged = None;
     let mut fit_poor = None;
     let mut fit_best_failed = None;
+    let mut series_succeeded = None;
     let mut demo = Vec::new();
-    if let Some(section) = &config.fit {
+    if let (Some(section), Some(series)) = (&config.fit, &config.series) {
+        // The series maps every frame itself (frame 0 meshed as the mesh stage meshes it).
+        let text = toml_of(section)? + &toml_of(series)? + &mesh_section;
+        let deps: Vec<&str> = std::iter::once(input_hash.as_str())
+            .chain(frame_hashes.iter().map(String::as_str))
+            .chain(std::iter::once(fit_model_hash.as_str()))
+            .collect();
+        let key = stage_key("series", &text, &deps);
+        let output_unit = config.output.length_unit;
+        runner.stage("series", key, Some(Resumable::Frames), |dir, resume| {
+            let fit = super::fit_config(section, &config.input, &config.mesh);
+            let frames: Vec<SeriesFrame> =
+                series.all_frames(&config.input).map(|p| SeriesFrame::File(p.to_path_buf())).collect();
+            let options = SeriesOptions {
+                min_iou: series.min_iou,
+                cold: series.cold,
+                fit: crate::inference::FitOptions {
+                    resume,
+                    progress: options.progress,
+                    plots: true,
+                    output_unit,
+                    ..Default::default()
+                },
+            };
+            let r = crate::stages::fit_series::run(&fit, &frames, dir, &options)?;
+            Ok((r.summary_line(), r.succeeded))
+        })?;
+        let json = out.join("series").join("series.json");
+        let text = std::fs::read_to_string(&json).map_err(io_err(&json))?;
+        let value: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| PipelineError::Io { path: json.clone(), message: e.to_string() })?;
+        series_succeeded = Some(value["succeeded"] == true);
+    } else if let Some(section) = &config.fit {
         let text = toml_of(section)? + &mesh_section;
         // The fit starts from the mesh stage's tissue and measures simulations on the labels' grid.
         let key = stage_key("fit", &text, &[&input_hash, &tissue_hash, &fit_model_hash]);
@@ -320,7 +364,15 @@ fn run_locked(
             }
         }
     }
-    Ok(PipelineOutcome { manifest, fit_converged, fit_poor, fit_best_failed, simulate_converged, demo })
+    Ok(PipelineOutcome {
+        manifest,
+        fit_converged,
+        fit_poor,
+        fit_best_failed,
+        series_succeeded,
+        simulate_converged,
+        demo,
+    })
 }
 
 /// What the mesh stage's key covers besides the input file's bytes: the input's kind and options
@@ -533,6 +585,8 @@ enum Resumable {
     Trace,
     /// The simulation, from its last periodic `checkpoint.bin`.
     Checkpoint,
+    /// A time series, from its finished frames (`tNNN/` with their `result.json`).
+    Frames,
 }
 
 impl Resumable {
@@ -541,6 +595,7 @@ impl Resumable {
         match self {
             Resumable::Trace => "trace.csv",
             Resumable::Checkpoint => crate::io::CHECKPOINT_FILE,
+            Resumable::Frames => "t000/result.json",
         }
     }
 
@@ -555,6 +610,10 @@ impl Resumable {
                 Some((step, _)) => format!("its checkpoint at step {step}"),
                 None => "its checkpoint".to_string(),
             },
+            Resumable::Frames => {
+                let n = finished_frames(tmp).count();
+                format!("its {n} finished frame{}", if n == 1 { "" } else { "s" })
+            }
         }
     }
 
@@ -563,8 +622,20 @@ impl Resumable {
         match self {
             Resumable::Trace => crate::inference::recorded_elapsed_seconds(&tmp.join("trace.csv")),
             Resumable::Checkpoint => crate::stages::simulate::checkpoint_progress(tmp).map_or(0.0, |(_, s)| s),
+            Resumable::Frames => finished_frames(tmp)
+                .filter_map(|json| {
+                    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).ok()?).ok()?;
+                    v["wall_seconds"].as_f64()
+                })
+                .sum(),
         }
     }
+}
+
+/// The `result.json` of every frame a series finished in `dir` (frames in order, up to the first
+/// unfinished one).
+fn finished_frames(dir: &Path) -> impl Iterator<Item = PathBuf> + '_ {
+    (0..).map(move |k| crate::stages::fit_series::frame_dir(dir, k).join("result.json")).take_while(|p| p.is_file())
 }
 
 /// At most five names, then how many more.

@@ -38,12 +38,13 @@ use std::time::Instant;
 use toml::{Table, Value};
 
 /// The outputs a column may read: `FILE` of `FILE:PATH`, relative to a run directory.
-pub const OUTPUT_FILES: [&str; 5] = [
+pub const OUTPUT_FILES: [&str; 6] = [
     "mesh/report.json",
     "measure/summary.json",
     "simulate/summary.json",
     "simulate/morphology.json",
     "fit/result.json",
+    "series/series.json",
 ];
 
 /// The sweep file as written.
@@ -540,7 +541,10 @@ fn default_columns(runs: &[SweepRun]) -> Vec<Column> {
         .filter_map(|t| t.get("fit")?.get("parameters")?.as_table().cloned())
         .flat_map(|p| p.into_iter().filter(|(_, v)| v.get("bounds").is_some()).map(|(k, _)| k))
         .collect();
-    if !fitted.is_empty() || tables.iter().any(|t| t.contains_key("fit")) {
+    if tables.iter().any(|t| t.contains_key("series")) {
+        cols.push(col("series/series.json", "succeeded"));
+        cols.push(col("series/series.json", "wall_seconds"));
+    } else if !fitted.is_empty() || tables.iter().any(|t| t.contains_key("fit")) {
         cols.push(col("fit/result.json", "objective"));
         cols.push(col("fit/result.json", "converged"));
         fitted.sort();
@@ -733,6 +737,17 @@ fn unconverged(stage: &str, read_json: &dyn Fn(&str) -> Option<serde_json::Value
         }
         "fit" => (read_json("fit/result.json")?["converged"] == false)
             .then(|| "fit: the optimiser stopped on its budget, not converged".to_string()),
+        "series" => {
+            let series = read_json("series/series.json")?;
+            let frames = series["frames"].as_array()?;
+            let bad: Vec<String> = frames
+                .iter()
+                .filter(|f| f["succeeded"] != true)
+                .map(|f| f["frame"].as_u64().map_or("?".to_string(), |k| k.to_string()))
+                .collect();
+            (!bad.is_empty())
+                .then(|| format!("series: frame(s) {} failed, did not converge or are a poor fit", bad.join(", ")))
+        }
         _ => None,
     }
 }
@@ -781,9 +796,12 @@ fn read_row(sweep: &Sweep, run: &SweepRun, out: &Path) -> ResultRow {
         row.status = "failed".into();
         row.reason = text.trim().to_string();
     } else if let Some(m) = &manifest {
+        let has = |s: &str| m.config.get(s).is_some_and(|v| !v.is_null());
+        // With a [series] its stage maps the frames in place of the fit stage.
+        let series = has("series");
         let expected = ["mesh", "measure"]
             .into_iter()
-            .chain(["simulate", "fit"].into_iter().filter(|s| m.config.get(*s).is_some_and(|v| !v.is_null())));
+            .chain(["simulate", "fit", "series"].into_iter().filter(|s| has(s) && !(*s == "fit" && series)));
         let mut notes = Vec::new();
         for name in expected {
             match m.stage(name) {

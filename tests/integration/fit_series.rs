@@ -154,3 +154,54 @@ fn a_series_refuses_a_global_fit_frames_on_other_grids_and_a_bad_threshold() {
     assert!(stderr.contains("other.tif") && stderr.contains("one grid"), "{stderr}");
     assert!(!out.join("series.json").exists(), "no series.json after a refused series");
 }
+
+/// The pipeline form: `[series]` beside a per-cell `[fit]` maps `input.labels` and the later frames
+/// into the run's `series/` folder (the fit stage does not run), records every frame as an input,
+/// and a second run skips the finished stage.
+#[test]
+fn a_pipeline_maps_a_series_into_its_series_stage_and_skips_it_when_unchanged() {
+    let dir = tempfile::tempdir().unwrap();
+    let f1 = dir.path().join("t1.tif");
+    next_frame(&f1);
+    let text = format!(
+        "preset = \"compact-embryo\"\n[input]\nlabels = {:?}\nseed = 0\n[series]\nframes = [\"t1.tif\"]\n\
+         [fit]\nmode = \"per_cell\"\n[fit.forward]\nmeasure_shifts = 1\n[fit.per_cell]\niterations = 2\ntolerance = 0.2\n",
+        hetero4().display().to_string()
+    );
+    let pipeline = dir.path().join("pipeline.toml");
+    std::fs::write(&pipeline, text).unwrap();
+    let out = dir.path().join("run");
+    let run = || {
+        let o = tissuefit(&["run", pipeline.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+        (o.status.success(), format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)))
+    };
+    let (ok, all) = run();
+    assert!(ok, "{all}");
+    assert!(all.contains("series: done") && all.contains("time series of 2 frames: 2 mapped and converged"), "{all}");
+    assert!(!out.join("fit").exists(), "the fit stage ran beside the series");
+    let series = out.join("series");
+    for f in ["t000/cells.csv", "t001/interfaces.csv", "tracks.csv", "series_interfaces.csv", "series.json"] {
+        assert!(series.join(f).is_file(), "series/{f} missing: {all}");
+    }
+    let tracks = rows(&series.join("tracks.csv"));
+    assert_eq!(
+        tracks.iter().filter(|r| r["frame"] == "1" && r["label"] == "4").map(|r| &r["track"]).next().unwrap(),
+        "1"
+    );
+    let result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(series.join("series.json")).unwrap()).unwrap();
+    assert_eq!(
+        (result["succeeded"].as_bool(), result["frames"][1]["previous_frame_cells"].as_u64()),
+        (Some(true), Some(4))
+    );
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    let inputs = manifest["inputs"].as_array().unwrap();
+    assert!(inputs.iter().any(|i| i["path"].as_str().is_some_and(|p| p.ends_with("t1.tif"))), "{inputs:?}");
+    // Unchanged: skipped. A changed later frame: mapped again.
+    let (ok, all) = run();
+    assert!(ok && all.contains("series: skipped"), "{all}");
+    std::fs::copy(hetero4(), &f1).unwrap();
+    let (ok, all) = run();
+    assert!(ok && all.contains("series: done"), "{all}");
+}
