@@ -238,6 +238,7 @@ fn contact_step_times(
                 &cell_params,
                 params.numerics.contact_cutoff,
                 params.numerics.coupling_junctions,
+                params.numerics.coupling_persistent_junctions,
             );
         }
         let couple = t.elapsed().as_secs_f64();

@@ -30,8 +30,9 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 /// a simulate run, and coupling ties are groups: parameters written without
 /// `numerics.coupling_junctions` would resume with other physics; 5:
 /// `simulation.remesh_below_edge_fraction` and the count of out-of-turn remeshing passes; 6: each
-/// cell's own tensions and adhesions, [`crate::mesh::CellOverrides`]).
-pub const CHECKPOINT_VERSION: u32 = 6;
+/// cell's own tensions and adhesions, [`crate::mesh::CellOverrides`]; 7:
+/// `numerics.coupling_persistent_junctions`).
+pub const CHECKPOINT_VERSION: u32 = 7;
 const MAGIC: [u8; 8] = *b"TFCKPT\r\n";
 const HEADER: usize = 8 + 4 + 8 + 8;
 

@@ -57,7 +57,8 @@ pub fn passage_warning(inside: &[CellInside]) -> Option<String> {
         "cells passed through each other: at the end the centre of a cell lies inside another ({}{more}), which the \
          overlap volume does not see (nodes deeper than the contact cutoff feel no contact). The result is not a \
          tissue; with spring contacts raise the repulsion, lower the adhesion or the contact cutoff, or use the \
-         coupling contact model",
+         coupling contact model; with coupling contacts on coarse meshes of many cells set \
+         numerics.coupling_persistent_junctions = true",
         pairs.join(", ")
     ))
 }

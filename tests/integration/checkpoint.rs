@@ -151,6 +151,54 @@ fn a_fire_relaxation_stopped_and_resumed_matches_the_uninterrupted_run() {
     assert_same_outputs(&reference, &split);
 }
 
+/// The junction groups that persist from one evaluation to the next
+/// (`numerics.coupling_persistent_junctions`) are rebuilt from the checkpoint's ties: a coupled
+/// relaxation of a generated 12-cell spheroid stopped at step 60 ends as the uninterrupted one
+/// (which differs from a run without the option, so the groups did persist).
+#[test]
+fn a_coupled_relaxation_with_persistent_junctions_resumed_matches_the_uninterrupted_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("spheroid.vtp");
+    ok(&tissuefit(&[
+        "generate",
+        "mesh",
+        "--kind",
+        "spheroid",
+        "--cells",
+        "12",
+        "--min-edge-length",
+        "1.6um",
+        "--out",
+        s(&input),
+        "-q",
+    ]));
+    let model = "[numerics]\ncontact_model = \"coupling\"\npolarity = \"contacts\"\n";
+    let (plain, persistent) = (dir.path().join("plain.toml"), dir.path().join("persistent.toml"));
+    std::fs::write(&plain, model).unwrap();
+    std::fs::write(&persistent, format!("{model}coupling_persistent_junctions = true\n")).unwrap();
+    let run = |config: &Path, out: &Path, extra: &[&str]| {
+        let mut args =
+            vec!["--threads", "2", "simulate", s(&input), "--config", s(config), "--out", s(out), "--max-steps", "120"];
+        args.extend_from_slice(extra);
+        tissuefit(&args)
+    };
+    let (reference, split, other) = (dir.path().join("reference"), dir.path().join("split"), dir.path().join("plain"));
+    let full = run(&persistent, &reference, &[]);
+    assert!(
+        full.status.code() == Some(0) || full.status.code() == Some(1),
+        "{}",
+        String::from_utf8_lossy(&full.stderr)
+    );
+    run(&plain, &other, &[]);
+    let final_of = |d: &Path| std::fs::read(d.join("final.vtk")).unwrap();
+    assert_ne!(final_of(&reference), final_of(&other), "the option changed nothing");
+    let stopped = run(&persistent, &split, &["--stop-at-step", "60"]);
+    assert_eq!(stopped.status.code(), Some(130), "{}", String::from_utf8_lossy(&stopped.stderr));
+    let out = tissuefit(&["--threads", "2", "simulate", "--resume", s(&split)]);
+    assert_eq!(out.status.code(), full.status.code(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_same_outputs(&reference, &split);
+}
+
 #[test]
 fn a_growth_run_stopped_after_a_division_and_resumed_matches_the_uninterrupted_run() {
     let reference = growth_reference().join("run");

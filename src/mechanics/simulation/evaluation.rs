@@ -37,6 +37,7 @@ impl<'p> Simulation<'p> {
                 &self.cell_params,
                 numerics.contact_cutoff,
                 numerics.coupling_junctions,
+                numerics.coupling_persistent_junctions,
             );
         }
         let coupled = Instant::now();

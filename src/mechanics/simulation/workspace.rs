@@ -98,7 +98,7 @@ impl Workspace {
             w.energy = fs.energy;
             work.forces.cells.push(w);
         }
-        work.coupling.restore_pairs(coupled.into_iter().map(|(a, b)| CoupledPair { a, b }).collect());
+        work.coupling.restore_pairs(coupled.into_iter().map(|(a, b)| CoupledPair { a, b }).collect(), cells);
         work
     }
 
