@@ -13,28 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-MODEL = """
-[numerics]
-contact_model = "coupling"
-polarity = "contacts"
-dynamics = "overdamped"
-damping = 3e-9
-[[cell_types]]
-kind = "epithelial"
-area_elasticity = 0.0
-max_pressure = inf
-growth_rate = 0.0
-faces.apical = { surface_tension = 1e-3, bending_modulus = 0.0, adhesion = 0.0 }
-faces.basal = { surface_tension = 1e-3, bending_modulus = 0.0, adhesion = 0.0 }
-faces.lateral = { surface_tension = 0.5e-3, bending_modulus = 0.0, adhesion = 0.0 }
-[simulation]
-mode = "equilibrium"
-method = "fire"
-max_steps = 1000
-settle_steps = 500
-remesh_every_steps = 50
-sample_every_steps = 100
-"""
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "per_cell"))
+from score_per_cell import MODEL as PER_CELL_MODEL  # noqa: E402
+
+# The per-cell fit's forward model (its relaxation settings), 1,000 steps, a frame every 100.
+MODEL = (PER_CELL_MODEL.split("[forward]")[0].replace("model_overrides.", "")
+         .replace("max_steps = 1500", "max_steps = 1000\nsample_every_steps = 100"))
 
 
 def read_vtp(path):

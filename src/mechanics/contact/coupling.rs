@@ -105,7 +105,8 @@ pub struct CouplingWorkspace {
     /// The junction groups (three or four members) of the last evaluation as ((cell, node), group),
     /// sorted, only where no member's cell changed triangles since: the groups that persist.
     tied_before: Vec<((u32, u32), u32)>,
-    /// Per eligible node, its group at the last evaluation (u32::MAX for none).
+    /// Per eligible node, its group at the last evaluation (u32::MAX for none); empty when no
+    /// group persists.
     previous: Vec<u32>,
 }
 
@@ -232,20 +233,24 @@ impl CouplingWorkspace {
         grid.rebuild(&self.boxes);
         let grid = &*grid;
 
-        // Each eligible node's group at the last evaluation (both lists are sorted by node).
+        // Each eligible node's group at the last evaluation (both lists are sorted by node); left
+        // empty when no group persists, the default.
         self.previous.clear();
-        let mut k = 0;
-        for node in &self.nodes {
-            while k < self.tied_before.len() && self.tied_before[k].0 < *node {
-                k += 1;
+        if !self.tied_before.is_empty() {
+            let mut k = 0;
+            for node in &self.nodes {
+                while k < self.tied_before.len() && self.tied_before[k].0 < *node {
+                    k += 1;
+                }
+                self.previous.push(match self.tied_before.get(k) {
+                    Some(&(m, g)) if m == *node => g,
+                    _ => u32::MAX,
+                });
             }
-            self.previous.push(match self.tied_before.get(k) {
-                Some(&(m, g)) if m == *node => g,
-                _ => u32::MAX,
-            });
         }
         let previous = &self.previous;
-        let were_tied = |i: usize, j: usize| previous[i] != u32::MAX && previous[i] == previous[j];
+        let were_tied =
+            |i: usize, j: usize| !previous.is_empty() && previous[i] != u32::MAX && previous[i] == previous[j];
         // Candidate pairs (i < j in the eligible-node order), in parallel by chunks of nodes.
         let (nodes, positions, normals) = (&self.nodes, &self.positions, &self.normals);
         let immobile: Vec<bool> = cells.iter().map(|c| c.kind().is_immobile()).collect();
