@@ -5,12 +5,13 @@
 #                                       model's relaxation of it, scored by validation/per_cell/score_per_cell.py
 #                                       (about a minute once the release binary is built; 2 cores)
 #                                       -> docs/src/generated/per-cell.md
-#   docs/scripts/per-cell.sh coverage   coverage of the intervals (`tension_sd`): 24 Surface Evolver
-#                                       clusters of 4-6 cells with random additive tensions (made first,
-#                                       needs Debian's evolver-nox, numpy and scipy; ~15 min), each fitted
-#                                       at 10 and 20 voxels per diameter; seeds 1-4 calibrate
-#                                       per_cell.model_error, seeds 5-8 are held out and scored with the
-#                                       binary's defaults (validation/per_cell/coverage.py; ~45 min)
+#   docs/scripts/per-cell.sh coverage   coverage of the intervals (`tension_sd`, `pressure_sd`, a cell's
+#                                       `lateral_tension_sd`): 36 Surface Evolver clusters of 4-6 cells with
+#                                       random additive tensions (made first, needs Debian's evolver-nox,
+#                                       numpy and scipy), each fitted at 10 and 20 voxels per diameter;
+#                                       seeds 1-8 calibrate per_cell.model_error (also scored
+#                                       leave-one-seed-out), seeds 9-12 are held out and scored with the
+#                                       binary's defaults (validation/per_cell/coverage.py; ~45 min on 2 cores)
 #                                       -> docs/src/generated/per-cell-coverage.md (+ .json)
 #   docs/scripts/per-cell.sh series     `tissuefit fit-series` warm (each frame's direct estimate
 #                                       times the previous frame's correction) and --cold on 6 Evolver time series of 5 cells, 4 frames,

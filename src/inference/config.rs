@@ -103,16 +103,17 @@ pub struct PerCellConfig {
     /// measurement bias), added to each refined tension's `tension_sd` as a relative standard error
     /// m = √(floor² + (coefficient × voxel size / mean cell diameter)²): `cell_cell = 0.3` with no
     /// floor adds 3 % at 10 voxels per diameter, 1.5 % at 20 (a mesh input, with no voxel, gets the
-    /// floor). Defaults calibrated on Surface Evolver truths so that ±1 sd holds 68 % of them (the
-    /// docs book, Per-cell maps; `docs/scripts/per-cell.sh coverage`).
+    /// floor). The same form for each cell's `pressure_sd` and `lateral_tension_sd` (`pressure`,
+    /// `lateral`). Defaults calibrated on Surface Evolver truths so that ±1 sd holds 68 % of them
+    /// (the docs book, Per-cell maps; `docs/scripts/per-cell.sh coverage`).
     #[serde(default)]
     pub model_error: ModelErrorConfig,
 }
 
 /// `per_cell.model_error`: relative standard errors, a coefficient per (voxel size / mean cell
 /// diameter) and a floor, for cell–cell and for cell–medium interfaces. The defaults are
-/// `validation/per_cell/coverage.py`'s calibration on seeds 1–4 of its Surface Evolver truths
-/// (12 clusters of 4–6 cells at 10 and 20 voxels per diameter), rounded.
+/// `validation/per_cell/coverage.py`'s calibration on its 36 Surface Evolver truths (clusters of
+/// 4–6 cells, seeds 1–12, at 10 and 20 voxels per diameter), rounded.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ModelErrorConfig {
@@ -128,6 +129,22 @@ pub struct ModelErrorConfig {
     /// The same, cell–medium.
     #[serde(default = "default_model_error_cell_medium_floor")]
     pub cell_medium_floor: Real,
+    /// Cell pressures (`pressure_sd` of cells.csv): the relative error per voxel size over cell
+    /// diameter that the sd of the tension holding the cell does not carry (the relaxed shape's
+    /// curvature and volume against the data's).
+    #[serde(default = "default_model_error_pressure")]
+    pub pressure: Real,
+    /// The same, the part that does not shrink with the voxel size.
+    #[serde(default = "default_model_error_pressure_floor")]
+    pub pressure_floor: Real,
+    /// A cell's lateral tension (`lateral_tension_sd` of cells.csv): the relative error per voxel
+    /// size over cell diameter that the least squares through the cell–cell interfaces' sds does
+    /// not carry (their errors are not independent).
+    #[serde(default = "default_model_error_lateral")]
+    pub lateral: Real,
+    /// The same, the part that does not shrink with the voxel size.
+    #[serde(default = "default_model_error_lateral_floor")]
+    pub lateral_floor: Real,
 }
 
 impl Default for ModelErrorConfig {
@@ -144,22 +161,48 @@ impl ModelErrorConfig {
             if free { (self.cell_medium, self.cell_medium_floor) } else { (self.cell_cell, self.cell_cell_floor) };
         (floor.powi(2) + (coefficient * resolution.unwrap_or(0.0)).powi(2)).sqrt()
     }
+
+    /// The relative model error of a cell's pressure at `resolution` (as [`Self::at`]).
+    pub fn pressure_at(&self, resolution: Option<Real>) -> Real {
+        (self.pressure_floor.powi(2) + (self.pressure * resolution.unwrap_or(0.0)).powi(2)).sqrt()
+    }
+
+    /// The relative model error of a cell's lateral tension at `resolution` (as [`Self::at`]).
+    pub fn lateral_at(&self, resolution: Option<Real>) -> Real {
+        (self.lateral_floor.powi(2) + (self.lateral * resolution.unwrap_or(0.0)).powi(2)).sqrt()
+    }
 }
 
 fn default_model_error_cell_cell() -> Real {
-    0.34
+    0.101
 }
 
 fn default_model_error_cell_medium() -> Real {
-    0.30
+    0.237
 }
 
 fn default_model_error_cell_cell_floor() -> Real {
-    0.011
+    0.031
 }
 
 fn default_model_error_cell_medium_floor() -> Real {
-    0.008
+    0.0195
+}
+
+fn default_model_error_pressure() -> Real {
+    0.144
+}
+
+fn default_model_error_pressure_floor() -> Real {
+    0.0139
+}
+
+fn default_model_error_lateral() -> Real {
+    0.344
+}
+
+fn default_model_error_lateral_floor() -> Real {
+    0.0266
 }
 
 fn default_per_cell_step() -> Real {
@@ -757,6 +800,10 @@ impl FitConfig {
             ("cell_medium", m.cell_medium),
             ("cell_cell_floor", m.cell_cell_floor),
             ("cell_medium_floor", m.cell_medium_floor),
+            ("pressure", m.pressure),
+            ("pressure_floor", m.pressure_floor),
+            ("lateral", m.lateral),
+            ("lateral_floor", m.lateral_floor),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!(

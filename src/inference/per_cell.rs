@@ -37,7 +37,12 @@
 //! error m for what neither shows — the measurement's bias that the relaxed tissue reproduces at
 //! the wrong tensions — a floor and a part proportional to voxel size over cell diameter, calibrated
 //! on Surface Evolver truths (`per_cell.model_error`): σ² = r² + s²(1 + 1/n) + m². Its coverage on
-//! held-out truths is measured by `docs/scripts/per-cell.sh coverage`.
+//! held-out truths is measured by `docs/scripts/per-cell.sh coverage`. A cell's pressure is
+//! proportional to the tension that holds it at a given shape: its `pressure_sd` combines that
+//! tension's relative sd (its free surface's; an enclosed cell's interfaces', area-weighted) and a
+//! model error for the shape (`per_cell.model_error.pressure`), calibrated and measured the same way;
+//! a cell's lateral tension's sd, the least squares' through the interfaces' sds and a model error
+//! for their correlation (`per_cell.model_error.lateral`).
 
 use super::InferenceError;
 use super::config::{FitConfig, FitMode};
@@ -163,6 +168,10 @@ pub struct PerCellResult {
 pub struct ModelErrorAt {
     pub cell_cell: Real,
     pub cell_medium: Real,
+    /// Added to every cell's `pressure_sd`.
+    pub pressure: Real,
+    /// Added to every cell's `lateral_tension_sd`.
+    pub lateral: Real,
 }
 
 /// `best_relaxation` of [`PerCellResult`].
@@ -215,6 +224,14 @@ struct CellRow {
     /// The relaxed simulation's pressure at the answer.
     pressure_pa: Option<Real>,
     pressure_kpa: Option<Real>,
+    /// The pressure's standard uncertainty (see [`pressure_relative_uncertainty`]), and its parts
+    /// (relative): the cell's tension's and the model error (`per_cell.model_error.pressure`).
+    pressure_sd_pa: Option<Real>,
+    pressure_sd_kpa: Option<Real>,
+    pressure_tension_sd: Option<Real>,
+    pressure_model_error: Real,
+    /// The model error (relative) in `lateral_tension_sd` (`per_cell.model_error.lateral`).
+    lateral_model_error: Real,
     volume_um3: Real,
 }
 
@@ -446,7 +463,10 @@ fn uncertainty_note(best: &Best, shifts: usize) -> String {
     let how = "tension_sd: the refined tension's standard uncertainty, σ² = r² + s²(1 + 1/n) + m² relative to it, \
                with r the interface's mismatch at the answer, s the spread of its measurement over n sub-voxel \
                placements of the relaxed tissue and m the model error (per_cell.model_error: a floor and a \
-               coefficient × voxel size / mean cell diameter; the floor alone for a mesh input)";
+               coefficient × voxel size / mean cell diameter; the floor alone for a mesh input); pressure_sd (cells.csv): \
+               the pressure's, the relative sd of the tension that holds it (the cell's free surface's) and \
+               per_cell.model_error.pressure in quadrature; lateral_tension_sd: the least squares a_i + a_j = T_ij \
+               through the cell-cell interfaces' sds and per_cell.model_error.lateral in quadrature";
     if best.spread.is_empty() {
         format!(
             "{how}; this run measured {shifts} placement(s), so s is the observed direct estimate's first-order \
@@ -789,6 +809,8 @@ pub fn run_per_cell_from(
         model_error: ModelErrorAt {
             cell_cell: config.per_cell.model_error.at(false, resolution),
             cell_medium: config.per_cell.model_error.at(true, resolution),
+            pressure: config.per_cell.model_error.pressure_at(resolution),
+            lateral: config.per_cell.model_error.lateral_at(resolution),
         },
         parameters: BTreeMap::new(),
         ratios: BTreeMap::new(),
@@ -929,6 +951,29 @@ fn relative_uncertainty(mismatch: Real, spread: Spread, model_error: Real) -> Re
         .sqrt()
 }
 
+/// The relative standard uncertainty of a cell's pressure: the relative sd `tension_sd` of the
+/// tension that holds it (a Laplace pressure is proportional to the tension at a given shape) and
+/// the model error `model_error` for the shape's own error (curvature, volume), in quadrature.
+fn pressure_relative_uncertainty(tension_sd: Real, model_error: Real) -> Real {
+    tension_sd.hypot(model_error)
+}
+
+/// The relative sd of the tension that holds cell `id`'s pressure: its free surface's where it has
+/// one, else the area-weighted rms over its interfaces (a cell enclosed by others); `None` when no
+/// interface of the cell has an sd.
+fn holding_tension_sd(id: u32, interfaces: &[InterfaceRow]) -> Option<Real> {
+    let relative = |r: &InterfaceRow| Some(r.tension_sd_n_per_m? / r.tension_n_per_m?);
+    if let Some(free) = interfaces.iter().find(|r| r.cell_a == id && r.cell_b == 0) {
+        return relative(free);
+    }
+    let (sum, area) = interfaces
+        .iter()
+        .filter(|r| r.cell_a == id || r.cell_b == id)
+        .filter_map(|r| Some((relative(r)?, r.area_um2)))
+        .fold((0.0, 0.0), |(s, a), (x, w)| (s + w * x * x, a + w));
+    (area > 0.0).then(|| (sum / area).sqrt())
+}
+
 #[allow(clippy::too_many_arguments)]
 fn write_outputs(
     out: &Path,
@@ -1007,7 +1052,16 @@ fn write_outputs(
             let p = best.pressure.get(&id).copied();
             let free_sd =
                 interfaces.iter().find(|r| r.cell_a == id && r.cell_b == 0).and_then(|r| r.tension_sd_n_per_m);
-            let lateral_sd = lateral_sd.get(&id).copied();
+            // The least squares' sd takes the interfaces' errors as independent; the model error
+            // adds what that misses (per_cell.model_error.lateral), relative to the tension.
+            let lateral_sd = lateral_sd.get(&id).copied().map(|sd| {
+                let a = t.lateral.get(&id).copied().unwrap_or(0.0).abs();
+                sd.hypot(model_error.lateral * a)
+            });
+            let pressure_tension_sd = holding_tension_sd(id, &interfaces);
+            let pressure_sd = p
+                .zip(pressure_tension_sd)
+                .map(|(p, s)| p.abs() * pressure_relative_uncertainty(s, model_error.pressure));
             CellRow {
                 cell: id,
                 free_tension_mn_per_m: mn(t.free.get(&id).copied()),
@@ -1024,6 +1078,11 @@ fn write_outputs(
                 direct_lateral_tension_n_per_m: start.lateral.get(&id).copied(),
                 pressure_pa: p,
                 pressure_kpa: p.map(|p| p * 1e-3),
+                pressure_sd_pa: pressure_sd,
+                pressure_sd_kpa: pressure_sd.map(|p| p * 1e-3),
+                pressure_tension_sd,
+                pressure_model_error: model_error.pressure,
+                lateral_model_error: model_error.lateral,
                 volume_um3: c.mesh().signed_volume() * 1e18,
             }
         })

@@ -189,6 +189,35 @@ fn a_per_cell_fit_maps_evolvers_hetero4_at_10_voxels_the_same_on_one_and_two_thr
         assert!(s > 0.0 && (sd / want - 1.0).abs() < 1e-9, "{r:?}: {sd} against {want}");
     }
     assert!(result["uncertainty"].as_str().unwrap().contains("placements"), "{result}");
+    // Each pressure's interval is its free surface's relative sd and the pressure model error.
+    let m_p = (m.pressure_floor.powi(2) + (m.pressure / per_diameter).powi(2)).sqrt();
+    for c in &cells {
+        assert!((number(c, "pressure_model_error") - m_p).abs() < 1e-12, "{c:?}");
+        let free = interfaces.iter().find(|r| r["cell_a"] == c["cell"] && r["cell_b"] == "0").unwrap();
+        let s = number(free, "tension_sd_mn_per_m") / number(free, "tension_mn_per_m");
+        assert!((number(c, "pressure_tension_sd") / s - 1.0).abs() < 1e-9, "{c:?}");
+        let want = number(c, "pressure_pa").abs() * s.hypot(m_p);
+        assert!(want > 0.0 && (number(c, "pressure_sd_pa") / want - 1.0).abs() < 1e-9, "{c:?}: against {want}");
+        assert!((number(c, "pressure_sd_kpa") * 1e3 / number(c, "pressure_sd_pa") - 1.0).abs() < 1e-12);
+    }
+    // Each lateral tension's interval is the least squares a_i + a_j = T_ij through the cell–cell
+    // interfaces' sds (independent errors: the pseudo-inverse's row weighted by the sds) and the
+    // lateral model error, in quadrature.
+    let m_l = (m.lateral_floor.powi(2) + (m.lateral / per_diameter).powi(2)).sqrt();
+    let ids: Vec<&str> = cells.iter().map(|c| c["cell"].as_str()).collect();
+    let pairs: Vec<_> = interfaces.iter().filter(|r| r["cell_b"] != "0").collect();
+    let a = nalgebra::DMatrix::<Real>::from_fn(pairs.len(), ids.len(), |i, k| {
+        Real::from(pairs[i]["cell_a"] == ids[k] || pairs[i]["cell_b"] == ids[k])
+    });
+    let pinv = a.pseudo_inverse(1e-9).unwrap();
+    for (k, c) in cells.iter().enumerate() {
+        assert!((number(c, "lateral_model_error") - m_l).abs() < 1e-12, "{c:?}");
+        let least_squares: Real =
+            pairs.iter().enumerate().map(|(i, r)| (pinv[(k, i)] * number(r, "tension_sd_mn_per_m")).powi(2)).sum();
+        let want = least_squares.sqrt().hypot(m_l * number(c, "lateral_tension_mn_per_m"));
+        let sd = number(c, "lateral_tension_sd_mn_per_m");
+        assert!(want > 0.0 && (sd / want - 1.0).abs() < 1e-9, "{c:?}: against {want}");
+    }
 }
 
 #[test]
@@ -202,7 +231,9 @@ fn bad_per_cell_settings_are_refused_naming_the_key() {
         ("[per_cell]\niteration = 3\n", "unknown field `iteration`"),
         ("[per_cell]\nmodel_error = { cell_cell = -1.0 }\n", "per_cell.model_error.cell_cell"),
         ("[per_cell]\nmodel_error = { cell_medium = nan }\n", "per_cell.model_error.cell_medium"),
+        ("[per_cell]\nmodel_error = { lateral = -0.1 }\n", "per_cell.model_error.lateral"),
         ("[per_cell]\nmodel_error = { cell_cell_floor = -0.01 }\n", "per_cell.model_error.cell_cell_floor"),
+        ("[per_cell]\nmodel_error = { pressure_floor = inf }\n", "per_cell.model_error.pressure_floor"),
         ("[per_cell]\nmodel_error = { cell = 1.0 }\n", "unknown field `cell`"),
     ] {
         let e = FitConfig::from_toml_str(&format!("{base}{extra}"), "fit.toml").unwrap_err().to_string();
