@@ -388,7 +388,8 @@ pub const MAX_ROUGHEN_VOXELS: Real = 3.0;
 struct EvaluationBeat<'a> {
     heartbeat: Option<&'a Heartbeat>,
     watch: &'a Watch,
-    point: &'a str,
+    /// What is relaxing ("evaluation at γ = …", "iteration 2 of 6").
+    what: &'a str,
     max_steps: u64,
 }
 
@@ -406,8 +407,8 @@ impl Observer for EvaluationBeat<'_> {
         }
         let message = || {
             format!(
-                "evaluation at {} running: step {step} of at most {} per pass, residual {residual:.3e}",
-                self.point, self.max_steps
+                "{} running: step {step} of at most {} per pass, residual {residual:.3e}",
+                self.what, self.max_steps
             )
         };
         if let Some(heartbeat) = self.heartbeat {
@@ -653,8 +654,7 @@ impl ForwardModel {
         if let Err(e) = params.validate() {
             return (failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default()), None);
         }
-        let heartbeat = self.heartbeat.as_ref().filter(|h| h.is_on());
-        let relaxed = if heartbeat.is_some() || self.watch.is_on() {
+        let relaxed = self.relax_reporting(&params, start, || {
             // The fitted parameters (the fixed ones come first in the list).
             let values = self.space.parameter_values(&x);
             let point = values[values.len() - x.len()..]
@@ -662,11 +662,8 @@ impl ForwardModel {
                 .map(|(p, v)| format!("{} = {v:.4e}", p.name()))
                 .collect::<Vec<_>>()
                 .join(", ");
-            let max_steps = params.simulation.max_steps;
-            self.relax(&params, start, &mut EvaluationBeat { heartbeat, watch: &self.watch, point: &point, max_steps })
-        } else {
-            self.relax(&params, start, &mut NoObserver)
-        };
+            format!("evaluation at {point}")
+        });
         let (tissue, summary) = match relaxed {
             Ok(r) => r,
             Err((reason, steps)) => return (failed(reason, steps, Real::NAN, Metrics::default()), None),
@@ -701,6 +698,25 @@ impl ForwardModel {
             elapsed_seconds: Real::NAN,
         };
         (evaluation, Some(tissue))
+    }
+
+    /// [`Self::relax`] that a log (the model's [`Heartbeat`]) and a listening caller (its [`Watch`],
+    /// which may also stop it) hear from while it runs: `what` names the relaxation in their lines
+    /// (built only when someone listens).
+    pub(crate) fn relax_reporting(
+        &self,
+        params: &Parameters,
+        start: &Tissue,
+        what: impl FnOnce() -> String,
+    ) -> Result<(Tissue, SimulationSummary), (String, u64)> {
+        let heartbeat = self.heartbeat.as_ref().filter(|h| h.is_on());
+        if heartbeat.is_some() || self.watch.is_on() {
+            let what = what();
+            let max_steps = params.simulation.max_steps;
+            self.relax(params, start, &mut EvaluationBeat { heartbeat, watch: &self.watch, what: &what, max_steps })
+        } else {
+            self.relax(params, start, &mut NoObserver)
+        }
     }
 
     /// The relaxation of one evaluation: from `start`, the first pass and `forward.volume_passes`

@@ -52,7 +52,7 @@ use super::space::ParameterSpace;
 use crate::geometry::Real;
 use crate::imaging::voxelize;
 use crate::io::{CellField, OutputGroup, Progress, vtp_bytes_in};
-use crate::mechanics::{CellOverrideConfig, NoObserver, Parameters, PerFaceType};
+use crate::mechanics::{CellOverrideConfig, Parameters, PerFaceType};
 use crate::mesh::Tissue;
 use crate::meshing::{label_interfaces, mesh_labels};
 use crate::morphology::tensions::{FieldOfView, TensionMap, TensionSettings, estimate_tensions};
@@ -514,6 +514,10 @@ pub fn run_per_cell_from(
     let base = space.apply(&config.base_parameters()?, &space.initial_point());
     let empty = ParameterSpace::from_config(&BTreeMap::new())?;
     let mut model = ForwardModel::new(observation, base, empty, config.objective.clone(), config.forward.clone())?;
+    // A log (stderr not a terminal) also hears from inside a relaxation of many minutes, and a
+    // listening caller (the Python API) can stop the refinement there.
+    model.heartbeat = Some(crate::io::Heartbeat::new("fit", options.progress));
+    model.watch = options.watch.clone();
     let roughen = super::run::calibrate_roughness(&mut model)?;
     let model = model;
     let mut warnings = Vec::new();
@@ -666,7 +670,7 @@ pub fn run_per_cell_from(
         params.cell_overrides = tensions.overrides();
         let mut begin = warm.clone();
         params.apply_cell_overrides(&mut begin).map_err(|e| InferenceError::Config(e.to_string()))?;
-        let relaxed = model.relax(&params, &begin, &mut NoObserver);
+        let relaxed = model.relax_reporting(&params, &begin, || format!("iteration {iteration} of {iterations}"));
         let mut row = Iteration {
             iteration,
             relaxation: "failed",

@@ -261,10 +261,21 @@ fn a_pipeline_maps_per_cell_with_the_compact_embryo_preset() {
     let path = dir.path().join("pipeline.toml");
     std::fs::write(&path, text).unwrap();
     let out = dir.path().join("out");
-    let o = tissuefit(&["run", path.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    // With lines due at once (`TISSUEFIT_PROGRESS_SECONDS=0`) a log hears from inside each
+    // relaxation (a 200-cell iteration runs for many minutes), naming the iteration.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tissuefit"))
+        .args(["run", path.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .env("TISSUEFIT_PROGRESS_SECONDS", "0")
+        .output()
+        .unwrap();
     let all = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success(), "{all}");
     assert!(all.contains("per-cell map of 4 cells"), "{all}");
+    assert!(
+        all.lines()
+            .any(|l| l.starts_with("fit: iteration 1 of 2 running: step 256 of at most 1500 per pass, residual ")),
+        "{all}"
+    );
     assert_eq!(rows(&out.join("fit/cells.csv")).len(), 4);
     let result: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("fit/result.json")).unwrap()).unwrap();
