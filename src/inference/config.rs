@@ -157,20 +157,27 @@ impl ModelErrorConfig {
     /// The relative model error of a cell–cell (`free` false) or cell–medium interface at
     /// `resolution` = voxel size / mean cell diameter (`None`: a mesh input, the floor alone).
     pub fn at(&self, free: bool, resolution: Option<Real>) -> Real {
-        let (coefficient, floor) =
-            if free { (self.cell_medium, self.cell_medium_floor) } else { (self.cell_cell, self.cell_cell_floor) };
-        (floor.powi(2) + (coefficient * resolution.unwrap_or(0.0)).powi(2)).sqrt()
+        if free {
+            combined(self.cell_medium, self.cell_medium_floor, resolution)
+        } else {
+            combined(self.cell_cell, self.cell_cell_floor, resolution)
+        }
     }
 
     /// The relative model error of a cell's pressure at `resolution` (as [`Self::at`]).
     pub fn pressure_at(&self, resolution: Option<Real>) -> Real {
-        (self.pressure_floor.powi(2) + (self.pressure * resolution.unwrap_or(0.0)).powi(2)).sqrt()
+        combined(self.pressure, self.pressure_floor, resolution)
     }
 
     /// The relative model error of a cell's lateral tension at `resolution` (as [`Self::at`]).
     pub fn lateral_at(&self, resolution: Option<Real>) -> Real {
-        (self.lateral_floor.powi(2) + (self.lateral * resolution.unwrap_or(0.0)).powi(2)).sqrt()
+        combined(self.lateral, self.lateral_floor, resolution)
     }
+}
+
+/// √(floor² + (coefficient × resolution)²); the floor alone without a resolution (a mesh input).
+fn combined(coefficient: Real, floor: Real, resolution: Option<Real>) -> Real {
+    floor.hypot(coefficient * resolution.unwrap_or(0.0))
 }
 
 fn default_model_error_cell_cell() -> Real {

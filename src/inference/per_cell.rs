@@ -224,8 +224,9 @@ struct CellRow {
     /// The relaxed simulation's pressure at the answer.
     pressure_pa: Option<Real>,
     pressure_kpa: Option<Real>,
-    /// The pressure's standard uncertainty (see [`pressure_relative_uncertainty`]), and its parts
-    /// (relative): the cell's tension's and the model error (`per_cell.model_error.pressure`).
+    /// The pressure's standard uncertainty, and its parts (relative) in quadrature: the sd of the
+    /// tension that holds the cell ([`holding_tension_sd`]) and the model error
+    /// (`per_cell.model_error.pressure`).
     pressure_sd_pa: Option<Real>,
     pressure_sd_kpa: Option<Real>,
     pressure_tension_sd: Option<Real>,
@@ -464,7 +465,8 @@ fn uncertainty_note(best: &Best, shifts: usize) -> String {
                with r the interface's mismatch at the answer, s the spread of its measurement over n sub-voxel \
                placements of the relaxed tissue and m the model error (per_cell.model_error: a floor and a \
                coefficient × voxel size / mean cell diameter; the floor alone for a mesh input); pressure_sd (cells.csv): \
-               the pressure's, the relative sd of the tension that holds it (the cell's free surface's) and \
+               the pressure's, the relative sd of the tension that holds it (the cell's free surface's, else its \
+               interfaces' area-weighted) and \
                per_cell.model_error.pressure in quadrature; lateral_tension_sd: the least squares a_i + a_j = T_ij \
                through the cell-cell interfaces' sds and per_cell.model_error.lateral in quadrature";
     if best.spread.is_empty() {
@@ -955,13 +957,6 @@ fn relative_uncertainty(mismatch: Real, spread: Spread, model_error: Real) -> Re
         .sqrt()
 }
 
-/// The relative standard uncertainty of a cell's pressure: the relative sd `tension_sd` of the
-/// tension that holds it (a Laplace pressure is proportional to the tension at a given shape) and
-/// the model error `model_error` for the shape's own error (curvature, volume), in quadrature.
-fn pressure_relative_uncertainty(tension_sd: Real, model_error: Real) -> Real {
-    tension_sd.hypot(model_error)
-}
-
 /// The relative sd of the tension that holds cell `id`'s pressure: its free surface's where it has
 /// one, else the area-weighted rms over its interfaces (a cell enclosed by others); `None` when no
 /// interface of the cell has an sd.
@@ -1063,9 +1058,9 @@ fn write_outputs(
                 sd.hypot(model_error.lateral * a)
             });
             let pressure_tension_sd = holding_tension_sd(id, &interfaces);
-            let pressure_sd = p
-                .zip(pressure_tension_sd)
-                .map(|(p, s)| p.abs() * pressure_relative_uncertainty(s, model_error.pressure));
+            // A Laplace pressure is proportional to the tension that holds the cell at its shape;
+            // the model error adds the shape's own (curvature, volume).
+            let pressure_sd = p.zip(pressure_tension_sd).map(|(p, s)| p.abs() * s.hypot(model_error.pressure));
             CellRow {
                 cell: id,
                 free_tension_mn_per_m: mn(t.free.get(&id).copied()),

@@ -158,17 +158,23 @@ def resolution_of(cases):
     return statistics.mean(1 / c["voxels_per_diameter"] for c in cases)
 
 
-def calibrate(cases, free, target=0.683):
-    """`per_cell.model_error` of one class of interfaces (coefficient per voxel size / diameter,
-    floor) from `cases`: at each resolution the m whose ±1 sd holds `target` of that resolution's
-    interfaces, then m² = floor² + (coefficient · voxel/diameter)² through them."""
+def calibrate_class(cases, items_of, covered_with, target=0.683):
+    """A model error (coefficient per voxel size / diameter, floor) from `cases`: at each
+    resolution the m whose ±1 sd holds `target` of that resolution's items (`items_of(case)`;
+    `covered_with(item, m)`), then m² = floor² + (coefficient · voxel/diameter)² through them."""
     points = []
     for vox in sorted({c["vox"] for c in cases}):
         sub = [c for c in cases if c["vox"] == vox]
-        items = [z for c in sub for z in c["z"] if z["free"] == free and sd_with(z, 0) is not None]
+        items = [i for c in sub for i in items_of(c)]
         if items:
-            points.append((resolution_of(sub), needed(items, target, covered)))
+            points.append((resolution_of(sub), needed(items, target, covered_with)))
     return fit_model_error(points)
+
+
+def calibrate(cases, free):
+    """`per_cell.model_error` of one class of interfaces (cell–medium when `free`)."""
+    return calibrate_class(cases, lambda c: [z for z in c["z"] if z["free"] == free and sd_with(z, 0) is not None],
+                           covered)
 
 
 def model_error(coefficients, kind, resolution):
@@ -191,16 +197,11 @@ def pressure_covered(case, p, coefficients, m):
     return s is not None and abs(p["rel"]) <= math.hypot(s, m) * (1 + p["rel"])
 
 
-def calibrate_pressure(cases, coefficients, target=0.683):
+def calibrate_pressure(cases, coefficients):
     """`per_cell.model_error.pressure` and `pressure_floor` from `cases`, given the interfaces'."""
-    points = []
-    for vox in sorted({c["vox"] for c in cases}):
-        sub = [c for c in cases if c["vox"] == vox]
-        items = [(c, p) for c in sub for p in c["pressures"] if free_sd(c, p["cell"], coefficients) is not None]
-        if items:
-            points.append((resolution_of(sub), needed(items, target,
-                                                      lambda cp, m: pressure_covered(cp[0], cp[1], coefficients, m))))
-    return fit_model_error(points)
+    return calibrate_class(
+        cases, lambda c: [(c, p) for p in c["pressures"] if free_sd(c, p["cell"], coefficients) is not None],
+        lambda cp, m: pressure_covered(cp[0], cp[1], coefficients, m))
 
 
 def lateral_items(case, coefficients):
@@ -237,15 +238,9 @@ def lateral_is_covered(item, m):
     return abs(error) <= math.hypot(s, m * abs(ours))
 
 
-def calibrate_lateral(cases, coefficients, target=0.683):
+def calibrate_lateral(cases, coefficients):
     """`per_cell.model_error.lateral` and `lateral_floor` from `cases`, given the interfaces'."""
-    points = []
-    for vox in sorted({c["vox"] for c in cases}):
-        sub = [c for c in cases if c["vox"] == vox]
-        items = [i for c in sub for i in lateral_items(c, coefficients)]
-        if items:
-            points.append((resolution_of(sub), needed(items, target, lateral_is_covered)))
-    return fit_model_error(points)
+    return calibrate_class(cases, lambda c: lateral_items(c, coefficients), lateral_is_covered)
 
 
 def three_figures(coefficients):
@@ -370,9 +365,8 @@ def main():
     # seeds' (out of sample, every truth once): what the defaults, calibrated on all of them, cover.
     loso = {s: calibrate_all([c for c in per_case if c["seed"] != s]) for s in seeds} if len(seeds) > 1 else {}
     names = ["cell_cell", "cell_medium", "pressure", "lateral"]
-    keys = {k: (k, f"{k}_floor") for k in names}
-    as_toml = lambda coefs: ", ".join(f"{keys[k][0]} = {coefs[k]['coefficient']:.3g}, "
-                                      f"{keys[k][1]} = {coefs[k]['floor']:.3g}" for k in names)
+    as_toml = lambda coefs: ", ".join(f"{k} = {coefs[k]['coefficient']:.3g}, {k}_floor = {coefs[k]['floor']:.3g}"
+                                      for k in names)
     lines = [f"The binary's `per_cell.model_error` defaults are the calibration on all {len(seeds)} seeds "
              f"({len(per_case)} fits): {as_toml(defaults)}.", "",
              "| truths scored | resolution | truths | interfaces within ±1 sd (nominal 68.3 %) | cell–cell / cell–medium "
