@@ -18,6 +18,12 @@
 #                                       tensions drifting by up to ±30 % (made first, ~15 min; mapped ~25 min;
 #                                       validation/per_cell/series.py)
 #                                       -> docs/src/generated/per-cell-series.md (+ .json)
+#   docs/scripts/per-cell.sh adhesion   spring-contact adhesion maps (each cell its own adhesion) on 12 of the
+#                                       coverage table's Evolver clusters (4-6 cells, seeds 1-4), at 10 and 20
+#                                       voxels per diameter: interface tensions and each cell's adhesion
+#                                       energy against the truth's f - a_i (validation/per_cell/adhesion.py;
+#                                       truths ~10 min, fits ~15 min on 2 cores)
+#                                       -> docs/src/generated/per-cell-adhesion.md (+ .json)
 # TRUTHS=DIR keeps the Evolver clusters between runs (default: a temporary folder).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -35,5 +41,9 @@ case "${1:-accuracy}" in
         truths=${TRUTHS:-$work/truths}
         python3 validation/per_cell/series.py target/release/tissuefit "$truths" "$work/series" \
             --markdown docs/src/generated/per-cell-series.md --json docs/src/generated/per-cell-series.json ;;
-    *) echo "usage: $0 [accuracy|coverage|series]" >&2; exit 2 ;;
+    adhesion)
+        truths=${TRUTHS:-$work/truths}
+        python3 validation/per_cell/adhesion.py target/release/tissuefit "$truths" "$work/adhesion" \
+            --markdown docs/src/generated/per-cell-adhesion.md --json docs/src/generated/per-cell-adhesion.json ;;
+    *) echo "usage: $0 [accuracy|coverage|series|adhesion]" >&2; exit 2 ;;
 esac

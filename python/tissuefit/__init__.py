@@ -549,8 +549,9 @@ class FitResult:
     cells: dict[str, np.ndarray] = field(default_factory=dict)
     """A per-cell fit's (``mode = "per_cell"``) ``cells.csv``: per cell, its free and lateral tension
     (mN/m, N/m) with their sd (NaN and ``lateral_determined`` False where the interfaces do not fix a
-    cell's own lateral tension), the simulated pressure with its sd (``pressure_sd_pa``); empty for a
-    global fit."""
+    cell's own lateral tension), the simulated pressure with its sd (``pressure_sd_pa``); with spring
+    contacts also its adhesion (``adhesion_pa_per_m``, ``adhesion_energy_mj_per_m2`` with its sd,
+    ``adhesion_over_tension``); empty for a global fit."""
     interfaces: dict[str, np.ndarray] = field(default_factory=dict)
     """A per-cell fit's ``interfaces.csv``: per interface (``cell_b`` 0: the medium), the refined
     ``tension_mn_per_m`` with ``tension_sd_mn_per_m`` and its parts, the direct estimate, the

@@ -52,7 +52,7 @@ use super::space::ParameterSpace;
 use crate::geometry::Real;
 use crate::imaging::voxelize;
 use crate::io::{CellField, OutputGroup, Progress, vtp_bytes_in};
-use crate::mechanics::{CellOverrideConfig, Parameters, PerFaceType};
+use crate::mechanics::{CellOverrideConfig, ContactModel, Parameters, PerFaceType};
 use crate::mesh::Tissue;
 use crate::meshing::{label_interfaces, mesh_labels};
 use crate::morphology::tensions::{FieldOfView, TensionMap, TensionSettings, estimate_tensions};
@@ -156,6 +156,15 @@ pub struct PerCellResult {
     /// Cells whose start was their direct estimate times a previous time point's correction
     /// ([`run_per_cell_from`]); 0 when every cell started from the direct estimate alone.
     pub previous_frame_cells: usize,
+    /// The forward model's contact model: with `coupling` a cell–cell interface's tension is the
+    /// two cells' lateral tensions; with `spring` each cell has one tension and its own adhesion ω_i
+    /// (cells.csv `adhesion_*`), T_ij = γ_i + γ_j − (ω_i + ω_j)·c²/4.
+    pub contact_model: ContactModel,
+    /// The contact cutoff c of the forward simulations (m; spring adhesion energy per side ω·c²/4).
+    pub contact_cutoff_m: Real,
+    /// Values a spring map raised so that the cells' adhesions and pressures do not push them into
+    /// each other (the largest over the iterations, by key: repulsion in Pa/m, time step in s).
+    pub raised: BTreeMap<String, Real>,
     /// Per cell, the answer over the direct estimate it started from (free and lateral): the
     /// correction of the measurement's bias the refinement found, which the next time point of a
     /// series starts with ([`run_per_cell_from`]).
@@ -233,6 +242,15 @@ struct CellRow {
     pressure_model_error: Real,
     /// The model error (relative) in `lateral_tension_sd` (`per_cell.model_error.lateral`).
     lateral_model_error: Real,
+    /// Spring contacts only, where the cell's lateral tension is determined: the cell's adhesion
+    /// ω (Pa/m), the adhesion energy of its side of a contact W = ω·c²/4 = f − a (J/m² = N/m; and
+    /// mN/m) with its standard uncertainty (free and lateral sds in quadrature), and
+    /// W/γ = ω·c²/(4γ), the w/(2γ) of a contact between two cells alike.
+    adhesion_pa_per_m: Option<Real>,
+    adhesion_energy_mj_per_m2: Option<Real>,
+    adhesion_energy_sd_mj_per_m2: Option<Real>,
+    adhesion_energy_j_per_m2: Option<Real>,
+    adhesion_over_tension: Option<Real>,
     volume_um3: Real,
 }
 
@@ -284,7 +302,7 @@ impl CellTensions {
         if b == 0 { self.free.get(&a).copied() } else { Some(self.lateral.get(&a)? + self.lateral.get(&b)?) }
     }
 
-    fn overrides(&self) -> Vec<CellOverrideConfig> {
+    fn overrides(&self, contacts: Contacts) -> Vec<CellOverrideConfig> {
         self.free
             .keys()
             .chain(self.lateral.keys())
@@ -293,13 +311,41 @@ impl CellTensions {
             .into_iter()
             .map(|id| {
                 let free = self.free.get(&id).copied();
-                CellOverrideConfig {
-                    id,
-                    surface_tension: PerFaceType { apical: free, lateral: self.lateral.get(&id).copied(), basal: free },
-                    adhesion: PerFaceType::default(),
+                let lateral = self.lateral.get(&id).copied();
+                match contacts {
+                    Contacts::Lateral => CellOverrideConfig {
+                        id,
+                        surface_tension: PerFaceType { apical: free, lateral, basal: free },
+                        adhesion: PerFaceType::default(),
+                    },
+                    Contacts::Adhesion { cutoff } => {
+                        let omega = free.zip(lateral).map(|(f, a)| adhesion_of(f, a, cutoff));
+                        CellOverrideConfig {
+                            id,
+                            surface_tension: PerFaceType { apical: free, lateral: free, basal: free },
+                            adhesion: PerFaceType { apical: omega, lateral: omega, basal: omega },
+                        }
+                    }
                 }
             })
             .collect()
+    }
+
+    /// With spring contacts, every lateral tension at most its cell's free tension (ω_i ≥ 0: a
+    /// spring contact adheres, it cannot make an interface dearer than the two free surfaces);
+    /// the cells clamped are added to `clamped`.
+    fn bound_by_adhesion(&mut self, contacts: Contacts, clamped: &mut std::collections::BTreeSet<u32>) {
+        if contacts == Contacts::Lateral {
+            return;
+        }
+        for (c, a) in self.lateral.iter_mut() {
+            if let Some(&f) = self.free.get(c)
+                && *a > f
+            {
+                *a = f;
+                clamped.insert(*c);
+            }
+        }
     }
 
     /// Scales every tension so that the mean free tension is `target`.
@@ -310,6 +356,72 @@ impl CellTensions {
         let mean = self.free.values().sum::<Real>() / self.free.len() as Real;
         let s = target / mean;
         self.free.values_mut().chain(self.lateral.values_mut()).for_each(|v| *v *= s);
+    }
+}
+
+/// The largest adhesion w/(2γ) = ω·c²/(4γ) of the regime table in which spring contacts were
+/// checked against Young–Dupré (docs/src/generated/spring-regime.md); a map's cell beyond it is warned about.
+const SPRING_ADHESION_CHECKED: Real = 0.6;
+
+/// Cell labels as a list for a message ("1, 4, 7", or the first eight and a count).
+fn join_ids(ids: &std::collections::BTreeSet<u32>) -> String {
+    let shown: Vec<String> = ids.iter().take(8).map(u32::to_string).collect();
+    if ids.len() > 8 { format!("{}, … ({} cells)", shown.join(", "), ids.len()) } else { shown.join(", ") }
+}
+
+/// How the model makes a cell–cell interface's tension T_ij = a_i + a_j out of per-cell values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Contacts {
+    /// Coupled contacts (or polarity from contacts): a cell's faces against another cell are
+    /// lateral and carry its lateral tension a_i; the free faces its free tension f_i.
+    Lateral,
+    /// Spring contacts: every face of cell i carries one tension γ_i = f_i, and the cell's own
+    /// adhesion ω_i (Pa/m) deepens the well of its side of a contact by ω_i·c²/4 (J/m²), so
+    /// T_ij = γ_i + γ_j − (ω_i + ω_j)·c²/4 = a_i + a_j with ω_i = 4(f_i − a_i)/c²
+    /// ([`adhesion_of`]). The map's adhesions are the cells' ω_i.
+    Adhesion {
+        /// The contact cutoff c (m) of the forward simulations.
+        cutoff: Real,
+    },
+}
+
+impl Contacts {
+    fn of(model: ContactModel, cutoff: Real) -> Self {
+        match model {
+            ContactModel::Spring => Contacts::Adhesion { cutoff },
+            ContactModel::Coupling => Contacts::Lateral,
+        }
+    }
+}
+
+/// A cell's spring adhesion ω = 4(f − a)/c² (Pa/m) for which an interface between it and a cell
+/// alike has the tension 2a (Young–Dupré with w = ω·c²/2; the spring model, Methods Eq. 2), never
+/// below 0: a lateral tension above the free one is no adhesion a spring contact can make (the
+/// refinement then sees the interface's mismatch; see [`run_per_cell_from`]'s warnings).
+fn adhesion_of(free: Real, lateral: Real, cutoff: Real) -> Real {
+    (4.0 * (free - lateral) / (cutoff * cutoff)).max(0.0)
+}
+
+/// With the cells' adhesions of a spring map set, the model's repulsion raised where it is below
+/// what holds those adhesions and the cells' Laplace pressures apart
+/// ([`Parameters::raise_repulsion_for_overrides`]; the map's ω_i may be many times the cell type's),
+/// and the time step with it. Each value raised is logged the first time it exceeds what `raised`
+/// holds (the largest so far, by key).
+fn stiffen(params: &mut Parameters, tissue: &Tissue, contacts: Contacts, raised: &mut BTreeMap<String, Real>) {
+    if contacts == Contacts::Lateral {
+        return;
+    }
+    for d in params.raise_repulsion_for_overrides(tissue) {
+        let before = raised.get(&d.key).copied();
+        let larger = if d.key.ends_with("time_step") {
+            before.is_none_or(|b| d.value < b)
+        } else {
+            before.is_none_or(|b| d.value > b)
+        };
+        if larger {
+            tracing::info!("{} = {:.3e} (was {:.3e}): {}", d.key, d.value, d.default, d.from);
+            raised.insert(d.key.clone(), d.value);
+        }
     }
 }
 
@@ -539,7 +651,9 @@ pub fn run_per_cell_from(
             first.id().0
         )));
     }
-    if model.base.numerics.polarity == crate::mechanics::Polarity::None
+    let contacts = Contacts::of(model.base.numerics.contact_model, model.base.numerics.contact_cutoff);
+    if contacts == Contacts::Lateral
+        && model.base.numerics.polarity == crate::mechanics::Polarity::None
         && !obs.tissue.cells().iter().any(|c| c.face_types().contains(&crate::mesh::FaceType::Lateral))
     {
         return Err(InferenceError::Config(
@@ -623,6 +737,8 @@ pub fn run_per_cell_from(
     let floor = 0.02 * free_tension;
     tensions.lateral.values_mut().for_each(|a| *a = a.max(floor));
     tensions.free.values_mut().for_each(|f| *f = f.max(floor));
+    let mut beyond_adhesion = std::collections::BTreeSet::new();
+    tensions.bound_by_adhesion(contacts, &mut beyond_adhesion);
     let start = tensions.clone();
     let additive_residual_rms = {
         let r: Vec<Real> = cell_cell.iter().filter_map(|&(k, t)| Some(start.of(k)? / t - 1.0)).collect();
@@ -663,15 +779,17 @@ pub fn run_per_cell_from(
     )
     .with_watch(options.watch.clone());
     let mut trace: Vec<Iteration> = Vec::new();
+    let mut stiffened: BTreeMap<String, Real> = BTreeMap::new();
     let mut best: Option<Best> = None;
     let mut warm: Tissue = obs.tissue.clone();
     let mut converged = false;
     for iteration in 1..=iterations {
         let t0 = Instant::now();
         let mut params = model.base.clone();
-        params.cell_overrides = tensions.overrides();
+        params.cell_overrides = tensions.overrides(contacts);
         let mut begin = warm.clone();
         params.apply_cell_overrides(&mut begin).map_err(|e| InferenceError::Config(e.to_string()))?;
+        stiffen(&mut params, &begin, contacts, &mut stiffened);
         let relaxed = model.relax_reporting(&params, &begin, || format!("iteration {iteration} of {iterations}"));
         let mut row = Iteration {
             iteration,
@@ -773,6 +891,7 @@ pub fn run_per_cell_from(
         tensions.lateral = lateral_fit(&moving, &rows, &tensions.lateral);
         tensions.lateral.values_mut().for_each(|a| *a = a.max(floor));
         tensions.free.values_mut().for_each(|f| *f = f.max(floor));
+        tensions.bound_by_adhesion(contacts, &mut beyond_adhesion);
         tensions.rescale(free_tension);
         if config.per_cell.warm_start {
             warm = tissue;
@@ -793,6 +912,44 @@ pub fn run_per_cell_from(
             trace.last().map(|r| r.reason.as_str()).unwrap_or("")
         ));
     }
+    // What the spring map's adhesions could not do, or did beyond where they were checked.
+    let mut late = Vec::new();
+    if !beyond_adhesion.is_empty() {
+        late.push(format!(
+            "cells {}: their interfaces asked for a lateral tension above the cell's free tension, which no spring \
+             adhesion makes (ω ≥ 0); held at no adhesion — their interfaces keep a mismatch (iterations.csv); \
+             contact_model = \"coupling\" makes such maps",
+            join_ids(&beyond_adhesion)
+        ));
+    }
+    if let Contacts::Adhesion { .. } = contacts {
+        // w/(2γ) of a contact between cells alike: ω·c²/(4γ) = 1 − a/f.
+        let strong: std::collections::BTreeSet<u32> = best
+            .tensions
+            .free
+            .iter()
+            .filter(|(c, f)| best.tensions.lateral.get(c).is_some_and(|a| 1.0 - a / *f > SPRING_ADHESION_CHECKED))
+            .map(|(c, _)| *c)
+            .collect();
+        if !strong.is_empty() {
+            late.push(format!(
+                "cells {}: adhesion w/(2γ) = ω·c²/(4γ) above {SPRING_ADHESION_CHECKED}, beyond the range in which \
+                 spring contacts were checked against Young–Dupré (docs book, Spring contacts and Young–Dupré)",
+                join_ids(&strong)
+            ));
+        }
+        if model.base.numerics.contact_quadrature == crate::mechanics::ContactQuadrature::Vertices {
+            late.push(
+                "the map's adhesions run with numerics.contact_quadrature = \"vertices\", which under-adheres \
+                 (contact angles 0.5–6° small at w/(2γ) = 0.3); set contact_quadrature = \"faces\""
+                    .to_string(),
+            );
+        }
+    }
+    for w in &late {
+        tracing::warn!("{w}");
+    }
+    warnings.extend(late);
     let start_mismatch = trace.first().map_or(Real::NAN, |r| r.rms_mismatch);
     let resolution = resolution(obs);
     let result = PerCellResult {
@@ -826,13 +983,21 @@ pub fn run_per_cell_from(
         warnings,
         roughen,
         previous_frame_cells: previous_frame.len(),
+        contact_model: model.base.numerics.contact_model,
+        contact_cutoff_m: model.base.numerics.contact_cutoff,
+        raised: stiffened.clone(),
         correction: CellTensions {
             free: ratios(&best.tensions.free, &start.free),
             lateral: ratios(&best.tensions.lateral, &start.lateral),
         },
     };
     let mut params = model.base.clone();
-    params.cell_overrides = best.tensions.overrides();
+    params.cell_overrides = best.tensions.overrides(contacts);
+    {
+        let mut begin = obs.tissue.clone();
+        params.apply_cell_overrides(&mut begin).map_err(|e| InferenceError::Config(e.to_string()))?;
+        stiffen(&mut params, &begin, contacts, &mut stiffened);
+    }
     write_outputs(
         out,
         &model,
@@ -992,6 +1157,7 @@ fn write_outputs(
     let obs = &model.observation;
     let t = &best.tensions;
     let model_error = result.model_error;
+    let contacts = Contacts::of(result.contact_model, result.contact_cutoff_m);
     let mn = |v: Option<Real>| v.map(|x| x * 1e3);
     let interfaces: Vec<InterfaceRow> = observed_map
         .interfaces
@@ -1061,6 +1227,16 @@ fn write_outputs(
             // A Laplace pressure is proportional to the tension that holds the cell at its shape;
             // the model error adds the shape's own (curvature, volume).
             let pressure_sd = p.zip(pressure_tension_sd).map(|(p, s)| p.abs() * s.hypot(model_error.pressure));
+            let free = t.free.get(&id).copied();
+            let (adhesion, energy) = match contacts {
+                Contacts::Adhesion { cutoff } => {
+                    let lateral = lateral_sd.and(t.lateral.get(&id).copied());
+                    let omega = free.zip(lateral).map(|(f, a)| adhesion_of(f, a, cutoff));
+                    (omega, omega.map(|w| w * cutoff * cutoff / 4.0))
+                }
+                Contacts::Lateral => (None, None),
+            };
+            let energy_sd = energy.and(free_sd.zip(lateral_sd)).map(|(f, a)| f.hypot(a));
             CellRow {
                 cell: id,
                 free_tension_mn_per_m: mn(t.free.get(&id).copied()),
@@ -1082,6 +1258,11 @@ fn write_outputs(
                 pressure_tension_sd,
                 pressure_model_error: model_error.pressure,
                 lateral_model_error: model_error.lateral,
+                adhesion_pa_per_m: adhesion,
+                adhesion_energy_mj_per_m2: mn(energy),
+                adhesion_energy_sd_mj_per_m2: mn(energy_sd),
+                adhesion_energy_j_per_m2: energy,
+                adhesion_over_tension: energy.zip(free).map(|(w, f)| w / f),
                 volume_um3: c.mesh().signed_volume() * 1e18,
             }
         })
@@ -1124,10 +1305,18 @@ fn write_outputs(
         .map_err(|e| io(&path, &e))?;
     let path = out.join("tissue.vtp");
     let observed_pressure = pressure_of(&observed_tissue);
-    let fields = [
+    let cell_adhesion: Vec<Real> = observed_tissue
+        .cells()
+        .iter()
+        .map(|c| cells.iter().find(|r| r.cell == c.id().0).and_then(|r| r.adhesion_pa_per_m).unwrap_or(Real::NAN))
+        .collect();
+    let mut fields = vec![
         CellField { name: "tension_mn_per_m", values: &face_tension },
         CellField { name: "pressure", values: &observed_pressure },
     ];
+    if contacts != Contacts::Lateral {
+        fields.push(CellField { name: "adhesion_pa_per_m", values: &cell_adhesion });
+    }
     let bytes = vtp_bytes_in(&path, &observed_tissue, &fields, None, unit).map_err(|e| io(&path, &e))?;
     group.write_bytes(&path, &bytes).map_err(|e| io(&path, &e))?;
     let path = out.join("relaxed.vtp");
@@ -1140,10 +1329,17 @@ fn write_outputs(
     struct Entries<'a> {
         cell_overrides: &'a [CellOverrideConfig],
     }
+    let what = match contacts {
+        Contacts::Lateral => {
+            "N/m; free tension on apical and basal faces, lateral tension\n# on lateral ones".to_string()
+        }
+        Contacts::Adhesion { cutoff } => format!(
+            "one tension on every face, N/m, and the cell's spring adhesion, Pa/m,\n# at contact_cutoff = {cutoff:.4e} m"
+        ),
+    };
     let mut text = format!(
-        "# Per-cell tensions of a per-cell fit (N/m; free tension on apical and basal faces, lateral tension\n\
-         # on lateral ones; iteration {} of the refinement, mismatch {:.4} rms). Append to a model file to\n\
-         # simulate the map (the docs book, Per-cell tensions and adhesions).\n\n",
+        "# Per-cell tensions of a per-cell fit ({what}; iteration {} of the refinement, mismatch {:.4} rms).\n\
+         # Append to a model file to simulate the map (the docs book, Per-cell tensions and adhesions).\n\n",
         best.iteration, best.rms
     );
     text.push_str(&toml::to_string(&Entries { cell_overrides: &params.cell_overrides }).unwrap_or_default());
@@ -1170,6 +1366,42 @@ fn write_outputs(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A spring map's overrides: one tension on every face and ω = 4(f − a)/c², so that the
+    /// model's interface tension γ_i + γ_j − (ω_i + ω_j)c²/4 is a_i + a_j; a lateral tension above
+    /// the free one is clamped to it (no adhesion) and the cell named.
+    #[test]
+    fn a_spring_map_turns_lateral_tensions_into_adhesions() {
+        let c = 0.8e-6;
+        let mut t = CellTensions {
+            free: BTreeMap::from([(1, 1.0e-3), (2, 0.9e-3), (3, 1.0e-3)]),
+            lateral: BTreeMap::from([(1, 0.4e-3), (2, 0.6e-3), (3, 1.2e-3)]),
+        };
+        let mut clamped = std::collections::BTreeSet::new();
+        t.bound_by_adhesion(Contacts::Lateral, &mut clamped);
+        assert!(clamped.is_empty() && t.lateral[&3] == 1.2e-3, "coupled maps keep any lateral tension");
+        let contacts = Contacts::Adhesion { cutoff: c };
+        t.bound_by_adhesion(contacts, &mut clamped);
+        assert_eq!(clamped.into_iter().collect::<Vec<_>>(), vec![3]);
+        assert_eq!(t.lateral[&3], 1.0e-3);
+        let o = t.overrides(contacts);
+        assert_eq!(o.len(), 3);
+        let omega: Vec<Real> = o.iter().map(|e| e.adhesion.lateral.unwrap()).collect();
+        for e in &o {
+            let f = t.free[&e.id];
+            assert_eq!(e.surface_tension, PerFaceType { apical: Some(f), lateral: Some(f), basal: Some(f) });
+            assert_eq!(e.adhesion.apical, e.adhesion.lateral);
+            assert_eq!(e.adhesion.basal, e.adhesion.lateral);
+        }
+        assert!((omega[0] - 4.0 * 0.6e-3 / (c * c)).abs() <= 1e-6 * omega[0]);
+        assert_eq!(omega[2], 0.0);
+        let tension = |i: usize, j: usize| t.free[&o[i].id] + t.free[&o[j].id] - (omega[i] + omega[j]) * c * c / 4.0;
+        assert!((tension(0, 1) / t.of((1, 2)).unwrap() - 1.0).abs() < 1e-12);
+        assert!((tension(0, 2) / t.of((1, 3)).unwrap() - 1.0).abs() < 1e-12);
+        let coupled = t.overrides(Contacts::Lateral);
+        assert_eq!(coupled[0].surface_tension.lateral, Some(0.4e-3));
+        assert_eq!(coupled[0].adhesion, PerFaceType::default());
+    }
 
     #[test]
     fn a_spread_needs_two_placements_and_is_relative_to_the_mean() {

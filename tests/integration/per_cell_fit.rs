@@ -281,3 +281,89 @@ fn a_pipeline_maps_per_cell_with_the_compact_embryo_preset() {
         serde_json::from_str(&std::fs::read_to_string(out.join("fit/result.json")).unwrap()).unwrap();
     assert_eq!((result["mode"].as_str(), result["converged"].as_bool()), (Some("per_cell"), Some(true)));
 }
+
+/// Spring contacts (issue 25, adhesion maps): each cell has one tension γ_i on every face and its
+/// own adhesion ω_i, and a cell–cell interface's tension is γ_a + γ_b − (ω_a + ω_b)·c²/4. The map
+/// reports ω_i, the adhesion energy of a cell's side W_i = ω_i·c²/4 and W_i/γ_i; the model's
+/// repulsion is raised to hold the strongest adhesion; the map recovers Evolver's tensions within
+/// the target (an outside truth that knows nothing of springs: it fixes T_ij, and with it W_i).
+#[test]
+fn a_spring_contact_map_gives_each_cell_its_adhesion() {
+    let dir = tempfile::tempdir().unwrap();
+    let labels = fixture("hetero4").join("labels_10.tif");
+    let model = MODEL
+        .replace("contact_model = \"coupling\"", "contact_model = \"spring\"\ncontact_quadrature = \"faces\"")
+        .replace("polarity = \"contacts\"", "polarity = \"none\"");
+    let config = dir.path().join("fit.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "mode = \"per_cell\"\n[observed]\nlabels = {:?}\n[observed.meshing]\ntarget_nodes = 200\n{model}\
+             [per_cell]\niterations = 3\ntolerance = 0.002\n",
+            labels.display().to_string()
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let o = tissuefit(&["fit", "--config", config.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{stderr}");
+    let result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("result.json")).unwrap()).unwrap();
+    assert_eq!(result["contact_model"], "spring", "{result}");
+    let c = result["contact_cutoff_m"].as_f64().unwrap();
+    assert!(c > 1e-7 && c < 2e-6, "the cutoff follows the mesh's l_min: {c}");
+    let cells = rows(&out.join("cells.csv"));
+    let interfaces = rows(&out.join("interfaces.csv"));
+    let mut strongest: Real = 0.0;
+    let mut omega = BTreeMap::new();
+    let mut gamma = BTreeMap::new();
+    for cell in &cells {
+        let (f, a) = (number(cell, "free_tension_n_per_m"), number(cell, "lateral_tension_n_per_m"));
+        let w = number(cell, "adhesion_pa_per_m");
+        assert!(a <= f * (1.0 + 1e-12), "{cell:?}: a spring adhesion cannot make a > f");
+        assert!((w / (4.0 * (f - a) / (c * c)) - 1.0).abs() < 1e-9, "{cell:?}");
+        assert!((number(cell, "adhesion_energy_j_per_m2") / (f - a) - 1.0).abs() < 1e-9, "{cell:?}");
+        assert!((number(cell, "adhesion_over_tension") / (1.0 - a / f) - 1.0).abs() < 1e-9, "{cell:?}");
+        let sd = number(cell, "adhesion_energy_sd_mj_per_m2");
+        let want = number(cell, "free_tension_sd_mn_per_m").hypot(number(cell, "lateral_tension_sd_mn_per_m"));
+        assert!(sd > 0.0 && (sd / want - 1.0).abs() < 1e-9, "{cell:?}");
+        strongest = strongest.max(w);
+        omega.insert(cell["cell"].clone(), w);
+        gamma.insert(cell["cell"].clone(), f);
+    }
+    assert!(strongest > 1e8, "hetero4's interfaces need adhesion: {omega:?}");
+    // The interface's tension is the spring model's: two membranes less both wells.
+    for r in interfaces.iter().filter(|r| r["cell_b"] != "0") {
+        let (a, b) = (&r["cell_a"], &r["cell_b"]);
+        let want = gamma[a] + gamma[b] - (omega[a] + omega[b]) * c * c / 4.0;
+        assert!((number(r, "tension_n_per_m") / want - 1.0).abs() < 1e-9, "{r:?}");
+    }
+    // Raised repulsion: at least 20 × the strongest adhesion, written into the model that makes the map.
+    let raised = result["raised"]["cell_types[0].faces.*.repulsion"].as_f64().expect("repulsion raised");
+    assert!(raised >= 20.0 * strongest * (1.0 - 1e-9), "{raised} against ω {strongest}");
+    let model_toml: toml::Value = toml::from_str(&std::fs::read_to_string(out.join("model.toml")).unwrap()).unwrap();
+    let written = model_toml["cell_types"][0]["faces"]["lateral"]["repulsion"].as_float().unwrap();
+    assert!(written >= 20.0 * strongest * (1.0 - 1e-9), "model.toml's repulsion {written} against ω {strongest}");
+    // The warning about adhesion beyond the checked regime comes exactly when a cell is there.
+    let strong = cells.iter().any(|c| number(c, "adhesion_over_tension") > 0.6);
+    let warned =
+        result["warnings"].as_array().unwrap().iter().any(|w| w.as_str().unwrap().contains("beyond the range"));
+    assert_eq!(strong, warned, "{result}");
+    // The observed tissue carries each cell's tension and adhesion as a model reads them.
+    let read = read_tissue(
+        &out.join("tissue.vtp"),
+        &ReadOptions { length_scale: LengthScale(Vec3::repeat(1.0)), orient: false },
+    )
+    .unwrap()
+    .tissue;
+    for cell in read.cells() {
+        let id = cell.id().0.to_string();
+        let o = cell.overrides();
+        assert!(o.surface_tension.iter().all(|t| (t.unwrap() / gamma[&id] - 1.0).abs() < 1e-9), "{o:?}");
+        assert!(o.adhesion.iter().all(|w| (w.unwrap() / omega[&id] - 1.0).abs() < 1e-9), "{o:?}");
+    }
+    let refined = errors(&interfaces, "tension_mn_per_m");
+    eprintln!("hetero4, spring map at 10 voxels per diameter: per-interface median {:.4}", median(refined.clone()));
+    assert!(median(refined.clone()) <= 0.10, "{refined:?}");
+}

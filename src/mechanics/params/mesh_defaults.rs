@@ -271,7 +271,7 @@ impl Parameters {
         if explicit.repulsion || self.numerics.contact_model != ContactModel::Spring || tissue.len() < 2 {
             return fit;
         }
-        let repulsions = self.derive_repulsion(tissue);
+        let repulsions = self.derive_repulsion(tissue, false);
         if repulsions.is_empty() {
             return fit;
         }
@@ -285,22 +285,52 @@ impl Parameters {
         fit
     }
 
+    /// With spring contacts: the repulsion of each cell type with moving cells raised to
+    /// [`crate::mechanics::derived_repulsion`] where it is below it (never lowered), counting the
+    /// cells' own adhesions and tensions (`cell_overrides`), and then the time step derived again
+    /// for the stiffer contacts. For a model whose per-cell values are set after its config was
+    /// read: a per-cell fit's adhesion map ([`crate::inference::run_per_cell`]), where a cell's ω
+    /// may be many times its type's.
+    pub fn raise_repulsion_for_overrides(&mut self, tissue: &Tissue) -> Vec<DerivedValue> {
+        if self.numerics.contact_model != ContactModel::Spring || tissue.len() < 2 {
+            return Vec::new();
+        }
+        let mut derived = self.derive_repulsion(tissue, true);
+        if !derived.is_empty()
+            && let Some(step) = self.derive_time_step()
+        {
+            derived.push(step);
+        }
+        derived
+    }
+
     /// Sets the repulsion of every face type of each cell type with moving (epithelial) cells in
     /// `tissue` to [`crate::mechanics::derived_repulsion`] of its largest-pressure cell and its
-    /// strongest adhesion.
-    fn derive_repulsion(&mut self, tissue: &Tissue) -> Vec<DerivedValue> {
+    /// strongest adhesion (its own or one of its cells' `cell_overrides`); with `raise_only`, only
+    /// where that is above the current repulsion.
+    fn derive_repulsion(&mut self, tissue: &Tissue, raise_only: bool) -> Vec<DerivedValue> {
         let c = self.numerics.contact_cutoff;
         if !(c.is_finite() && c > 0.0) {
             return Vec::new();
         }
         let worst = self.largest_laplace_pressures(tissue);
+        let mut own_adhesion: Vec<Real> = vec![0.0; self.cell_types.len()];
+        for cell in tissue.cells().iter().filter(|c| c.kind() == CellKind::Epithelial) {
+            let Some(p) = self.cell_types.get(cell.cell_type() as usize) else { continue };
+            let own = p.with_overrides(&self.overrides_of(cell));
+            let omega = FaceType::ALL.iter().map(|&ft| own.faces.get(ft).adhesion).fold(0.0, Real::max);
+            own_adhesion[cell.cell_type() as usize] = own_adhesion[cell.cell_type() as usize].max(omega);
+        }
         let mut derived = Vec::new();
         for (t, entry) in worst.into_iter().enumerate() {
             let Some((pressure, radius)) = entry else { continue };
             let faces = &mut self.cell_types[t].faces;
-            let omega = FaceType::ALL.iter().map(|&ft| faces.get(ft).adhesion).fold(0.0, Real::max);
+            let omega = FaceType::ALL.iter().map(|&ft| faces.get(ft).adhesion).fold(own_adhesion[t], Real::max);
             let xi = crate::mechanics::derived_repulsion(0.5 * pressure * radius, radius, c, omega);
             let default = faces.get(FaceType::Lateral).repulsion;
+            if raise_only && FaceType::ALL.iter().all(|&ft| faces.get(ft).repulsion >= xi) {
+                continue;
+            }
             for ft in FaceType::ALL {
                 faces.get_mut(ft).repulsion = xi;
             }

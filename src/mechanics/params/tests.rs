@@ -480,6 +480,29 @@ fn spring_repulsion_is_derived_from_the_laplace_pressure_unless_the_config_sets_
         assert!(fit.derived.is_empty(), "{fit:?}");
         assert_eq!(params, before);
     }
+    // A cell's own adhesion (cell_overrides) counts like its type's: derived from, and raised to by
+    // raise_repulsion_for_overrides, which never lowers a larger value.
+    let mut own = Parameters {
+        cell_overrides: vec![CellOverrideConfig {
+            id: 2,
+            surface_tension: PerFaceType::default(),
+            adhesion: PerFaceType { lateral: Some(1e12), ..PerFaceType::default() },
+        }],
+        ..Parameters::default()
+    };
+    let fit = own.clone().fit_to_tissue(&explicit, &tissue);
+    assert_eq!(fit.derived_value("cell_types[0].faces.*.repulsion"), Some(2e13), "{fit:?}");
+    let raised = own.raise_repulsion_for_overrides(&tissue);
+    assert!(raised.iter().any(|d| d.key == "cell_types[0].faces.*.repulsion" && d.value == 2e13), "{raised:?}");
+    assert!(FaceType::ALL.iter().all(|&ft| own.cell_types[0].faces.get(ft).repulsion == 2e13));
+    own.cell_types[0].faces.get_mut(FaceType::Basal).repulsion = 5e13;
+    own.cell_types[0].faces.get_mut(FaceType::Apical).repulsion = 5e13;
+    own.cell_types[0].faces.get_mut(FaceType::Lateral).repulsion = 5e13;
+    assert!(own.raise_repulsion_for_overrides(&tissue).is_empty(), "a larger repulsion is kept");
+    assert_eq!(own.cell_types[0].faces.get(FaceType::Lateral).repulsion, 5e13);
+    own.numerics.contact_model = ContactModel::Coupling;
+    own.cell_types[0].faces.get_mut(FaceType::Lateral).repulsion = 1.0;
+    assert!(own.raise_repulsion_for_overrides(&tissue).is_empty(), "coupled contacts are not springs");
 }
 
 #[test]
