@@ -108,6 +108,16 @@ pub struct PerCellConfig {
     /// (the docs book, Per-cell maps; `docs/scripts/per-cell.sh coverage`).
     #[serde(default)]
     pub model_error: ModelErrorConfig,
+    /// With spring contacts (a map of adhesions), every model error of `model_error` is multiplied
+    /// by this: the spring model makes the maps less closely than the coupled one the defaults were
+    /// calibrated on. Default 1.6, calibrated so that ±1 sd holds 68 % of the interfaces of 12
+    /// Surface Evolver clusters (`docs/scripts/per-cell.sh adhesion`).
+    #[serde(default = "default_spring_model_error")]
+    pub spring_model_error: Real,
+}
+
+fn default_spring_model_error() -> Real {
+    1.6
 }
 
 /// `per_cell.model_error`: relative standard errors, a coefficient per (voxel size / mean cell
@@ -818,6 +828,13 @@ impl FitConfig {
                      cell diameter: 0.3 = 3 % at 10 voxels per diameter), finite and ≥ 0; got {v}"
                 ));
             }
+        }
+        if !(pc.spring_model_error.is_finite() && pc.spring_model_error > 0.0) {
+            return Err(format!(
+                "per_cell.spring_model_error: a factor > 0 on the model errors of spring maps (1 keeps the coupled \
+                 calibration); got {}",
+                pc.spring_model_error
+            ));
         }
         if let Some(g) = pc.free_tension {
             if !(g.is_finite() && g > 0.0) {

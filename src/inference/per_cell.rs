@@ -969,11 +969,15 @@ pub fn run_per_cell_from(
         additive_residual_rms,
         uncertainty: uncertainty_note(&best, model.forward.measure_shifts),
         voxels_per_diameter: resolution.map(|r| 1.0 / r),
-        model_error: ModelErrorAt {
-            cell_cell: config.per_cell.model_error.at(false, resolution),
-            cell_medium: config.per_cell.model_error.at(true, resolution),
-            pressure: config.per_cell.model_error.pressure_at(resolution),
-            lateral: config.per_cell.model_error.lateral_at(resolution),
+        model_error: {
+            let m = &config.per_cell.model_error;
+            let k = if contacts == Contacts::Lateral { 1.0 } else { config.per_cell.spring_model_error };
+            ModelErrorAt {
+                cell_cell: k * m.at(false, resolution),
+                cell_medium: k * m.at(true, resolution),
+                pressure: k * m.pressure_at(resolution),
+                lateral: k * m.lateral_at(resolution),
+            }
         },
         parameters: BTreeMap::new(),
         ratios: BTreeMap::new(),

@@ -235,6 +235,7 @@ fn bad_per_cell_settings_are_refused_naming_the_key() {
         ("[per_cell]\nmodel_error = { cell_cell_floor = -0.01 }\n", "per_cell.model_error.cell_cell_floor"),
         ("[per_cell]\nmodel_error = { pressure_floor = inf }\n", "per_cell.model_error.pressure_floor"),
         ("[per_cell]\nmodel_error = { cell = 1.0 }\n", "unknown field `cell`"),
+        ("[per_cell]\nspring_model_error = 0\n", "per_cell.spring_model_error"),
     ] {
         let e = FitConfig::from_toml_str(&format!("{base}{extra}"), "fit.toml").unwrap_err().to_string();
         assert!(e.contains(want), "{extra}: {e}");
@@ -362,6 +363,14 @@ fn a_spring_contact_map_gives_each_cell_its_adhesion() {
         let o = cell.overrides();
         assert!(o.surface_tension.iter().all(|t| (t.unwrap() / gamma[&id] - 1.0).abs() < 1e-9), "{o:?}");
         assert!(o.adhesion.iter().all(|w| (w.unwrap() / omega[&id] - 1.0).abs() < 1e-9), "{o:?}");
+    }
+    // The intervals carry the coupled calibration's model error times per_cell.spring_model_error.
+    let per_diameter = result["voxels_per_diameter"].as_f64().unwrap();
+    let m = tissuefit::inference::PerCellConfig::default();
+    for r in &interfaces {
+        let free = r["cell_b"] == "0";
+        let want = m.spring_model_error * m.model_error.at(free, Some(1.0 / per_diameter));
+        assert!(m.spring_model_error > 1.0 && (number(r, "model_error") / want - 1.0).abs() < 1e-12, "{r:?}");
     }
     let refined = errors(&interfaces, "tension_mn_per_m");
     eprintln!("hetero4, spring map at 10 voxels per diameter: per-interface median {:.4}", median(refined.clone()));
