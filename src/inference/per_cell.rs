@@ -402,6 +402,23 @@ fn adhesion_of(free: Real, lateral: Real, cutoff: Real) -> Real {
     (4.0 * (free - lateral) / (cutoff * cutoff)).max(0.0)
 }
 
+/// The base model with `tensions` as every cell's own values, and `tissue` carrying them (the start
+/// of a relaxation); for a spring map its repulsion raised ([`stiffen`]).
+fn model_with(
+    base: &Parameters,
+    tensions: &CellTensions,
+    contacts: Contacts,
+    tissue: &Tissue,
+    raised: &mut BTreeMap<String, Real>,
+) -> Result<(Parameters, Tissue), InferenceError> {
+    let mut params = base.clone();
+    params.cell_overrides = tensions.overrides(contacts);
+    let mut begin = tissue.clone();
+    params.apply_cell_overrides(&mut begin).map_err(|e| InferenceError::Config(e.to_string()))?;
+    stiffen(&mut params, &begin, contacts, raised);
+    Ok((params, begin))
+}
+
 /// With the cells' adhesions of a spring map set, the model's repulsion raised where it is below
 /// what holds those adhesions and the cells' Laplace pressures apart
 /// ([`Parameters::raise_repulsion_for_overrides`]; the map's ω_i may be many times the cell type's),
@@ -785,11 +802,7 @@ pub fn run_per_cell_from(
     let mut converged = false;
     for iteration in 1..=iterations {
         let t0 = Instant::now();
-        let mut params = model.base.clone();
-        params.cell_overrides = tensions.overrides(contacts);
-        let mut begin = warm.clone();
-        params.apply_cell_overrides(&mut begin).map_err(|e| InferenceError::Config(e.to_string()))?;
-        stiffen(&mut params, &begin, contacts, &mut stiffened);
+        let (params, begin) = model_with(&model.base, &tensions, contacts, &warm, &mut stiffened)?;
         let relaxed = model.relax_reporting(&params, &begin, || format!("iteration {iteration} of {iterations}"));
         let mut row = Iteration {
             iteration,
@@ -950,6 +963,8 @@ pub fn run_per_cell_from(
         tracing::warn!("{w}");
     }
     warnings.extend(late);
+    // The model that makes the answer's map (model.toml), its repulsion raised like the iterations'.
+    let (params, _) = model_with(&model.base, &best.tensions, contacts, &obs.tissue, &mut stiffened)?;
     let start_mismatch = trace.first().map_or(Real::NAN, |r| r.rms_mismatch);
     let resolution = resolution(obs);
     let result = PerCellResult {
@@ -989,19 +1004,12 @@ pub fn run_per_cell_from(
         previous_frame_cells: previous_frame.len(),
         contact_model: model.base.numerics.contact_model,
         contact_cutoff_m: model.base.numerics.contact_cutoff,
-        raised: stiffened.clone(),
+        raised: stiffened,
         correction: CellTensions {
             free: ratios(&best.tensions.free, &start.free),
             lateral: ratios(&best.tensions.lateral, &start.lateral),
         },
     };
-    let mut params = model.base.clone();
-    params.cell_overrides = best.tensions.overrides(contacts);
-    {
-        let mut begin = obs.tissue.clone();
-        params.apply_cell_overrides(&mut begin).map_err(|e| InferenceError::Config(e.to_string()))?;
-        stiffen(&mut params, &begin, contacts, &mut stiffened);
-    }
     write_outputs(
         out,
         &model,
@@ -1235,8 +1243,10 @@ fn write_outputs(
             let (adhesion, energy) = match contacts {
                 Contacts::Adhesion { cutoff } => {
                     let lateral = lateral_sd.and(t.lateral.get(&id).copied());
-                    let omega = free.zip(lateral).map(|(f, a)| adhesion_of(f, a, cutoff));
-                    (omega, omega.map(|w| w * cutoff * cutoff / 4.0))
+                    (
+                        free.zip(lateral).map(|(f, a)| adhesion_of(f, a, cutoff)),
+                        free.zip(lateral).map(|(f, a)| (f - a).max(0.0)),
+                    )
                 }
                 Contacts::Lateral => (None, None),
             };
