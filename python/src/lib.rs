@@ -576,7 +576,7 @@ type Tensions<'py> = (Vec<Bound<'py, PyArray1<f64>>>, Bound<'py, PyArray1<f64>>,
 /// `labels` (with its voxel size and origin): the volume `tissue` was meshed from, from which each
 /// face's neighbour and the imaged box (which cuts the cells that reach its sides) are read, as
 /// `tissuefit tensions` does for a label volume.
-#[pyo3(signature = (tissue, out, *, file, kind, gauge = None, gauge_tension = None, one_medium_tension = false, rounding_scale_m = None, labels = None, voxel_size_m = None, origin_m = None))]
+#[pyo3(signature = (tissue, out, *, file, kind, gauge = None, gauge_tension = None, one_medium_tension = false, rounding_scale_m = None, labels = None, voxel_size_m = None, origin_m = None, far_field = "auto"))]
 #[allow(clippy::too_many_arguments)]
 fn tensions<'py>(
     py: Python<'py>,
@@ -591,14 +591,16 @@ fn tensions<'py>(
     labels: Option<PyReadonlyArray3<'_, u32>>,
     voxel_size_m: Option<[Real; 3]>,
     origin_m: Option<[Real; 3]>,
+    far_field: &str,
 ) -> PyResult<Tensions<'py>> {
-    use tissuefit::morphology::tensions::{FieldOfView, Gauge, TensionSettings};
+    use tissuefit::morphology::tensions::{FarField, FieldOfView, Gauge, TensionSettings};
+    let far_field: FarField = far_field.parse().map_err(|e: String| error(format!("tensions: far_field {e}")))?;
     let (labelled, field_of_view) = match (labels, voxel_size_m) {
         (Some(labels), Some(size)) => {
             let volume = volume_from(labels, size, origin_m)?;
             let mut labelled = tissue.tissue.clone();
             tissuefit::meshing::label_interfaces(&mut labelled, &volume).map_err(error)?;
-            (Some(labelled), Some(FieldOfView::of_grid(&volume.grid())))
+            (Some(labelled), Some(FieldOfView::of_volume(&volume)))
         }
         (None, None) => (None, None),
         _ => return Err(error("tensions: labels and voxel_size_m go together")),
@@ -614,6 +616,7 @@ fn tensions<'py>(
         gauge_value: gauge_tension.unwrap_or(1.0),
         rounding_scale: rounding_scale_m,
         field_of_view,
+        far_field,
         ..Default::default()
     };
     let kind = if kind == "labels" { "labels" } else { "tissue" };

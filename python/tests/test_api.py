@@ -170,6 +170,13 @@ def test_tensions_are_the_cli_tensions(demo, tmp_path):
     assert np.nanmean(free) == pytest.approx(1.0)  # the default gauge: mean cell–medium tension = 1
     in_mn = tf.tensions(m.tissue, gauge_tension=0.5)
     assert in_mn.summary["tension_unit"] == "mN/m" and in_mn.summary["pressure_unit"] == "kPa"
+    # --far-field, as the CLI's.
+    glob = tf.tensions(labels, voxel_size, out=tmp_path / "py-global", far_field="global")
+    cli("tensions", str(DEMO), "--out", str(tmp_path / "cli-global"), "--far-field", "global")
+    assert (tmp_path / "py-global" / "interfaces.csv").read_bytes() == (tmp_path / "cli-global" / "interfaces.csv").read_bytes()
+    assert glob.summary["far_field"] == "global" and m.summary["far_field"] == "auto"
+    with pytest.raises(tf.TissuefitError, match="far field is one of global, local, auto"):
+        tf.tensions(m.tissue, far_field="nearby")
 
 
 def test_the_demo_fit_gives_the_cli_numbers_bit_for_bit(demo, tmp_path):

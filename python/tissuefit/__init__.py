@@ -371,6 +371,7 @@ def tensions(
     one_medium_tension: bool = False,
     out: Optional[PathLike] = None,
     target_nodes: Optional[int] = None,
+    far_field: str = "auto",
 ) -> TensionMap:
     """Estimates every interface's tension and every cell's pressure from the shapes of a
     :class:`Tissue` or of a label volume (meshed first as :func:`mesh` does, with ``voxel_size``
@@ -379,7 +380,10 @@ def tensions(
     ``gauge``: the interface (a, b) whose tension is the unit (0 = the medium; default: the mean of
     the cell–medium tensions); ``gauge_tension``: that tension in mN/m, when known (tensions are then
     in mN/m and pressures in kPa); ``one_medium_tension``: one tension for every cell–medium
-    interface. ``out``: the folder for the four files (default: a new temporary folder)."""
+    interface; ``far_field``: where each junction's interface surfaces come from, ``"global"`` (one
+    sphere per interface), ``"local"`` (fitted near each junction) or ``"auto"`` (global, local where
+    the global surfaces miss the junction), as ``tissuefit tensions --far-field``. ``out``: the folder
+    for the four files (default: a new temporary folder)."""
     folder = os.fspath(out) if out is not None else tempfile.mkdtemp(prefix="tissuefit-tensions-")
     if isinstance(data, Tissue):
         if voxel_size is not None or target_nodes is not None:
@@ -403,6 +407,7 @@ def tensions(
         gauge_tension=gauge_tension,
         one_medium_tension=one_medium_tension,
         rounding_scale_m=rounding,
+        far_field=far_field,
         **volume,
     )
     return TensionMap(

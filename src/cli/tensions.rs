@@ -14,7 +14,7 @@ use crate::mesh::Tissue;
 use crate::meshing::{
     BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, label_interfaces, mesh_labels,
 };
-use crate::morphology::tensions::{FieldOfView, Gauge, TensionMap, TensionSettings};
+use crate::morphology::tensions::{FarField, FieldOfView, Gauge, TensionMap, TensionSettings};
 use crate::stages::measure::is_labels;
 use crate::stages::tensions::{OUTPUT_FILES, Summary, TensionsInput};
 use anyhow::{Context, bail};
@@ -51,6 +51,13 @@ pub struct TensionsArgs {
     /// they are otherwise read exactly.
     #[arg(long)]
     pub distance_contacts: bool,
+    /// Where each junction's interface surfaces come from: `global` (one sphere or plane per
+    /// interface, fitted away from its junctions), `local` (per junction sample, the interface's
+    /// faces near it on a sphere of the interface's radius) or `auto` (global, and local where the
+    /// global surfaces do not meet at the junction: interfaces that are not one sphere, as in real
+    /// embryos pressed by a shell or neighbours).
+    #[arg(long, default_value = "auto", value_parser = |s: &str| s.parse::<FarField>())]
+    pub far_field: FarField,
     #[command(flatten)]
     pub input: InputArgs,
     /// Label volume only: voxel size z,y,x (or one for all) overriding the file's metadata
@@ -133,7 +140,7 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Labe
             );
         }
         let voxel = read.volume.grid().voxel_size.iter().copied().fold(0.0, Real::max);
-        return Ok((meshing.tissue, "labels", Some((voxel, FieldOfView::of_grid(&read.volume.grid())))));
+        return Ok((meshing.tissue, "labels", Some((voxel, FieldOfView::of_volume(&read.volume)))));
     }
     if args.voxel_size.is_some()
         || args.zarr_level.is_some()
@@ -167,6 +174,7 @@ pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
         rounding_scale: voxel,
         interface_labels: !args.distance_contacts,
         field_of_view,
+        far_field: args.far_field,
     };
     let file = args.tissue.display().to_string();
     let described = TensionsInput { file: &file, kind: input, gauge_in_mn_per_m: args.gauge_tension.is_some() };

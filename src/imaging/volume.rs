@@ -363,6 +363,21 @@ impl LabelVolume {
             || has(l.slice(s![.., .., nx - 1]))
     }
 
+    /// Every label (not 0) with a voxel on the border of the volume: the cells the image cuts.
+    pub fn border_labels(&self) -> std::collections::BTreeSet<u32> {
+        let [nz, ny, nx] = self.shape();
+        let l = &self.labels;
+        let sides = [
+            l.slice(s![0, .., ..]),
+            l.slice(s![nz - 1, .., ..]),
+            l.slice(s![.., 0, ..]),
+            l.slice(s![.., ny - 1, ..]),
+            l.slice(s![.., .., 0]),
+            l.slice(s![.., .., nx - 1]),
+        ];
+        sides.iter().flat_map(|v| v.iter().copied()).filter(|&x| x != 0).collect()
+    }
+
     /// Binary mask of `label` cropped to its bounding box plus `margin` voxels on every side;
     /// `None` when the label is absent. Scans the volume once; with many labels, call
     /// [`LabelVolume::label_stats`] once and then [`LabelVolume::mask_of`] per label.
@@ -434,6 +449,8 @@ mod tests {
         );
         assert!(stats[0].touches_border(v.shape()) && !stats[1].touches_border(v.shape()));
         assert!(v.touches_border(3) && !v.touches_border(7) && !v.touches_border(99));
+        assert!(v.border_labels().contains(&3) && !v.border_labels().contains(&7));
+        assert!(!v.border_labels().contains(&0));
         assert_eq!(v.max_label(), 7);
     }
 

@@ -682,7 +682,7 @@ pub fn run_per_cell_from(
     }
     let voxel = obs.labels.as_ref().map(|l| l.voxel_size().iter().copied().fold(0.0, Real::max));
     // Faces on the image border are cut, not free (the simulated tissue is voxelised on the same grid).
-    let field_of_view = obs.labels.as_ref().map(|l| FieldOfView::of_grid(&l.grid()));
+    let field_of_view = obs.labels.as_ref().map(FieldOfView::of_volume);
     let settings = TensionSettings { rounding_scale: voxel, field_of_view, ..Default::default() };
     // A label input: each face's neighbour read from the labels (exact, no contact distance), on a
     // copy (the simulations start from the observed tissue as meshed). Face order is kept.
@@ -1075,7 +1075,12 @@ fn measure_map(
                 mesh_labels(&voxels, options).map_err(|e| format!("meshing the relaxed tissue's voxels: {e}"))?;
             label_interfaces(&mut meshed.tissue, &voxels)
                 .map_err(|e| format!("reading the relaxed tissue's interfaces from its voxels: {e}"))?;
-            let map = estimate_tensions(&meshed.tissue, settings)
+            // The cells the image cuts are those of these voxels (as for the data's own).
+            let settings = TensionSettings {
+                field_of_view: settings.field_of_view.as_ref().map(|_| FieldOfView::of_volume(&voxels)),
+                ..settings.clone()
+            };
+            let map = estimate_tensions(&meshed.tissue, &settings)
                 .map_err(|e| format!("the direct estimate of the relaxed tissue (shift {k}): {e}"))?;
             Ok(tensions_of(&map))
         })

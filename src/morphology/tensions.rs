@@ -83,6 +83,8 @@ pub const MAX_JUNCTION_OFFSET_EDGES: Real = 4.0;
 pub const JUNCTION_MEET_SCALES: Real = 0.5;
 /// Junction samples within this many mean edge lengths of another junction line are left out.
 pub const VERTEX_MARGIN_EDGES: Real = 2.0;
+/// A local fit ([`FarField::Local`]) uses the faces within this many rounding scales of the sample.
+pub const LOCAL_RADIUS_SCALES: Real = 6.0;
 /// The robust pass never drops samples whose imbalance is below this (units of the gauge).
 pub const MIN_TRIMMED_IMBALANCE: Real = 0.05;
 /// Relative size (to the largest) below which a second singular value counts as zero.
@@ -95,6 +97,44 @@ pub enum Gauge {
     MediumMean,
     /// The tension of the interface between these two labels (0 = medium) equals the gauge value.
     Interface(u32, u32),
+}
+
+/// Where each junction sample's interface surfaces come from. Measured on the Surface Evolver
+/// fixtures (docs/scripts/tensions.sh) `Auto` equals `Global` wherever the global surfaces meet and
+/// recovers the samples where they do not; on the real C. elegans embryo it keeps every interface
+/// determined and stable across mesh resolutions, where `Global` lost one or another.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FarField {
+    /// One sphere (or plane) fitted to all of an interface's faces away from its junctions.
+    Global,
+    /// Per sample, each interface's faces near it, on a sphere of the interface's global radius.
+    Local,
+    /// The global fit, and the local one where the global surfaces do not meet near the sample.
+    Auto,
+}
+
+impl FarField {
+    pub const NAMES: [&'static str; 3] = ["global", "local", "auto"];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FarField::Global => "global",
+            FarField::Local => "local",
+            FarField::Auto => "auto",
+        }
+    }
+}
+
+impl std::str::FromStr for FarField {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "global" => Ok(FarField::Global),
+            "local" => Ok(FarField::Local),
+            "auto" => Ok(FarField::Auto),
+            _ => Err(format!("`{s}`: the far field is one of {}", FarField::NAMES.join(", "))),
+        }
+    }
 }
 
 /// How to estimate.
@@ -116,35 +156,46 @@ pub struct TensionSettings {
     pub interface_labels: bool,
     /// The imaged box of a segmentation: free faces on its sides are cut by the border, no interface.
     pub field_of_view: Option<FieldOfView>,
+    /// Where the interfaces' surfaces at each junction sample come from.
+    pub far_field: FarField,
 }
 
-/// The box a label volume images (m): from the outer side of its first voxels to that of its last.
+/// The box a label volume images (m): from the outer side of its first voxels to that of its last,
+/// and which cells the image cuts.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FieldOfView {
     pub lo: Vec3,
     pub hi: Vec3,
     /// Per axis, how close (m) to a side a face's centre must be to count as cut: one voxel.
     pub margin: Vec3,
+    /// The cells (labels) with a voxel on the border: only their faces can be cut. `None`: any cell.
+    /// (A cell that stops short of the border has no cut face, however close to it the mesh's
+    /// edge length brings its faces.)
+    pub cut_cells: Option<std::collections::BTreeSet<u32>>,
 }
 
 impl FieldOfView {
-    /// The box of `grid` (voxel `[k, j, i]` centred at origin + (i·sx, j·sy, k·sz)).
-    pub fn of_grid(grid: &crate::imaging::VoxelGrid) -> Self {
+    /// The box of `volume`'s grid (voxel `[k, j, i]` centred at origin + (i·sx, j·sy, k·sz)) and the
+    /// labels on its border.
+    pub fn of_volume(volume: &crate::imaging::LabelVolume) -> Self {
+        let grid = volume.grid();
         let [nz, ny, nx] = grid.shape;
         let [sz, sy, sx] = grid.voxel_size;
         let size = Vec3::new(sx, sy, sz);
         let lo = grid.origin - 0.5 * size;
         let hi = grid.origin + Vec3::new(nx as Real * sx, ny as Real * sy, nz as Real * sz) - 0.5 * size;
-        Self { lo, hi, margin: size }
+        Self { lo, hi, margin: size, cut_cells: Some(volume.border_labels()) }
     }
 
-    /// Whether a face centred at `x` lies on a side of the box: within the margin or `edge` (the
-    /// mesh's edge length, over which the mesh rounds the cut) of it.
-    pub fn on_border(&self, x: &Vec3, edge: Real) -> bool {
-        (0..3).any(|k| {
-            let m = self.margin[k].max(edge);
-            x[k] < self.lo[k] + m || x[k] > self.hi[k] - m
-        })
+    /// Whether a face of `cell` centred at `x` lies on a side of the box: the cell reaches the border
+    /// and the face lies within the margin or `edge` (the mesh's edge length, over which the mesh
+    /// rounds the cut) of a side.
+    pub fn on_border(&self, cell: u32, x: &Vec3, edge: Real) -> bool {
+        self.cut_cells.as_ref().is_none_or(|c| c.contains(&cell))
+            && (0..3).any(|k| {
+                let m = self.margin[k].max(edge);
+                x[k] < self.lo[k] + m || x[k] > self.hi[k] - m
+            })
     }
 }
 
@@ -161,6 +212,7 @@ impl Default for TensionSettings {
             rounding_scale: None,
             interface_labels: true,
             field_of_view: None,
+            far_field: FarField::Auto,
         }
     }
 }
@@ -259,6 +311,8 @@ pub struct TensionMap {
     pub samples_near_vertices: usize,
     /// Samples left out by the robust pass (imbalance above [`TRIM_FACTOR`] × the median).
     pub samples_trimmed: usize,
+    /// Of the samples used, those whose interfaces' surfaces were fitted locally ([`FarField`]).
+    pub samples_local: usize,
     /// Distinct junction lines (triples of labels).
     pub junction_lines: usize,
     /// Unknown tensions.
@@ -283,6 +337,8 @@ struct Patch {
     /// Sum of area-weighted normals pointing from cell_a into cell_b.
     normal_ab: Vec3,
     junction_points: Vec<Vec3>,
+    /// The faces the surface was fitted to (the far field), for local fits.
+    fit_points: Vec<Vec3>,
     surface: Option<Surface>,
     fit_rms: Option<Real>,
     fit_faces: usize,
@@ -366,7 +422,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
             .iter()
             .zip(mesh.triangles())
             .map(|(&b, t)| match b {
-                FREE if settings.field_of_view.as_ref().is_some_and(|v| v.on_border(&centroid(t), h)) => CUT,
+                FREE if settings.field_of_view.as_ref().is_some_and(|v| v.on_border(own, &centroid(t), h)) => CUT,
                 FREE => key(own, 0),
                 b => key(own, ids[b as usize]),
             })
@@ -464,6 +520,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         patch.surface = surface;
         patch.fit_rms = rms;
         patch.fit_faces = points.len();
+        patch.fit_points = points;
     }
 
     // Force-balance rows: per sample, the tangents of its three interfaces in the plane normal to the line.
@@ -490,13 +547,14 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
     let mut rows: Vec<Row> = Vec::with_capacity(2 * samples.len());
     let near_vertex = near_other_lines(&samples, VERTEX_MARGIN_EDGES * scale);
     let mut vertex_skipped = 0usize;
+    let mut local_sample = vec![false; samples.len()];
     for (si, s) in samples.iter().enumerate() {
         if near_vertex[si] {
             vertex_skipped += 1;
             continue;
         }
-        let surfaces: Option<Vec<Surface>> = s.interfaces.iter().map(|&k| patches[k].surface).collect();
-        let Some(surfaces) = surfaces else {
+        let global: Option<Vec<Surface>> = s.interfaces.iter().map(|&k| patches[k].surface).collect();
+        let Some(global) = global else {
             skipped += 1;
             continue;
         };
@@ -504,13 +562,30 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         // inside the rounding of the rim, up to a voxel or more away on a segmentation, and a sphere's
         // normal turns by that offset over its radius. A sample whose surfaces do not meet near it
         // is a stray contact face's edge, not a junction.
-        let x = snap_to_junction(&surfaces, s.x, h);
-        if (x - s.x).norm() > MAX_JUNCTION_OFFSET_EDGES * scale
-            || surfaces.iter().any(|f| f.distance(&x) > JUNCTION_MEET_SCALES * scale)
-        {
+        let meets = |surfaces: &[Surface]| {
+            let x = snap_to_junction(surfaces, s.x, h);
+            ((x - s.x).norm() <= MAX_JUNCTION_OFFSET_EDGES * scale
+                && surfaces.iter().all(|f| f.distance(&x) <= JUNCTION_MEET_SCALES * scale))
+            .then_some(x)
+        };
+        let local_fit = || -> Option<Vec<Surface>> {
+            s.interfaces
+                .iter()
+                .zip(&global)
+                .map(|(&k, g)| local_surface(&patches[k].fit_points, g, &s.x, scale))
+                .collect()
+        };
+        let chosen = match settings.far_field {
+            FarField::Global => meets(&global).map(|x| (global.clone(), x, false)),
+            FarField::Local => local_fit().and_then(|l| meets(&l).map(|x| (l, x, true))),
+            FarField::Auto => meets(&global)
+                .map(|x| (global.clone(), x, false))
+                .or_else(|| local_fit().and_then(|l| meets(&l).map(|x| (l, x, true)))),
+        };
+        let Some((surfaces, x, is_local)) = chosen else {
             skipped += 1;
             continue;
-        }
+        };
         let normals: Option<Vec<Vec3>> = surfaces.iter().map(|f| f.normal_at(&x)).collect();
         let Some(normals) = normals else {
             skipped += 1;
@@ -548,6 +623,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
             }
             rows.push(Row { coefficients, line: s.line, sample: si });
         }
+        local_sample[si] = is_local;
     }
     if rows.is_empty() {
         return Err(TensionError::NoJunctions { delta });
@@ -639,9 +715,10 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
 
     // Residuals of the force balance.
     let mut per_interface_samples = vec![0usize; keys.len()];
-    let mut used = 0usize;
+    let (mut used, mut local_samples) = (0usize, 0usize);
     for r in rows.iter().step_by(2) {
         used += 1;
+        local_samples += usize::from(local_sample[r.sample]);
         for &k in &samples[r.sample].interfaces {
             per_interface_samples[k] += 1;
         }
@@ -731,6 +808,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         samples: used,
         samples_skipped: skipped,
         samples_near_vertices: vertex_skipped,
+        samples_local: local_samples,
         samples_trimmed: trimmed_samples,
         junction_lines: lines.len(),
         unknowns: n,
@@ -983,6 +1061,47 @@ fn fit_plane(points: &[Vec3]) -> Option<Surface> {
     }
     let plane = super::far_field::least_squares_plane(points)?;
     Some(Surface::Plane { point: plane.centroid, normal: plane.normal })
+}
+
+/// An interface's surface near a junction sample at `x0`: the sphere of the interface's own (global)
+/// radius — its mean curvature, constant over an interface at equilibrium — placed to fit the far-field
+/// faces within [`LOCAL_RADIUS_SCALES`] rounding scales of `x0` (the radius doubled until
+/// [`MIN_SPHERE_FACES`] faces are in), or the plane through them for a plane. For interfaces that are
+/// not one sphere (cells pressed by a shell or by many neighbours), whose global fit misses the
+/// junction. `None` when too few faces lie near.
+fn local_surface(points: &[Vec3], global: &Surface, x0: &Vec3, scale: Real) -> Option<Surface> {
+    let mut radius = LOCAL_RADIUS_SCALES * scale;
+    let near = loop {
+        let near: Vec<Vec3> = points.iter().filter(|p| (*p - x0).norm_squared() <= radius * radius).copied().collect();
+        if near.len() >= MIN_SPHERE_FACES || near.len() == points.len() {
+            break near;
+        }
+        radius *= 2.0;
+    };
+    let Surface::Plane { point, normal } = fit_plane(&near)? else { return None };
+    let Surface::Sphere { centre: global_centre, radius: r } = *global else {
+        return Some(Surface::Plane { point, normal });
+    };
+    // The centre on the side of the global one, at distance r from the faces: Gauss–Newton on
+    // Σ (|p − c| − r)² from the plane's point offset by r along its normal.
+    let side = if (global_centre - point).dot(&normal) >= 0.0 { 1.0 } else { -1.0 };
+    let mut c = point + normal * (side * r);
+    for _ in 0..20 {
+        let mut jtj = nalgebra::Matrix3::<Real>::zeros();
+        let mut jtf = Vec3::zeros();
+        for p in &near {
+            let u = (c - p).try_normalize(0.0)?;
+            let f = (c - p).norm() - r;
+            jtj += u * u.transpose();
+            jtf += u * f;
+        }
+        let step = jtj.lu().solve(&jtf)?;
+        c -= step;
+        if step.norm() < 1e-9 * r {
+            break;
+        }
+    }
+    c.iter().all(|v| v.is_finite()).then_some(Surface::Sphere { centre: c, radius: r })
 }
 
 /// The point nearest to `x0` on all three surfaces: Gauss–Newton on Σ_k d_k(x)² + λ|x − x0|² (the

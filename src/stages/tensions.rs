@@ -89,6 +89,8 @@ pub fn run(
         junction_samples: map.samples,
         junction_samples_skipped: map.samples_skipped,
         junction_samples_near_vertices: map.samples_near_vertices,
+        far_field: settings.far_field.as_str(),
+        junction_samples_local: map.samples_local,
         junction_samples_trimmed: map.samples_trimmed,
         junction_lines: map.junction_lines,
         unknowns: map.unknowns,
@@ -219,6 +221,10 @@ pub struct Summary {
     pub junction_samples: usize,
     pub junction_samples_skipped: usize,
     pub junction_samples_near_vertices: usize,
+    /// Where the interfaces' surfaces at the junctions came from (`global`, `local`, `auto`).
+    pub far_field: &'static str,
+    /// Samples whose surfaces were fitted near them (local fits).
+    pub junction_samples_local: usize,
     pub junction_samples_trimmed: usize,
     pub junction_lines: usize,
     pub unknowns: usize,

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Regenerates the real-data map of docs/src/guide/tensions.md ("Real data") and the README's picture of
+# it: `tissuefit tensions` on the real C. elegans 4-cell embryo of ../shared/data/real (not part of the
+# repository; CShaper via foambryo), from the label volume at 400, 800 and 1,600 nodes per cell and from
+# foambryo's mesh, with the default far field and with the global fit alone
+# (validation/real/c_elegans_map.py). Seconds once the release binary is built.
+#   docs/src/generated/real-c-elegans.md   the table
+#   docs/src/img/c-elegans-map.png         the map (labels, 400 nodes per cell, default settings)
+# Usage: docs/scripts/real-maps.sh
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+[ -d ../shared/data/real ] || { echo "../shared/data/real not found: the real data are not part of the repository" >&2; exit 1; }
+cargo build --release
+python3 validation/real/c_elegans_map.py --markdown docs/src/generated/real-c-elegans.md \
+    --image docs/src/img/c-elegans-map.png
