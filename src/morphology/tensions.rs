@@ -1073,7 +1073,7 @@ fn local_surface(points: &[Vec3], global: &Surface, x0: &Vec3, scale: Real) -> O
     let mut radius = LOCAL_RADIUS_SCALES * scale;
     let near = loop {
         let near: Vec<Vec3> = points.iter().filter(|p| (*p - x0).norm_squared() <= radius * radius).copied().collect();
-        if near.len() >= MIN_SPHERE_FACES || near.len() == points.len() {
+        if near.len() >= MIN_SPHERE_FACES || near.len() == points.len() || !radius.is_finite() {
             break near;
         }
         radius *= 2.0;
@@ -1424,5 +1424,59 @@ pub fn per_cell_tensions(map: &TensionMap) -> PerCellTensions {
             .collect(),
         additive_residual_rms: (!relative.is_empty())
             .then(|| (relative.iter().map(|r| r * r).sum::<Real>() / relative.len() as Real).sqrt()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Points of a sphere of radius 10 about the origin within 30° of +z.
+    fn cap() -> Vec<Vec3> {
+        let mut points = Vec::new();
+        for i in 1..=6 {
+            let polar = (i as Real) * 5.0_f64.to_radians();
+            for j in 0..24 {
+                let azimuth = (j as Real) * std::f64::consts::TAU / 24.0;
+                points.push(10.0 * Vec3::new(polar.sin() * azimuth.cos(), polar.sin() * azimuth.sin(), polar.cos()));
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn a_local_fit_places_the_global_radius_through_the_faces_near_the_sample() {
+        let points = cap();
+        // The global fit: the right radius, its centre off by 2 (an interface that is not one sphere).
+        let global = Surface::Sphere { centre: Vec3::new(2.0, 0.0, 0.0), radius: 10.0 };
+        let x0 = points[0];
+        let Some(Surface::Sphere { centre, radius }) = local_surface(&points, &global, &x0, 0.5) else {
+            panic!("no local sphere")
+        };
+        assert_eq!(radius, 10.0);
+        assert!(centre.norm() < 1e-6, "centre {centre:?}");
+        // A plane stays a plane.
+        let plane = Surface::Plane { point: Vec3::zeros(), normal: Vec3::z() };
+        assert!(matches!(local_surface(&points, &plane, &x0, 0.5), Some(Surface::Plane { .. })));
+        // Non-finite faces end the search (no endless widening), and too few faces give nothing.
+        let broken = vec![Vec3::repeat(Real::NAN); 20];
+        assert!(local_surface(&broken, &global, &x0, 0.5).is_none());
+        assert!(local_surface(&points[..2], &global, &x0, 0.5).is_none());
+    }
+
+    #[test]
+    fn only_cells_on_the_border_list_are_cut() {
+        let fov = FieldOfView {
+            lo: Vec3::zeros(),
+            hi: Vec3::repeat(10.0),
+            margin: Vec3::repeat(1.0),
+            cut_cells: Some([3].into()),
+        };
+        let near_side = Vec3::new(0.5, 5.0, 5.0);
+        assert!(fov.on_border(3, &near_side, 0.1));
+        assert!(!fov.on_border(4, &near_side, 0.1));
+        assert!(!fov.on_border(3, &Vec3::repeat(5.0), 0.1));
+        let any = FieldOfView { cut_cells: None, ..fov };
+        assert!(any.on_border(4, &near_side, 0.1));
     }
 }
