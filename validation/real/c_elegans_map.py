@@ -8,6 +8,9 @@ the same when only the representation changes (labels vs mesh, mesh resolution).
     python3 validation/real/c_elegans_map.py --markdown OUT.md [--tissuefit PATH] [--real DIR] [--image PNG]
 
 `--image` copies the default map's picture (`tensions.png`, labels at 400 nodes per cell).
+`--per-cell RUN --status N` instead tabulates a per-cell fit's run folder (`tissuefit run
+pipelines/real-embryo-map.toml`, which exited with status N): each interface's direct and refined
+tension, its interval, and the observed and simulated relative tensions.
 """
 
 import argparse
@@ -39,7 +42,11 @@ def main():
     ap.add_argument("--real", default=os.path.join(os.path.dirname(ROOT), "shared", "data", "real"))
     ap.add_argument("--markdown", required=True)
     ap.add_argument("--image")
+    ap.add_argument("--per-cell", metavar="RUN")
+    ap.add_argument("--status", type=int, default=0)
     args = ap.parse_args()
+    if args.per_cell:
+        return per_cell(args.per_cell, args.status, args.markdown)
     labels, mesh = os.path.join(args.real, LABELS), os.path.join(args.real, MESH)
     inputs = [(f"labels, {n} nodes/cell", labels, ["--voxel-size", "1um", "--target-nodes", str(n)]) for n in (400, 800, 1600)]
     inputs.insert(1, ("foambryo's mesh", mesh, []))
@@ -77,6 +84,32 @@ def main():
                 + (f"; determined in one and not the other: {', '.join(lost)}" if lost else "")
             )
     with open(args.markdown, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def per_cell(run, status, markdown):
+    fit = os.path.join(run, "fit")
+    result = json.load(open(os.path.join(fit, "result.json")))
+    rows = list(csv.DictReader(open(os.path.join(fit, "interfaces.csv"))))
+    last = [r for r in csv.DictReader(open(os.path.join(fit, "iterations.csv")))]
+    lines = [
+        "| interface | direct (mN/m) | refined (mN/m) | ± sd | observed / simulated (relative) |",
+        "|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['cell_a']}-{r['cell_b']} | {float(r['direct_mn_per_m']):.3f} | {float(r['tension_mn_per_m']):.3f} | "
+            f"{float(r['tension_sd_mn_per_m']):.3f} | {float(r['observed_relative']):.3f} / {float(r['simulated_relative']):.3f} |"
+        )
+    converged = result.get("converged")
+    lines += [
+        "",
+        f"- {len(rows)} interfaces, {len(last)} iterations, {result['wall_seconds']:.0f} s on {result['threads']} threads, exit status {status}; converged: {converged}; "
+        f"mismatch (rms of the relative tensions) {result['rms_mismatch']:.4f} at the best iteration "
+        f"(iteration {result['best_iteration']}; start {result['start_mismatch']:.4f}, tolerance {result['tolerance']})",
+    ]
+    with open(markdown, "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
 
