@@ -309,7 +309,8 @@ pub struct TensionMap {
     /// Samples left out within [`VERTEX_MARGIN_EDGES`] mean edge lengths of another junction line
     /// (near a vertex where four interfaces meet, the triple-line geometry does not hold).
     pub samples_near_vertices: usize,
-    /// Samples left out by the robust pass (imbalance above [`TRIM_FACTOR`] × the median).
+    /// Samples left out by the robust pass (imbalance above [`TRIM_FACTOR`] × the median; never an
+    /// interface's last ones).
     pub samples_trimmed: usize,
     /// Of the samples used, those whose interfaces' surfaces were fitted locally ([`FarField`]).
     pub samples_local: usize,
@@ -674,7 +675,30 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
     let mut values: Vec<Real> = imbalance.values().copied().collect();
     let limit = median(&mut values).map(|m| (TRIM_FACTOR * m).max(MIN_TRIMMED_IMBALANCE));
     let outliers: Vec<usize> = match limit {
-        Some(limit) => imbalance.iter().filter(|(_, r)| **r > limit).map(|(s, _)| *s).collect(),
+        Some(limit) => {
+            // Worst first; an interface never loses its last samples this way (the pass would
+            // otherwise leave it undetermined, or cut its block off the gauge: a small interface whose
+            // few samples all balance poorly is kept, its worse balance then in its sd).
+            let mut worst: Vec<(usize, Real)> =
+                imbalance.iter().filter(|(_, r)| **r > limit).map(|(s, r)| (*s, *r)).collect();
+            worst.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+            let mut left = vec![0usize; n];
+            for r in rows.iter().step_by(2) {
+                for &k in &samples[r.sample].interfaces {
+                    left[unknown_of[k]] += 1;
+                }
+            }
+            let mut out: Vec<usize> = Vec::new();
+            for (sample, _) in worst {
+                let unknowns = samples[sample].interfaces.map(|k| unknown_of[k]);
+                if unknowns.iter().all(|&u| left[u] > unknowns.iter().filter(|&&v| v == u).count()) {
+                    unknowns.iter().for_each(|&u| left[u] -= 1);
+                    out.push(sample);
+                }
+            }
+            out.sort_unstable();
+            out
+        }
         None => Vec::new(),
     };
     let solved = if outliers.is_empty() {

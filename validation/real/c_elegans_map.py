@@ -48,7 +48,7 @@ def main():
     if args.per_cell:
         return per_cell(args.per_cell, args.status, args.markdown)
     labels, mesh = os.path.join(args.real, LABELS), os.path.join(args.real, MESH)
-    inputs = [(f"labels, {n} nodes/cell", labels, ["--voxel-size", "1um", "--target-nodes", str(n)]) for n in (400, 800, 1600)]
+    inputs = [(f"labels, {n} nodes/cell", labels, ["--voxel-size", "1um", "--target-nodes", str(n)]) for n in (400, 800, 1600, 200)]
     inputs.insert(1, ("foambryo's mesh", mesh, []))
     rows = []
     with tempfile.TemporaryDirectory() as work:
@@ -97,10 +97,13 @@ def per_cell(run, status, markdown):
         "| interface | direct (mN/m) | refined (mN/m) | ± sd | observed / simulated (relative) |",
         "|---|---|---|---|---|",
     ]
+    def number(text):
+        return "—" if text == "" else f"{float(text):.3f}"
+
     for r in rows:
         lines.append(
-            f"| {r['cell_a']}-{r['cell_b']} | {float(r['direct_mn_per_m']):.3f} | {float(r['tension_mn_per_m']):.3f} | "
-            f"{float(r['tension_sd_mn_per_m']):.3f} | {float(r['observed_relative']):.3f} / {float(r['simulated_relative']):.3f} |"
+            f"| {r['cell_a']}-{r['cell_b']} | {number(r['direct_mn_per_m'])} | {number(r['tension_mn_per_m'])} | "
+            f"{number(r['tension_sd_mn_per_m'])} | {number(r['observed_relative'])} / {number(r['simulated_relative'])} |"
         )
     converged = result.get("converged")
     lines += [
