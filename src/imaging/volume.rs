@@ -350,32 +350,28 @@ impl LabelVolume {
         list
     }
 
-    /// Whether any voxel of `label` lies on the border of the volume (scans only the six faces).
-    pub fn touches_border(&self, label: u32) -> bool {
+    /// The volume's six outer voxel layers.
+    fn border_sides(&self) -> [ndarray::ArrayView2<'_, u32>; 6] {
         let [nz, ny, nx] = self.shape();
         let l = &self.labels;
-        let has = |v: ndarray::ArrayView2<u32>| v.iter().any(|&x| x == label);
-        has(l.slice(s![0, .., ..]))
-            || has(l.slice(s![nz - 1, .., ..]))
-            || has(l.slice(s![.., 0, ..]))
-            || has(l.slice(s![.., ny - 1, ..]))
-            || has(l.slice(s![.., .., 0]))
-            || has(l.slice(s![.., .., nx - 1]))
-    }
-
-    /// Every label (not 0) with a voxel on the border of the volume: the cells the image cuts.
-    pub fn border_labels(&self) -> std::collections::BTreeSet<u32> {
-        let [nz, ny, nx] = self.shape();
-        let l = &self.labels;
-        let sides = [
+        [
             l.slice(s![0, .., ..]),
             l.slice(s![nz - 1, .., ..]),
             l.slice(s![.., 0, ..]),
             l.slice(s![.., ny - 1, ..]),
             l.slice(s![.., .., 0]),
             l.slice(s![.., .., nx - 1]),
-        ];
-        sides.iter().flat_map(|v| v.iter().copied()).filter(|&x| x != 0).collect()
+        ]
+    }
+
+    /// Whether any voxel of `label` lies on the border of the volume (scans only the six faces).
+    pub fn touches_border(&self, label: u32) -> bool {
+        self.border_sides().iter().any(|v| v.iter().any(|&x| x == label))
+    }
+
+    /// Every label (not 0) with a voxel on the border of the volume: the cells the image cuts.
+    pub fn border_labels(&self) -> std::collections::BTreeSet<u32> {
+        self.border_sides().iter().flat_map(|v| v.iter().copied()).filter(|&x| x != 0).collect()
     }
 
     /// Binary mask of `label` cropped to its bounding box plus `margin` voxels on every side;

@@ -674,31 +674,8 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
     let imbalance = sample_imbalance(&rows, &first.tension, settings.gauge_value);
     let mut values: Vec<Real> = imbalance.values().copied().collect();
     let limit = median(&mut values).map(|m| (TRIM_FACTOR * m).max(MIN_TRIMMED_IMBALANCE));
-    let outliers: Vec<usize> = match limit {
-        Some(limit) => {
-            // Worst first; an interface never loses its last samples this way (the pass would
-            // otherwise leave it undetermined, or cut its block off the gauge: a small interface whose
-            // few samples all balance poorly is kept, its worse balance then in its sd).
-            let mut worst: Vec<(usize, Real)> =
-                imbalance.iter().filter(|(_, r)| **r > limit).map(|(s, r)| (*s, *r)).collect();
-            worst.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-            let mut left = vec![0usize; n];
-            for r in rows.iter().step_by(2) {
-                for &k in &samples[r.sample].interfaces {
-                    left[unknown_of[k]] += 1;
-                }
-            }
-            let mut out: Vec<usize> = Vec::new();
-            for (sample, _) in worst {
-                let unknowns = samples[sample].interfaces.map(|k| unknown_of[k]);
-                if unknowns.iter().all(|&u| left[u] > unknowns.iter().filter(|&&v| v == u).count()) {
-                    unknowns.iter().for_each(|&u| left[u] -= 1);
-                    out.push(sample);
-                }
-            }
-            out.sort_unstable();
-            out
-        }
+    let outliers = match limit {
+        Some(limit) => outliers_to_drop(&imbalance, limit, &rows, &samples, &unknown_of, n),
         None => Vec::new(),
     };
     let solved = if outliers.is_empty() {
@@ -863,6 +840,39 @@ fn sample_imbalance(rows: &[Row], tension: &[Option<Real>], value: Real) -> BTre
         out.remove(&s);
     }
     out.values_mut().for_each(|v| *v = v.sqrt() / value);
+    out
+}
+
+/// The samples the robust pass drops (ascending): those whose imbalance exceeds `limit`, worst first,
+/// but never an interface's last samples (that would leave it undetermined, or cut its block off the
+/// gauge: a small interface whose few samples all balance poorly is kept, its worse balance then in
+/// its sd).
+fn outliers_to_drop(
+    imbalance: &BTreeMap<usize, Real>,
+    limit: Real,
+    rows: &[Row],
+    samples: &[Sample],
+    unknown_of: &[usize],
+    unknowns: usize,
+) -> Vec<usize> {
+    let mut worst: Vec<(usize, Real)> = imbalance.iter().filter(|(_, r)| **r > limit).map(|(s, r)| (*s, *r)).collect();
+    worst.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    // Samples (one per pair of rows) left per unknown.
+    let mut left = vec![0usize; unknowns];
+    for r in rows.iter().step_by(2) {
+        for &k in &samples[r.sample].interfaces {
+            left[unknown_of[k]] += 1;
+        }
+    }
+    let mut out = Vec::new();
+    for (sample, _) in worst {
+        let of_sample = samples[sample].interfaces.map(|k| unknown_of[k]);
+        if of_sample.iter().all(|&u| left[u] > of_sample.iter().filter(|&&v| v == u).count()) {
+            of_sample.iter().for_each(|&u| left[u] -= 1);
+            out.push(sample);
+        }
+    }
+    out.sort_unstable();
     out
 }
 

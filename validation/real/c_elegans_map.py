@@ -18,20 +18,21 @@ import csv
 import json
 import os
 import shutil
-import subprocess
+import sys
 import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
+sys.path.insert(0, os.path.join(ROOT, "validation", "evolver"))
+from score_tensions import run as run_tensions  # noqa: E402  (the same `tissuefit tensions` call)
 LABELS = "DERIVED_cshaper_4cells_labels_from_mesh.tif"
 MESH = "foambryo-runner__Cshaper_4_cells_min-d-3.vtk"
 PAIRS = ["1-0", "1-2", "1-3", "2-0", "2-3", "2-4", "3-0", "3-4", "4-0"]
 
 
 def run(tissuefit, source, out, extra):
-    subprocess.run([tissuefit, "tensions", source, "--out", out, "-q"] + extra, check=True, stdout=subprocess.DEVNULL)
-    rows = {f"{r['cell_a']}-{r['cell_b']}": r for r in csv.DictReader(open(os.path.join(out, "interfaces.csv")))}
-    summary = json.load(open(os.path.join(out, "summary.json")))
+    interfaces, _, summary = run_tensions(tissuefit, source, out, extra)
+    rows = {f"{r['cell_a']}-{r['cell_b']}": r for r in interfaces}
     tensions = {p: (float(rows[p]["tension"]) if p in rows and rows[p]["tension"] else None) for p in PAIRS}
     return tensions, summary
 
