@@ -191,35 +191,35 @@ fn combined(coefficient: Real, floor: Real, resolution: Option<Real>) -> Real {
 }
 
 fn default_model_error_cell_cell() -> Real {
-    0.101
+    0.0
 }
 
 fn default_model_error_cell_medium() -> Real {
-    0.237
+    0.236
 }
 
 fn default_model_error_cell_cell_floor() -> Real {
-    0.031
+    0.033
 }
 
 fn default_model_error_cell_medium_floor() -> Real {
-    0.0195
+    0.0192
 }
 
 fn default_model_error_pressure() -> Real {
-    0.144
+    0.258
 }
 
 fn default_model_error_pressure_floor() -> Real {
-    0.0139
+    0.0106
 }
 
 fn default_model_error_lateral() -> Real {
-    0.344
+    0.291
 }
 
 fn default_model_error_lateral_floor() -> Real {
-    0.0266
+    0.0247
 }
 
 fn default_per_cell_step() -> Real {
