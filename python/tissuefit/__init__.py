@@ -333,7 +333,8 @@ class TensionMap:
 
     ``interfaces``: the columns of ``interfaces.csv`` (``cell_a``, ``cell_b`` with 0 the medium,
     ``tension``, ``tension_sd``, ``determined``, ``area_um2``...); ``cells``: of ``cells.csv``
-    (``cell``, ``pressure``, ``pressure_sd``, ``determined``, ``free_tension``, ``lateral_tension``...);
+    (``cell``, ``pressure``, ``pressure_sd``, ``determined``, ``pressure_relative``, ``free_tension``,
+    ``lateral_tension``...);
     ``summary``: ``summary.json``
     (units: ``tension_unit``, ``pressure_unit``, residuals, warnings). ``tissue``: the tissue the
     estimate was made on; ``face_tension[i]``: the tension of each face of ``tissue.cells[i]``

@@ -198,12 +198,17 @@ fn print_summary(out: &mut impl Write, input: &Path, map: &TensionMap, s: &Summa
     let opt = |v: Option<Real>| v.map_or("n/a".to_string(), |x| format!("{x:.3}"));
     writeln!(
         out,
-        "  gauge: {} = {}; force-balance residual rms {} (median {}); condition number {}",
+        "  gauge: {} = {}; force-balance residual rms {} (median {}); condition number {}; spectral gap {}",
         s.gauge,
         s.gauge_value,
         opt(map.residual_rms),
         opt(map.residual_median),
-        map.condition_number.map_or("n/a".to_string(), |c| format!("{c:.1}"))
+        map.condition_number.map_or("n/a".to_string(), |c| format!("{c:.1}")),
+        map.spectral_gap.map_or("n/a".to_string(), |g| if g.is_finite() {
+            format!("{g:.1}")
+        } else {
+            "exact".to_string()
+        })
     )?;
     if !map.warnings.is_empty() {
         writeln!(out, "  {} warning(s) in summary.json", map.warnings.len())?;

@@ -24,19 +24,24 @@
 //! line, Σ_k T_k t_k = 0.
 //!
 //! **Solve.** The stacked equations A T = 0 are homogeneous: tensions are fixed up to a common factor,
-//! the gauge. The estimate is the right singular vector of A with the smallest singular value (the
-//! direction that balances the samples best, independent of the gauge), scaled so that the gauge holds:
+//! the gauge. The estimate minimises |A T|² with the mean of T equal to 1 (one linear constraint, as
+//! CellFIT's: T = 1 + Z y over an orthonormal basis Z of the mean-preserving directions; independent of
+//! the gauge). Where the samples balance exactly it is the right singular vector of A with the smallest
+//! singular value; where they do not, that vector can concentrate on a few weakly tied interfaces and
+//! leave the others near 0 (a real crop of dense tissue), which the constraint does not reward. It is
+//! then scaled so that the gauge holds:
 //! by default the mean of the cell–medium tensions is 1, or a named interface's tension is 1, or either
 //! equals a value given in mN/m. Unknowns that share no sample form separate blocks solved separately; a
 //! block without a gauge unknown, an interface without a sample, and a block whose second-smallest
 //! singular value vanishes (several balancing directions) are *undetermined*: flagged, no number. The
 //! condition number is σ_max / σ_second-smallest (how well the samples separate the solution from the
-//! other directions).
+//! other directions); the spectral gap σ_second-smallest / σ_smallest how clearly they single out one
+//! map (below [`POOR_GAP`], a warning).
 //!
-//! **Uncertainty.** First-order perturbation of the smallest singular vector by the residuals,
+//! **Uncertainty.** First-order perturbation of the constrained minimum by the residuals,
 //! cluster-robust by junction line (the samples of one line share their fits, so they are not
-//! independent): Cov(v) = P (Σ_lines s_l s_lᵀ) P · G/(G − 1), s_l = A_lᵀ r_l the line's score,
-//! P = Σ_{k>0} v_k v_kᵀ / σ_k², G lines, carried through the gauge scaling. It reflects how consistently
+//! independent): Cov(v) = K (Σ_lines s_l s_lᵀ) K · G/(G − 1), s_l = A_lᵀ r_l the line's score,
+//! K = Z (ZᵀAᵀAZ)⁻¹ Zᵀ, G lines, carried through the gauge scaling. It reflects how consistently
 //! the junctions balance, not biases shared by all junctions (a systematically rounded rim).
 //!
 //! **Pressures.** Young–Laplace on every determined interface, p_a − p_b = 2 H_ab T_ab with H_ab the
@@ -87,6 +92,8 @@ pub const VERTEX_MARGIN_EDGES: Real = 2.0;
 pub const LOCAL_RADIUS_SCALES: Real = 6.0;
 /// The robust pass never drops samples whose imbalance is below this (units of the gauge).
 pub const MIN_TRIMMED_IMBALANCE: Real = 0.05;
+/// A spectral gap (σ₂/σ₁ of the force balance) below this gets a warning: the map is poorly determined.
+pub const POOR_GAP: Real = 3.0;
 /// Relative size (to the largest) below which a second singular value counts as zero.
 pub const SINGULAR_TOLERANCE: Real = 1e-10;
 
@@ -276,7 +283,13 @@ pub struct CellPressure {
     /// Pressure relative to the medium, in gauge tension per metre; `None` when undetermined.
     pub pressure: Option<Real>,
     pub pressure_sd: Option<Real>,
+    /// `pressure` and `determined` are relative to the medium.
     pub determined: bool,
+    /// The pressure minus the mean pressure of the cells that determined interfaces link this one to
+    /// (its group, itself included), with its sd: known also where no chain reaches the medium (a
+    /// dense crop); `None` for a cell linked to no other.
+    pub pressure_relative: Option<Real>,
+    pub pressure_relative_sd: Option<Real>,
     /// Mean curvature (1/m) of the fitted free surface; `None` without one.
     pub free_mean_curvature: Option<Real>,
     /// Free area (m²).
@@ -320,6 +333,10 @@ pub struct TensionMap {
     pub unknowns: usize,
     /// σ_max / σ_second-smallest of the force-balance matrix (largest over the blocks).
     pub condition_number: Option<Real>,
+    /// σ_second-smallest / σ_smallest of the force-balance matrix (smallest over the blocks): how
+    /// clearly the samples single out one map (∞ where they balance exactly; below [`POOR_GAP`] the
+    /// map is poorly determined, with a warning).
+    pub spectral_gap: Option<Real>,
     /// Rms and median over samples of |Σ T_k t_k| (units of the gauge).
     pub residual_rms: Option<Real>,
     pub residual_median: Option<Real>,
@@ -686,8 +703,16 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         solve_tensions(&rows, n, &gauge_unknowns, &gauge_name, settings.gauge_value)?
     };
     let trimmed_samples = outliers.len();
-    let Solved { tension, tension_sd, condition, sampled, warnings: solve_warnings } = solved;
+    let Solved { tension, tension_sd, condition, gap, sampled, warnings: solve_warnings } = solved;
     warnings.extend(solve_warnings);
+    if let Some(g) = gap.filter(|&g| g < POOR_GAP) {
+        warnings.push(format!(
+            "the junctions barely single out one map (spectral gap σ₂/σ₁ = {g:.2}, below {POOR_GAP}): other sets of \
+             tensions balance them almost as well, so the tensions are poorly determined (see their sds). Expected \
+             where the shapes are not set by a force balance (plant cell walls), where the crop cuts most cells \
+             (few junctions per interface), or on a mesh too coarse for the smallest interfaces"
+        ));
+    }
     let unsampled: Vec<String> = keys
         .iter()
         .enumerate()
@@ -786,12 +811,14 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         .filter(|(i, _)| participates[*i])
         .map(|(i, c)| {
             let free = index.get(&(c.id().0, 0)).map(|&k| &interfaces[k]);
-            let (p, sd) = pressures[i];
+            let PressureEstimate { absolute, relative } = pressures[i];
             CellPressure {
                 cell: c.id().0,
-                pressure: p,
-                pressure_sd: sd,
-                determined: p.is_some(),
+                pressure: absolute.map(|(p, _)| p),
+                pressure_sd: absolute.map(|(_, sd)| sd),
+                determined: absolute.is_some(),
+                pressure_relative: relative.map(|(p, _)| p),
+                pressure_relative_sd: relative.map(|(_, sd)| sd),
                 free_mean_curvature: free.and_then(|f| f.mean_curvature),
                 free_area: free.map_or(0.0, |f| f.area),
             }
@@ -814,6 +841,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
         junction_lines: lines.len(),
         unknowns: n,
         condition_number: condition,
+        spectral_gap: gap,
         residual_rms,
         residual_median,
         pressure_residual_rms,
@@ -926,6 +954,7 @@ struct Solved {
     tension: Vec<Option<Real>>,
     tension_sd: Vec<Option<Real>>,
     condition: Option<Real>,
+    gap: Option<Real>,
     sampled: Vec<bool>,
     warnings: Vec<String>,
 }
@@ -964,6 +993,7 @@ fn solve_tensions(
     let mut tension: Vec<Option<Real>> = vec![None; n];
     let mut tension_sd: Vec<Option<Real>> = vec![None; n];
     let mut condition: Option<Real> = None;
+    let mut gap: Option<Real> = None;
     let mut blocks: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
     for u in 0..n {
         if sampled[u] {
@@ -1013,6 +1043,9 @@ fn solve_tensions(
                 if let Some(c) = solution.condition {
                     condition = Some(condition.map_or(c, |x: Real| x.max(c)));
                 }
+                if let Some(g) = solution.gap {
+                    gap = Some(gap.map_or(g, |x: Real| x.min(g)));
+                }
             }
             None => warnings.push(format!(
                 "{m} tension(s) linked to the gauge are not determined by the junctions (several force-balancing \
@@ -1020,7 +1053,7 @@ fn solve_tensions(
             )),
         }
     }
-    Ok(Solved { tension, tension_sd, condition, sampled, warnings })
+    Ok(Solved { tension, tension_sd, condition, gap, sampled, warnings })
 }
 
 /// Sphere or plane through the points (see the module docs): each fitted, refitted once without the
@@ -1205,30 +1238,42 @@ struct BlockSolution {
     tension: Vec<Real>,
     sd: Vec<Real>,
     condition: Option<Real>,
+    /// σ_second-smallest / σ_smallest: how far the best-balancing direction stands apart from the next.
+    gap: Option<Real>,
 }
 
-/// The smallest right singular vector of `a`, scaled so that the mean over `gauge` is `value`, and its
-/// cluster-robust standard deviations; `None` when the second-smallest singular value vanishes.
+/// The tensions that balance the samples best for their mean, `min |A T|²` with `mean(T) = 1`
+/// (see the module docs), scaled so that the mean over `gauge` is `value`, and their cluster-robust
+/// standard deviations; `None` when the samples leave several balancing directions (the two smallest
+/// singular values of `a` coincide).
 fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value: Real) -> Option<BlockSolution> {
     let m = a.ncols();
     if m == 1 {
         // A single unknown (all samples on one shared tension): only the gauge fixes it.
-        return Some(BlockSolution { tension: vec![value], sd: vec![0.0], condition: None });
+        return Some(BlockSolution { tension: vec![value], sd: vec![0.0], condition: None, gap: None });
     }
     let normal = a.transpose() * a;
-    let svd = normal.clone().svd(false, true);
-    let v_t = svd.v_t?;
-    let sigma2 = &svd.singular_values;
-    // Singular values of AᵀA sorted descending by nalgebra? Not guaranteed: order them.
-    let mut order: Vec<usize> = (0..m).collect();
-    order.sort_by(|&x, &y| sigma2[y].total_cmp(&sigma2[x]));
-    let largest = sigma2[order[0]];
-    let smallest = order[m - 1];
-    let second = sigma2[order[m - 2]];
-    if largest.is_nan() || largest <= 0.0 || second <= SINGULAR_TOLERANCE * largest {
+    let mut sigma2: Vec<Real> = normal.clone().symmetric_eigenvalues().iter().copied().collect();
+    sigma2.sort_by(|x, y| y.total_cmp(x));
+    let (largest, second, lowest) = (sigma2[0], sigma2[m - 2], sigma2[m - 1].max(0.0));
+    if largest.is_nan() || largest <= 0.0 || second - lowest <= SINGULAR_TOLERANCE * largest {
         return None;
     }
-    let v: DVector<Real> = v_t.row(smallest).transpose();
+    // Z: an orthonormal basis of the directions that keep the mean (columns 1.. of the Householder
+    // reflection taking 1/√m to −e₀). T = 1 + Z y with y minimising |A(1 + Z y)|².
+    let mut w = DVector::<Real>::from_element(m, 1.0 / (m as Real).sqrt());
+    w[0] += 1.0;
+    let householder = DMatrix::<Real>::identity(m, m) - &w * w.transpose() * (2.0 / w.norm_squared());
+    let z = householder.columns(1, m - 1).into_owned();
+    let reduced = z.transpose() * &normal * &z;
+    let reduced_inverse = reduced.try_inverse()?;
+    // K = Z (ZᵀMZ)⁻¹ Zᵀ: the response of the constrained minimum to a perturbation of M.
+    let k = &z * reduced_inverse * z.transpose();
+    let ones = DVector::<Real>::from_element(m, 1.0);
+    let v: DVector<Real> = &ones - &k * (&normal * &ones);
+    if v.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
     let mean = |entries: &[usize]| entries.iter().map(|&k| v[k]).sum::<Real>() / entries.len().max(1) as Real;
     let mut g = mean(gauge);
     if g == 0.0 || !g.is_finite() {
@@ -1243,13 +1288,10 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
     } else {
         gauge
     };
-    let tension: DVector<Real> = &v * (value / g);
-    // Perturbation of v by the residuals r = A v: δv = −P Aᵀ r-part; clustered by line.
-    let mut p = DMatrix::<Real>::zeros(m, m);
-    for &k in &order[..m - 1] {
-        let vk: DVector<Real> = v_t.row(k).transpose();
-        p += &vk * vk.transpose() / sigma2[k];
-    }
+    // x · value / g, not x · (value / g): a gauge tension comes out exactly `value`.
+    let tension: DVector<Real> = v.map(|x| x * value / g);
+    // First-order response to the samples' errors, estimated by the residuals r = A v: δv = −K Aᵀ r,
+    // clustered by line.
     let residual = a * &v;
     let mut scores: BTreeMap<usize, DVector<Real>> = BTreeMap::new();
     for (r, &line) in line_of_row.iter().enumerate() {
@@ -1262,7 +1304,7 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
         meat += s * s.transpose();
     }
     let correction = if groups > 1.0 { groups / (groups - 1.0) } else { 1.0 };
-    let cov_v = &p * meat * &p * correction;
+    let cov_v = &k * meat * &k * correction;
     // T = value · v / g(v): J = (value / g) (I − v gᵀ / g), g = mean over the gauge entries.
     let mut gvec = DVector::<Real>::zeros(m);
     for &k in gauge {
@@ -1271,23 +1313,72 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
     let j = (DMatrix::<Real>::identity(m, m) - &v * gvec.transpose() / g) * (value / g);
     let cov_t = &j * cov_v * j.transpose();
     let sd = (0..m).map(|k| cov_t[(k, k)].max(0.0).sqrt()).collect();
-    Some(BlockSolution { tension: tension.iter().copied().collect(), sd, condition: Some((largest / second).sqrt()) })
+    let gap = if lowest > 0.0 { (second / lowest).sqrt() } else { Real::INFINITY };
+    Some(BlockSolution {
+        tension: tension.iter().copied().collect(),
+        sd,
+        condition: Some((largest / second).sqrt()),
+        gap: Some(gap),
+    })
 }
 
-/// A cell's pressure and its standard deviation.
-type PressureEstimate = (Option<Real>, Option<Real>);
+/// A cell's pressure relative to the medium and relative to the mean of its group (the cells that
+/// determined interfaces connect it to), each with its standard deviation.
+#[derive(Clone, Copy, Debug, Default)]
+struct PressureEstimate {
+    absolute: Option<(Real, Real)>,
+    relative: Option<(Real, Real)>,
+}
 
-/// Least-squares pressures (per tissue index: value and sd) from Young–Laplace on the determined
-/// interfaces, and the rms residual.
+/// One Young–Laplace equation p_a − p_b = value (b `None`: the medium, pressure 0) with the variance
+/// that the interface's tension sd gives it.
+struct LaplaceRow {
+    a: usize,
+    b: Option<usize>,
+    value: Real,
+    variance: Real,
+}
+
+/// Least squares over `rows` in the `unknowns` (tissue indices): the minimum-norm solution (where only
+/// differences are fixed, the one with mean 0), its covariance (the rows' variances through the
+/// pseudo-inverse plus the residual scatter) and the residual's sum of squares with its row count.
+fn laplace_least_squares(rows: &[&LaplaceRow], unknowns: &[usize]) -> Option<(DVector<Real>, DMatrix<Real>, Real)> {
+    let local: BTreeMap<usize, usize> = unknowns.iter().enumerate().map(|(l, &i)| (i, l)).collect();
+    let (m, n) = (rows.len(), unknowns.len());
+    let mut a = DMatrix::<Real>::zeros(m, n);
+    let mut b = DVector::<Real>::zeros(m);
+    for (r, e) in rows.iter().enumerate() {
+        a[(r, local[&e.a])] += 1.0;
+        if let Some(j) = e.b {
+            a[(r, local[&j])] -= 1.0;
+        }
+        b[r] = e.value;
+    }
+    let svd = a.clone().svd(true, true);
+    let p = svd.solve(&b, 1e-12).ok()?;
+    let residual = &a * &p - &b;
+    let rank = svd.singular_values.iter().filter(|&&s| s > 1e-12).count();
+    let pinv = svd.pseudo_inverse(1e-12).ok()?;
+    let var_b = DMatrix::<Real>::from_diagonal(&DVector::from_iterator(m, rows.iter().map(|e| e.variance)));
+    let mut cov = &pinv * var_b * pinv.transpose();
+    if m > rank {
+        cov += &pinv * pinv.transpose() * (residual.norm_squared() / (m - rank) as Real);
+    }
+    Some((p, cov, residual.norm_squared()))
+}
+
+/// Least-squares pressures (per tissue index) from Young–Laplace on the determined interfaces, and the
+/// rms residual. Relative to the medium where a chain of determined interfaces reaches it; relative to
+/// the mean of its group for every cell that determined interfaces connect to another (a dense crop
+/// with no free surface has only these).
 fn solve_pressures(
     interfaces: &[InterfaceTension],
     cell_index: &BTreeMap<u32, usize>,
     n_cells: usize,
     warnings: &mut Vec<String>,
 ) -> (Vec<PressureEstimate>, Option<Real>) {
-    let mut out = vec![(None, None); n_cells];
-    // Equations p_a − p_b = 2 H T with their variance from T's sd.
-    let mut equations: Vec<(usize, Option<usize>, Real, Real)> = Vec::new();
+    let mut out = vec![PressureEstimate::default(); n_cells];
+    let mut equations: Vec<LaplaceRow> = Vec::new();
     for f in interfaces {
         let (Some(t), Some(h)) = (f.tension, f.mean_curvature) else { continue };
         if t <= 0.0 {
@@ -1295,69 +1386,99 @@ fn solve_pressures(
         }
         let (Some(&a), b) = (cell_index.get(&f.cell_a), cell_index.get(&f.cell_b).copied()) else { continue };
         let sd = f.tension_sd.unwrap_or(0.0);
-        equations.push((a, b, 2.0 * h * t, (2.0 * h * sd).powi(2)));
+        equations.push(LaplaceRow { a, b, value: 2.0 * h * t, variance: (2.0 * h * sd).powi(2) });
     }
-    // Cells reached from the medium through equations.
-    let mut reached = vec![false; n_cells];
-    let mut changed = true;
+    // Groups of cells linked by cell–cell equations (union–find), and those reaching the medium.
+    let mut parent: Vec<usize> = (0..n_cells).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
     for e in &equations {
-        if e.1.is_none() {
-            reached[e.0] = true;
+        if let Some(b) = e.b {
+            let (ra, rb) = (root(&mut parent, e.a), root(&mut parent, b));
+            parent[ra.max(rb)] = ra.min(rb);
         }
     }
-    while changed {
-        changed = false;
-        for e in &equations {
-            if let Some(b) = e.1
-                && reached[e.0] != reached[b]
-            {
-                reached[e.0] = true;
-                reached[b] = true;
-                changed = true;
+    let group: Vec<usize> = (0..n_cells).map(|i| root(&mut parent, i)).collect();
+    let mut in_equation = vec![false; n_cells];
+    let mut reaches_medium = vec![false; n_cells];
+    for e in &equations {
+        in_equation[e.a] = true;
+        if let Some(b) = e.b {
+            in_equation[b] = true;
+        } else {
+            reaches_medium[group[e.a]] = true;
+        }
+    }
+    let mut members: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for i in (0..n_cells).filter(|&i| in_equation[i]) {
+        members.entry(group[i]).or_default().push(i);
+    }
+    let unreached: Vec<(u32, usize)> =
+        cell_index.iter().filter(|(_, i)| !reaches_medium[group[**i]]).map(|(&id, &i)| (id, i)).collect();
+    let relative_only = unreached.iter().filter(|(_, i)| members.get(&group[*i]).is_some_and(|m| m.len() > 1)).count();
+    if !unreached.is_empty() {
+        let ids: Vec<String> = unreached.iter().map(|(id, _)| id.to_string()).collect();
+        warnings.push(format!(
+            "cell(s) {}: no determined interface links them to the medium, so their pressure is undetermined{}",
+            ids.join(", "),
+            if relative_only > 0 {
+                format!(
+                    "; {relative_only} of them have a pressure relative to the cells they are linked to \
+                     (pressure_relative: the cell's pressure minus its group's mean)"
+                )
+            } else {
+                String::new()
+            }
+        ));
+    }
+    // Relative to the medium: every cell of the groups that reach it, in one least squares.
+    let (mut squares, mut count) = (0.0, 0usize);
+    let reached: Vec<usize> = (0..n_cells).filter(|&i| in_equation[i] && reaches_medium[group[i]]).collect();
+    let mut groups_cov: Vec<(Vec<usize>, DVector<Real>, DMatrix<Real>)> = Vec::new();
+    if !reached.is_empty() {
+        let rows: Vec<&LaplaceRow> = equations.iter().filter(|e| reaches_medium[group[e.a]]).collect();
+        if let Some((p, cov, ss)) = laplace_least_squares(&rows, &reached) {
+            squares += ss;
+            count += rows.len();
+            for (l, &i) in reached.iter().enumerate() {
+                out[i].absolute = Some((p[l], cov[(l, l)].max(0.0).sqrt()));
+            }
+            // Each group's block, for its relative pressures below.
+            let local: BTreeMap<usize, usize> = reached.iter().enumerate().map(|(l, &i)| (i, l)).collect();
+            for cells in members.values().filter(|c| reaches_medium[group[c[0]]]) {
+                let idx: Vec<usize> = cells.iter().map(|i| local[i]).collect();
+                let sub_p = DVector::from_iterator(idx.len(), idx.iter().map(|&l| p[l]));
+                let sub_cov = DMatrix::from_fn(idx.len(), idx.len(), |r, c| cov[(idx[r], idx[c])]);
+                groups_cov.push((cells.clone(), sub_p, sub_cov));
             }
         }
     }
-    let unknowns: Vec<usize> = (0..n_cells).filter(|&i| reached[i]).collect();
-    let unreached: Vec<String> =
-        cell_index.iter().filter(|(_, i)| !reached[**i]).map(|(id, _)| id.to_string()).collect();
-    if !unreached.is_empty() {
-        warnings.push(format!(
-            "cell(s) {}: no determined interface links them to the medium, so their pressure is undetermined",
-            unreached.join(", ")
-        ));
-    }
-    if unknowns.is_empty() {
-        return (out, None);
-    }
-    let local: BTreeMap<usize, usize> = unknowns.iter().enumerate().map(|(l, &i)| (i, l)).collect();
-    let rows: Vec<&(usize, Option<usize>, Real, Real)> =
-        equations.iter().filter(|e| local.contains_key(&e.0)).collect();
-    let (m, n) = (rows.len(), unknowns.len());
-    let mut a = DMatrix::<Real>::zeros(m, n);
-    let mut b = DVector::<Real>::zeros(m);
-    for (r, e) in rows.iter().enumerate() {
-        a[(r, local[&e.0])] += 1.0;
-        if let Some(j) = e.1 {
-            a[(r, local[&j])] -= 1.0;
+    // Relative to the group's mean only: each group that does not reach the medium, on its own.
+    for cells in members.values().filter(|c| !reaches_medium[group[c[0]]] && c.len() > 1) {
+        let rows: Vec<&LaplaceRow> = equations.iter().filter(|e| group[e.a] == group[cells[0]]).collect();
+        if let Some((p, cov, ss)) = laplace_least_squares(&rows, cells) {
+            squares += ss;
+            count += rows.len();
+            groups_cov.push((cells.clone(), p, cov));
         }
-        b[r] = e.2;
     }
-    let svd = a.clone().svd(true, true);
-    let Ok(p) = svd.solve(&b, 1e-12) else { return (out, None) };
-    let residual = &a * &p - &b;
-    let rms = (residual.norm_squared() / m as Real).sqrt();
-    // Covariance: pseudo-inverse carrying the tensions' variances, plus the residual scatter.
-    let Some(pinv) = svd.pseudo_inverse(1e-12).ok() else { return (out, Some(rms)) };
-    let var_b = DMatrix::<Real>::from_diagonal(&DVector::from_iterator(m, rows.iter().map(|e| e.3)));
-    let mut cov = &pinv * var_b * pinv.transpose();
-    if m > n {
-        let s2 = residual.norm_squared() / (m - n) as Real;
-        cov += &pinv * pinv.transpose() * s2;
+    // Relative pressures: p − mean(p) over the group, covariance C Σ Cᵀ with C the centring matrix.
+    for (cells, p, cov) in groups_cov.into_iter().filter(|(c, _, _)| c.len() > 1) {
+        let k = cells.len();
+        let centring = DMatrix::<Real>::identity(k, k) - DMatrix::<Real>::from_element(k, k, 1.0 / k as Real);
+        let rel = &centring * p;
+        let rel_cov = &centring * cov * centring.transpose();
+        for (l, &i) in cells.iter().enumerate() {
+            out[i].relative = Some((rel[l], rel_cov[(l, l)].max(0.0).sqrt()));
+        }
     }
-    for (l, &i) in unknowns.iter().enumerate() {
-        out[i] = (Some(p[l]), Some(cov[(l, l)].max(0.0).sqrt()));
-    }
-    (out, Some(rms))
+    let rms = (count > 0).then(|| (squares / count as Real).sqrt());
+    (out, rms)
 }
 
 /// The map as per-cell parameters of the model: each cell's free tension (its interface with the
@@ -1476,6 +1597,32 @@ mod tests {
             }
         }
         points
+    }
+
+    /// The block solve is the least squares |A T|² with mean(T) = 1 (then scaled to the gauge): on a
+    /// random inconsistent system it equals the Lagrange solution T ∝ (AᵀA)⁻¹ 1.
+    #[test]
+    fn the_block_solve_is_the_mean_constrained_least_squares() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (rows, m) = (24, 5);
+        let a = DMatrix::<Real>::from_fn(rows, m, |_, _| rng.random::<Real>() * 2.0 - 1.0);
+        let lines: Vec<usize> = (0..rows).map(|r| r / 2).collect();
+        let gauge = [1, 3];
+        let got = solve_block(&a, &lines, &gauge, 2.0).unwrap();
+        let lagrange = (a.transpose() * &a).try_inverse().unwrap() * DVector::<Real>::from_element(m, 1.0);
+        let scale = 2.0 / ((lagrange[1] + lagrange[3]) / 2.0);
+        for k in 0..m {
+            assert!(
+                (got.tension[k] - lagrange[k] * scale).abs() < 1e-10,
+                "{k}: {} vs {}",
+                got.tension[k],
+                lagrange[k] * scale
+            );
+        }
+        assert!((got.tension[1] + got.tension[3] - 4.0).abs() < 1e-12);
+        assert!(got.sd.iter().all(|s| s.is_finite() && *s > 0.0));
+        assert!(got.gap.is_some_and(|g| g > 1.0 && g.is_finite()));
     }
 
     #[test]

@@ -11,7 +11,7 @@ use crate::io::{CellField, OutputGroup, vtp_bytes};
 use crate::mesh::Tissue;
 use crate::morphology::ContactRule;
 use crate::morphology::tensions::{
-    Gauge, PerCellTensions, TensionMap, TensionSettings, estimate_tensions, per_cell_tensions,
+    CellPressure, Gauge, PerCellTensions, TensionMap, TensionSettings, estimate_tensions, per_cell_tensions,
 };
 use serde::Serialize;
 use std::io::Write;
@@ -95,6 +95,7 @@ pub fn run(
         junction_lines: map.junction_lines,
         unknowns: map.unknowns,
         condition_number: map.condition_number,
+        spectral_gap: map.spectral_gap.filter(|g| g.is_finite()),
         residual_rms: map.residual_rms,
         residual_median: map.residual_median,
         pressure_residual_rms: map.pressure_residual_rms.map(|p| p * 1e-6),
@@ -190,6 +191,10 @@ struct CellRow {
     pressure: Option<Real>,
     pressure_sd: Option<Real>,
     determined: bool,
+    /// The pressure minus its group's mean (the cells determined interfaces link it to), with its sd;
+    /// also where no chain reaches the medium (a dense crop).
+    pressure_relative: Option<Real>,
+    pressure_relative_sd: Option<Real>,
     free_mean_curvature_per_um: Option<Real>,
     free_area_um2: Real,
     /// The cell's free tension (its interface with the medium) and its lateral tension a_i of the
@@ -229,6 +234,9 @@ pub struct Summary {
     pub junction_lines: usize,
     pub unknowns: usize,
     pub condition_number: Option<Real>,
+    /// σ_second-smallest / σ_smallest of the force balance: how clearly the samples single out one
+    /// map (below 3: poorly determined, with a warning); null where they balance exactly.
+    pub spectral_gap: Option<Real>,
     /// Force imbalance per junction sample, |Σ T_k t_k|, in units of the gauge.
     pub residual_rms: Option<Real>,
     pub residual_median: Option<Real>,
@@ -277,6 +285,8 @@ fn write_outputs(
             pressure: c.pressure.map(|p| p * 1e-6),
             pressure_sd: c.pressure_sd.map(|p| p * 1e-6),
             determined: c.determined,
+            pressure_relative: c.pressure_relative.map(|p| p * 1e-6),
+            pressure_relative_sd: c.pressure_relative_sd.map(|p| p * 1e-6),
             free_mean_curvature_per_um: c.free_mean_curvature.map(|h| h * 1e-6),
             free_area_um2: c.free_area * 1e12,
             free_tension: own.free,
@@ -293,10 +303,16 @@ fn write_outputs(
             face_tension.extend(std::iter::repeat_n(Real::NAN, cell.mesh().face_count()));
         }
     }
-    let by_id: std::collections::BTreeMap<u32, Option<Real>> =
-        map.cells.iter().map(|c| (c.cell, c.pressure.map(|p| p * 1e-6))).collect();
-    let pressure: Vec<Real> =
-        tissue.cells().iter().map(|c| by_id.get(&c.id().0).copied().flatten().unwrap_or(Real::NAN)).collect();
+    let by_id: std::collections::BTreeMap<u32, &CellPressure> = map.cells.iter().map(|c| (c.cell, c)).collect();
+    let per_cell = |pick: fn(&CellPressure) -> Option<Real>| -> Vec<Real> {
+        tissue
+            .cells()
+            .iter()
+            .map(|c| by_id.get(&c.id().0).and_then(|p| pick(p)).map_or(Real::NAN, |p| p * 1e-6))
+            .collect()
+    };
+    let pressure = per_cell(|p| p.pressure);
+    let pressure_relative = per_cell(|p| p.pressure_relative);
     if face_tension.len() != tissue.face_count() {
         return Err(format!("internal: {} face tensions for {} faces", face_tension.len(), tissue.face_count()));
     }
@@ -316,8 +332,11 @@ fn write_outputs(
     let path = dir.join("cell_overrides.toml");
     group.write_bytes(&path, overrides.as_bytes()).map_err(|e| io(&path, &e))?;
     let vtp = dir.join("tensions.vtp");
-    let fields =
-        [CellField { name: "tension", values: &face_tension }, CellField { name: "pressure", values: &pressure }];
+    let fields = [
+        CellField { name: "tension", values: &face_tension },
+        CellField { name: "pressure", values: &pressure },
+        CellField { name: "pressure_relative", values: &pressure_relative },
+    ];
     let bytes = vtp_bytes(&vtp, tissue, &fields, None).map_err(|e| io(&vtp, &e))?;
     group.write_bytes(&vtp, &bytes).map_err(|e| io(&vtp, &e))?;
     let png = dir.join("tensions.png");

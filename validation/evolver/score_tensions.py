@@ -42,17 +42,20 @@ def run(tissuefit, source, out, extra):
 def score(truth, interfaces, cells):
     gamma = truth["gamma_a"]
     want = {tuple(sorted(map(int, k.split("-")))): v["tension"] for k, v in truth["interfaces"].items()}
-    got = {}
+    got, sd = {}, {}
     for row in interfaces:
         a, b = int(row["cell_a"]), int(row["cell_b"])
-        got[(a, b) if b == 0 else tuple(sorted((a, b)))] = float(row["tension"]) if row["tension"] else None
-    lateral, medium, missing = [], [], 0
+        key = (a, b) if b == 0 else tuple(sorted((a, b)))
+        got[key] = float(row["tension"]) if row["tension"] else None
+        sd[key] = float(row["tension_sd"]) if row["tension_sd"] else None
+    lateral, medium, missing, within = [], [], 0, 0
     for k, t in sorted(want.items()):
         g = got.get(k)
         if g is None:
             missing += 1
         else:
             lateral.append(abs(g - t) / t)
+            within += sd[k] is not None and abs(g - t) <= sd[k]
     for c in range(1, truth["cells"] + 1):
         if (c, 0) not in got:
             continue  # no free surface (a buried cell): no cell–medium interface to score
@@ -61,6 +64,7 @@ def score(truth, interfaces, cells):
             missing += 1
         else:
             medium.append(abs(g - gamma) / gamma)
+            within += sd[(c, 0)] is not None and abs(g - gamma) <= sd[(c, 0)]
     unit = truth["evolver_length_to_um"]
     pressure = []
     for row in cells:
@@ -69,7 +73,7 @@ def score(truth, interfaces, cells):
             continue
         p_true /= unit
         pressure.append(abs(float(row["pressure"]) - p_true) / p_true)
-    return lateral, medium, pressure, missing
+    return lateral, medium, pressure, missing, within
 
 
 def pct(values, f):
@@ -96,7 +100,7 @@ def main():
             for label, source, extra in sources:
                 out = os.path.join(work, f"{name}-{len(rows)}")
                 interfaces, cells, summary = run(args.tissuefit, source, out, extra)
-                lateral, medium, pressure, missing = score(truth, interfaces, cells)
+                lateral, medium, pressure, missing, within = score(truth, interfaces, cells)
                 both = lateral + medium
                 row = {
                     "cluster": name, "input": label, "cell_cell": len(lateral), "missing": missing,
@@ -106,7 +110,9 @@ def main():
                     "all_max_pct": 100 * max(both) if both else None,
                     "pressure_median_pct": 100 * statistics.median(pressure) if pressure else None,
                     "pressure_max_pct": 100 * max(pressure) if pressure else None,
+                    "within_1sd": within, "scored": len(both),
                     "residual_rms": summary["residual_rms"], "condition": summary["condition_number"],
+                    "spectral_gap": summary.get("spectral_gap"),
                     "seconds": summary["wall_seconds"], "warnings": len(summary["warnings"]),
                 }
                 rows.append(row)
@@ -117,15 +123,18 @@ def main():
     fmt = lambda v: "–" if v is None else f"{v:.1f}"
     lines = [
         "| cluster | input | cell–cell interfaces: median / max error % | all interfaces (with cell–medium): "
-        "median / max % | pressures: median / max % | undetermined | residual rms | condition |",
-        "|---|---|---|---|---|---|---|---|",
+        "median / max % | pressures: median / max % | undetermined | within ±1 tension_sd | residual rms | "
+        "condition | spectral gap |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['cluster']} | {r['input']} | {fmt(r['lateral_median_pct'])} / {fmt(r['lateral_max_pct'])} "
             f"({r['cell_cell']}) | {fmt(r['all_median_pct'])} / {fmt(r['all_max_pct'])} | "
             f"{fmt(r['pressure_median_pct'])} / {fmt(r['pressure_max_pct'])} | {r['missing']} | "
-            f"{r['residual_rms']:.3f} | {r['condition'] if r['condition'] is None else format(r['condition'], '.1f')} |"
+            f"{r['within_1sd']} of {r['scored']} | "
+            f"{r['residual_rms']:.3f} | {r['condition'] if r['condition'] is None else format(r['condition'], '.1f')} | "
+            f"{'exact' if r['spectral_gap'] is None else format(r['spectral_gap'], '.1f')} |"
         )
     text = "\n".join(lines) + "\n"
     print(text)
