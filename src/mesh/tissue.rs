@@ -365,6 +365,19 @@ impl Tissue {
         Ok(tissue)
     }
 
+    /// The same tissue with every cell id (and parent) one higher, for files that number their cells
+    /// from 0 (SimuCell3D's convention) where 0 must mean the medium (the interface maps). Faces'
+    /// interface labels, which cannot tell such a cell 0 from the medium, are dropped.
+    pub fn with_ids_shifted_by_one(&self) -> Result<Self, TissueError> {
+        let shift = |id: CellId| CellId(id.0.saturating_add(1));
+        let cells = self
+            .cells
+            .iter()
+            .map(|c| Cell { id: shift(c.id), parent: c.parent.map(shift), interface_labels: None, ..c.clone() })
+            .collect();
+        Self::from_cells(cells)
+    }
+
     /// Adds a cell; errors if its id is taken.
     pub fn push(&mut self, cell: Cell) -> Result<(), TissueError> {
         if self.cells.iter().any(|c| c.id == cell.id) {

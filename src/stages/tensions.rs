@@ -53,8 +53,27 @@ pub fn run(
     out: &Path,
 ) -> Result<TensionsOutcome, StageError> {
     let start = Instant::now();
-    let map =
+    // 0 is the medium in the maps: a file numbering its cells from 0 (SimuCell3D's) is renumbered.
+    let from_zero = tissue.cells().iter().any(|c| c.id().0 == 0);
+    let shifted;
+    let tissue = if from_zero {
+        shifted = tissue
+            .with_ids_shifted_by_one()
+            .map_err(|e| err(format!("renumbering the cells of {} from 1: {e}", input.file)))?;
+        &shifted
+    } else {
+        tissue
+    };
+    let mut map =
         estimate_tensions(tissue, settings).map_err(|e| err(format!("estimating tensions in {}: {e}", input.file)))?;
+    if from_zero {
+        map.warnings.insert(
+            0,
+            "the file numbers its cells from 0 (SimuCell3D's convention), and 0 is the medium in the maps: every \
+             cell id in the outputs is the file's plus 1 (name interfaces for --gauge that way too)"
+                .to_string(),
+        );
+    }
     let wall_seconds = start.elapsed().as_secs_f64();
     for w in &map.warnings {
         tracing::warn!("{}: {w}", input.file);
@@ -235,7 +254,7 @@ pub struct Summary {
     pub unknowns: usize,
     pub condition_number: Option<Real>,
     /// σ_second-smallest / σ_smallest of the force balance: how clearly the samples single out one
-    /// map (below 3: poorly determined, with a warning); null where they balance exactly.
+    /// map; null where they balance exactly.
     pub spectral_gap: Option<Real>,
     /// Force imbalance per junction sample, |Σ T_k t_k|, in units of the gauge.
     pub residual_rms: Option<Real>,
