@@ -6,6 +6,8 @@
 # (validation/real/c_elegans_map.py). Seconds once the release binary is built.
 #   docs/src/generated/real-c-elegans.md   the table
 #   docs/src/img/c-elegans-map.png         the map (labels, 400 nodes per cell, default settings)
+#   docs/src/generated/real-ovule.md       the PlantSeg ovule crop's map in figures
+#   docs/src/img/ovule-map.png             its picture (validation/real/ovule_map.py)
 #   docs/src/generated/real-c-elegans-per-cell.md   the per-cell map (`tissuefit run
 #                                          pipelines/real-embryo-map.toml`, about a minute)
 # Usage: docs/scripts/real-maps.sh
@@ -15,6 +17,8 @@ cd "$(dirname "$0")/../.."
 cargo build --release
 python3 validation/real/c_elegans_map.py --markdown docs/src/generated/real-c-elegans.md \
     --image docs/src/img/c-elegans-map.png
+python3 validation/real/ovule_map.py --markdown docs/src/generated/real-ovule.md \
+    --image docs/src/img/ovule-map.png
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 # The per-cell fit ends with a non-zero status when it does not converge: its table says so.

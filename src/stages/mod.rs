@@ -46,16 +46,34 @@ pub(crate) fn map_png(
     label: &str,
 ) -> Result<Vec<u8>, String> {
     use crate::render::{ColorBy, FaceScalars, RenderOptions, png_bytes, render_tissue};
+    let (range, label) = match robust_range(&values) {
+        Some((lo, hi)) => (Some((lo, hi)), format!("{label}, clipped 2–98 %")),
+        None => (None, label.to_owned()),
+    };
     let options = RenderOptions {
         width: 900,
         height: 700,
         color_by: ColorBy::Tension,
-        scalars: Some(FaceScalars { label: label.to_owned(), values, range: None }),
+        scalars: Some(FaceScalars { label, values, range }),
         explode: MAP_EXPLODE,
         ..RenderOptions::default()
     };
     let img = render_tissue(tissue, &options).map_err(|e| e.to_string())?;
     png_bytes(&img)
+}
+
+/// The colour range of a map picture when a few outliers would wash out the rest: the 2nd–98th
+/// percentile of the faces' finite values where it spans less than half of their whole range (a real
+/// crop with one interface at 16 × the median); `None` otherwise (the whole range).
+fn robust_range(values: &[crate::geometry::Real]) -> Option<(crate::geometry::Real, crate::geometry::Real)> {
+    let mut finite: Vec<crate::geometry::Real> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.len() < 50 {
+        return None;
+    }
+    finite.sort_by(|a, b| a.total_cmp(b));
+    let at = |q: f64| finite[((finite.len() - 1) as f64 * q).round() as usize];
+    let (lo, hi, min, max) = (at(0.02), at(0.98), finite[0], finite[finite.len() - 1]);
+    (hi > lo && hi - lo < 0.5 * (max - min)).then_some((lo, hi))
 }
 
 /// Writes rows under a header of `T`'s serde field names, in field order; the header comes from
@@ -103,4 +121,21 @@ pub fn write_json<T: Serialize>(group: &mut OutputGroup, path: &Path, value: &T)
         serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
         std::io::Write::write_all(w, b"\n")
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::robust_range;
+
+    #[test]
+    fn a_map_picture_clips_its_colours_only_where_a_few_outliers_would_wash_out_the_rest() {
+        let spread: Vec<f64> = (0..100).map(|i| 0.5 + i as f64 / 100.0).collect();
+        assert_eq!(robust_range(&spread), None);
+        let mut outliers = spread.clone();
+        outliers[3] = 16.0;
+        outliers[7] = f64::NAN;
+        let (lo, hi) = robust_range(&outliers).unwrap();
+        assert!((0.5..0.6).contains(&lo) && (1.4..1.5).contains(&hi), "{lo}..{hi}");
+        assert_eq!(robust_range(&outliers[..40]), None, "too few faces to judge");
+    }
 }
