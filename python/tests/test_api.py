@@ -168,6 +168,10 @@ def test_tensions_are_the_cli_tensions(demo, tmp_path):
         assert faces.shape == (len(cell.faces),)
     free = m.interfaces["tension"][m.interfaces["cell_b"] == 0]
     assert np.nanmean(free) == pytest.approx(1.0)  # the default gauge: mean cell–medium tension = 1
+    # Each cell's pressure about the mean of the two (they reach the medium: the same centring).
+    p = np.asarray(m.cells["pressure"], dtype=float)
+    assert np.asarray(m.cells["pressure_relative"], dtype=float) == pytest.approx(p - p.mean(), abs=1e-9)
+    assert m.summary["spectral_gap"] is None or m.summary["spectral_gap"] > 1.0
     in_mn = tf.tensions(m.tissue, gauge_tension=0.5)
     assert in_mn.summary["tension_unit"] == "mN/m" and in_mn.summary["pressure_unit"] == "kPa"
     # --far-field, as the CLI's.
