@@ -191,35 +191,35 @@ fn combined(coefficient: Real, floor: Real, resolution: Option<Real>) -> Real {
 }
 
 fn default_model_error_cell_cell() -> Real {
-    0.0
+    0.16
 }
 
 fn default_model_error_cell_medium() -> Real {
-    0.236
+    0.223
 }
 
 fn default_model_error_cell_cell_floor() -> Real {
-    0.033
+    0.0289
 }
 
 fn default_model_error_cell_medium_floor() -> Real {
-    0.0192
+    0.0204
 }
 
 fn default_model_error_pressure() -> Real {
-    0.258
+    0.273
 }
 
 fn default_model_error_pressure_floor() -> Real {
-    0.0106
+    0.00711
 }
 
 fn default_model_error_lateral() -> Real {
-    0.291
+    0.583
 }
 
 fn default_model_error_lateral_floor() -> Real {
-    0.0247
+    0.0156
 }
 
 fn default_per_cell_step() -> Real {
