@@ -986,22 +986,12 @@ fn solve_tensions(
 ) -> Result<Solved, TensionError> {
     let mut warnings = Vec::new();
     let mut parent: Vec<usize> = (0..n).collect();
-    fn find(parent: &mut [usize], mut x: usize) -> usize {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    }
     for Row { coefficients, .. } in rows {
         for w in coefficients.windows(2) {
-            let (a, b) = (find(&mut parent, w[0].0), find(&mut parent, w[1].0));
-            if a != b {
-                parent[a.max(b)] = a.min(b);
-            }
+            join(&mut parent, w[0].0, w[1].0);
         }
     }
-    let root: Vec<usize> = (0..n).map(|u| find(&mut parent, u)).collect();
+    let root: Vec<usize> = (0..n).map(|u| group_root(&mut parent, u)).collect();
     let mut sampled = vec![false; n];
     for Row { coefficients, .. } in rows {
         for &(u, _) in coefficients {
@@ -1340,6 +1330,23 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
     })
 }
 
+/// Union–find over `parent` (each entry its own root at first): the root of `i`'s group, halving the
+/// path on the way.
+fn group_root(parent: &mut [usize], mut i: usize) -> usize {
+    while parent[i] != i {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    i
+}
+
+/// Merges the groups of `a` and `b`; the smaller root stays the root (groups in order of their
+/// smallest member).
+fn join(parent: &mut [usize], a: usize, b: usize) {
+    let (ra, rb) = (group_root(parent, a), group_root(parent, b));
+    parent[ra.max(rb)] = ra.min(rb);
+}
+
 /// A cell's pressure relative to the medium and relative to the mean of its group (the cells that
 /// determined interfaces connect it to), each with its standard deviation.
 #[derive(Clone, Copy, Debug, Default)]
@@ -1408,20 +1415,12 @@ fn solve_pressures(
     }
     // Groups of cells linked by cell–cell equations (union–find), and those reaching the medium.
     let mut parent: Vec<usize> = (0..n_cells).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
     for e in &equations {
         if let Some(b) = e.b {
-            let (ra, rb) = (root(&mut parent, e.a), root(&mut parent, b));
-            parent[ra.max(rb)] = ra.min(rb);
+            join(&mut parent, e.a, b);
         }
     }
-    let group: Vec<usize> = (0..n_cells).map(|i| root(&mut parent, i)).collect();
+    let group: Vec<usize> = (0..n_cells).map(|i| group_root(&mut parent, i)).collect();
     let mut in_equation = vec![false; n_cells];
     let mut reaches_medium = vec![false; n_cells];
     for e in &equations {
@@ -1538,19 +1537,11 @@ pub fn per_cell_tensions(map: &TensionMap) -> PerCellTensions {
     // Connected groups of cells over the determined interfaces (union–find).
     let n = map.cells.len();
     let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
     for &(a, b, _) in &pairs {
-        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
-        parent[ra.max(rb)] = ra.min(rb);
+        join(&mut parent, a, b);
     }
     // Each group's cells and interfaces, in one pass (groups in order of their smallest cell).
-    let roots: Vec<usize> = (0..n).map(|i| root(&mut parent, i)).collect();
+    let roots: Vec<usize> = (0..n).map(|i| group_root(&mut parent, i)).collect();
     type Group = (Vec<usize>, Vec<(usize, usize, Real)>);
     let mut groups: std::collections::BTreeMap<usize, Group> = Default::default();
     for (i, &r) in roots.iter().enumerate() {
