@@ -13,8 +13,9 @@
 //! `--steps N` (8000), `--settle N` (0: simulation.settle_steps), `--xi X` (repulsion, Pa/m; 1e12),
 //! `--method fire|integrate` (fire), `--remesh N` (50), `--quadrature vertices|faces`
 //! (numerics.contact_quadrature, vertices), `--unit-masses` (FIRE without the contact masses,
-//! `Simulation::set_fire_contact_masses(false)`). One line per run, `key=value` separated by
-//! spaces, so that a shell loop over a grid makes a table (see docs: the Young–Dupré regime note).
+//! `Simulation::set_fire_contact_masses(false)`), `--measured-masses`
+//! (simulation.fire_measured_masses). One line per run, `key=value` separated by spaces, so that a
+//! shell loop over a grid makes a table (see docs: the Young–Dupré regime note).
 
 use std::time::Instant;
 use tissuefit::geometry::Real;
@@ -30,11 +31,11 @@ fn parse() -> Result<Doublet, String> {
     let mut i = 0;
     while i < args.len() {
         let flag = args[i].as_str();
-        if flag == "--normal" || flag == "--unit-masses" {
-            if flag == "--normal" {
-                a.normal = true;
-            } else {
-                a.unit_masses = true;
+        if flag == "--normal" || flag == "--unit-masses" || flag == "--measured-masses" {
+            match flag {
+                "--normal" => a.normal = true,
+                "--unit-masses" => a.unit_masses = true,
+                _ => a.measured_masses = true,
             }
             i += 1;
             continue;
@@ -100,7 +101,7 @@ fn run(a: &Doublet) -> Result<(), String> {
     let [ha, hb] = far_field_half_angles(sim.tissue(), 0.3 * r);
     let measured = 0.5 * (ha + hb);
     println!(
-        "radius_um={} lmin_um={} cutoff_um={} ratio={} xi={:.2e} start={} normal={} quadrature={} yd_deg={yd:.2} half_angle_deg={measured:.2} \
+        "radius_um={} lmin_um={} cutoff_um={} ratio={} xi={:.2e} start={} normal={} measured_masses={} quadrature={} yd_deg={yd:.2} half_angle_deg={measured:.2} \
          error_deg={:+.2} cells_deg={ha:.2}/{hb:.2} overlap_pct={:.3} nodes_per_cell={nodes} steps={} converged={} \
          residual={:.3e} splits={} collapses={} wall_s={wall:.1} stop={:?}",
         a.radius * 1e6,
@@ -110,6 +111,7 @@ fn run(a: &Doublet) -> Result<(), String> {
         a.xi,
         if a.over { "over" } else { "touch" },
         a.normal,
+        a.measured_masses,
         if a.quadrature == ContactQuadrature::Faces { "faces" } else { "vertices" },
         measured - yd,
         100.0 * summary.max_overlap_fraction,

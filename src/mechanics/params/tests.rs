@@ -574,3 +574,22 @@ fn cell_overrides_read_validate_and_apply_to_the_cells_they_name() {
         "{warnings:?}"
     );
 }
+
+#[test]
+fn measured_fire_masses_are_warned_about_without_normal_relaxation_or_fire() {
+    let warning = |p: &Parameters| {
+        p.validate().expect("valid").into_iter().find(|w| w.contains("simulation.fire_measured_masses"))
+    };
+    let mut params = Parameters::default();
+    assert_eq!(warning(&params), None);
+    params.simulation.fire_measured_masses = true;
+    let w = warning(&params).expect("full forces warned");
+    assert!(w.contains("normal_relaxation = true") && w.contains("wrinkles"), "{w}");
+    params.simulation.normal_relaxation = true;
+    assert_eq!(warning(&params), None);
+    params.simulation.method = RelaxMethod::Integrate;
+    assert!(warning(&params).expect("integration warned").contains("ignores it"));
+    params.simulation.method = RelaxMethod::Fire;
+    params.simulation.mode = SimulationMode::Time;
+    assert!(warning(&params).expect("time run warned").contains("ignores it"));
+}

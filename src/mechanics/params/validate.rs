@@ -122,9 +122,27 @@ impl Parameters {
         if !(sim.remesh_below_edge_fraction.is_finite() && (0.0..1.0).contains(&sim.remesh_below_edge_fraction)) {
             report.errors.push(format!(
                 "simulation.remesh_below_edge_fraction = {}: must be a number in [0, 1) (a fraction of \
-                 numerics.min_edge_length; 0: never; default 0.25)",
-                sim.remesh_below_edge_fraction
+                 numerics.min_edge_length; 0: never; default {})",
+                sim.remesh_below_edge_fraction, sim_defaults.remesh_below_edge_fraction
             ));
+        }
+        if sim.fire_measured_masses {
+            if sim.mode != SimulationMode::Equilibrium || sim.method != RelaxMethod::Fire {
+                report.warnings.push(
+                    "simulation.fire_measured_masses = true acts only on equilibrium runs with simulation.method = \
+                     \"fire\"; this run ignores it"
+                        .to_owned(),
+                );
+            } else if !sim.normal_relaxation {
+                report.warnings.push(
+                    "simulation.fire_measured_masses = true without simulation.normal_relaxation = true: with the \
+                     full forces the faster descent drifts nodes along the contacts and wrinkles the surfaces \
+                     (SimuCell3D's doublet: residual 3.2 after 20,000 steps, 15 times the bending energy of its \
+                     converged state); set simulation.normal_relaxation = true (docs book: Design notes, \
+                     \"Spring contacts and Young–Dupré\")"
+                        .to_owned(),
+                );
+            }
         }
         if !(sim.checkpoint_every_seconds.is_finite() && sim.checkpoint_every_seconds >= 0.0) {
             report.errors.push(format!(

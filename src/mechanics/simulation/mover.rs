@@ -2,7 +2,7 @@
 //! they pay), or one step of the equations of motion.
 
 use super::{Simulation, SimulationError};
-use crate::geometry::{Real, Vec3};
+use crate::geometry::{Mat3, Real, Vec3};
 use crate::mechanics::{Fire, FireSettings, NodeMass};
 use crate::mesh::FaceType;
 
@@ -35,6 +35,8 @@ pub(super) enum Mover {
         f: Vec<Vec3>,
         /// The nodes' masses from their contacts (see [`Simulation::contact_masses`]).
         masses: Vec<NodeMass>,
+        /// The nodes' measured stiffnesses (`simulation.fire_measured_masses`).
+        measured: MeasuredStiffness,
     },
     Integrate,
 }
@@ -54,7 +56,15 @@ impl Mover {
         let (offsets, mobile) = sim.layout();
         let total = *offsets.last().unwrap_or(&0);
         let zeros = vec![Vec3::zeros(); total];
-        Mover::Fire { fire, offsets, mobile, x: zeros.clone(), f: zeros, masses: Vec::new() }
+        Mover::Fire {
+            fire,
+            offsets,
+            mobile,
+            x: zeros.clone(),
+            f: zeros,
+            masses: Vec::new(),
+            measured: MeasuredStiffness::default(),
+        }
     }
 
     /// After remeshing: a fresh FIRE on the new layout.
@@ -76,10 +86,14 @@ impl Mover {
     /// One step from the current, evaluated state; evaluates the forces at the new positions.
     pub(super) fn step(&mut self, sim: &mut Simulation<'_>) -> Result<Moved, SimulationError> {
         match self {
-            Mover::Fire { fire, offsets, mobile, x, f, masses } => {
+            Mover::Fire { fire, offsets, mobile, x, f, masses, measured } => {
                 sim.pack(offsets, x, f);
                 sim.save_good();
-                let heavy = sim.contact_masses(offsets, fire.settings().dt_max, masses);
+                let dt_max = fire.settings().dt_max;
+                let mut heavy = sim.contact_masses(offsets, dt_max, masses);
+                if sim.params.simulation.fire_measured_masses {
+                    heavy |= measured.add_masses(x, f, mobile, dt_max, masses);
+                }
                 fire.step_with_masses(x, f, mobile, heavy.then_some(&masses[..]));
                 if fire.stalled() {
                     return Ok(Moved::Stalled);
@@ -186,5 +200,108 @@ impl<'p> Simulation<'p> {
         for (c, cell) in self.tissue.cells_mut().iter_mut().enumerate() {
             cell.positions_mut().copy_from_slice(&x[offsets[c]..offsets[c + 1]]);
         }
+    }
+}
+
+/// The stiffness a node's measured stiffness keeps from one step to the next (it decays by 1 % a
+/// step unless a new move measures it again): a stiff mode measured on the step it moved is still
+/// there on the steps it rests.
+const MEASURED_STIFFNESS_DECAY: Real = 0.99;
+
+/// A node's move is measured when it is at least this fraction of the step's largest move (the
+/// force change of a node that hardly moved is its neighbours' doing, and dividing it by that
+/// node's own tiny move would make it heavy for nothing).
+const MEASURED_MOVE_FRACTION: Real = 0.1;
+
+/// Each node's stiffness along its last move, for `simulation.fire_measured_masses`: k = −ΔF·Δx/|Δx|²
+/// between two evaluated states (the secant of the energy's curvature along the move), kept as a
+/// maximum that decays by [`MEASURED_STIFFNESS_DECAY`] a step. Starts afresh with FIRE (after
+/// remeshing or a resume).
+#[derive(Default)]
+pub(super) struct MeasuredStiffness {
+    x: Vec<Vec3>,
+    f: Vec<Vec3>,
+    k: Vec<Real>,
+}
+
+impl MeasuredStiffness {
+    /// Measures the stiffnesses from the previous state to positions `x` with forces `f` (packed)
+    /// and makes every node whose stiffness k exceeds 2/Δt_max² heavier by the scalar
+    /// k·Δt_max²/2 − 1 (on top of any contact mass in `masses`, which it fills with unit masses
+    /// when empty). Returns whether any node is heavier.
+    pub(super) fn add_masses(
+        &mut self,
+        x: &[Vec3],
+        f: &[Vec3],
+        mobile: &[bool],
+        dt_max: Real,
+        masses: &mut Vec<NodeMass>,
+    ) -> bool {
+        if self.x.len() != x.len() {
+            self.x = x.to_vec();
+            self.f = f.to_vec();
+            self.k = vec![0.0; x.len()];
+            return false;
+        }
+        let moves: Vec<Real> = x.iter().zip(&self.x).map(|(a, b)| (a - b).norm_squared()).collect();
+        let largest = moves.iter().zip(mobile).filter(|(_, m)| **m).map(|(d, _)| *d).fold(0.0, Real::max);
+        let measured = MEASURED_MOVE_FRACTION * MEASURED_MOVE_FRACTION * largest;
+        let threshold = 2.0 / (dt_max * dt_max);
+        let mut heavy = false;
+        for i in (0..x.len()).filter(|&i| mobile[i]) {
+            let k = if moves[i] > measured && moves[i] > 0.0 {
+                (-(f[i] - self.f[i]).dot(&(x[i] - self.x[i])) / moves[i]).max(0.0)
+            } else {
+                0.0
+            };
+            self.k[i] = k.max(MEASURED_STIFFNESS_DECAY * self.k[i]);
+            if self.k[i] > threshold {
+                if masses.is_empty() {
+                    masses.resize(x.len(), NodeMass::UNIT);
+                }
+                let mass = masses[i].mass + (0.5 * self.k[i] * dt_max * dt_max - 1.0) * Mat3::identity();
+                if let Some(inverse) = mass.try_inverse() {
+                    masses[i] = NodeMass { mass, inverse };
+                    heavy = true;
+                }
+            }
+        }
+        self.x.copy_from_slice(x);
+        self.f.copy_from_slice(f);
+        heavy
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Nodes on springs of stiffness k_i (F = −k_i·x): after one move the measured stiffness is k_i
+    /// for every node that moved at least a tenth of the largest move, the stiff node is heavier by
+    /// k·Δt_max²/2 − 1 and the soft ones keep unit mass; the stiffness decays when not measured again.
+    #[test]
+    fn measured_masses_are_the_springs_stiffness_where_it_would_be_unstable() {
+        let k = [50.0, 0.5, 80.0];
+        let forces = |x: &[Vec3]| -> Vec<Vec3> { x.iter().zip(k).map(|(x, k)| -k * x).collect() };
+        let dt_max = 1.0;
+        let mobile = [true; 3];
+        let mut measured = MeasuredStiffness::default();
+        let mut masses = Vec::new();
+        let x0 = vec![Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, 1.0)];
+        assert!(!measured.add_masses(&x0, &forces(&x0), &mobile, dt_max, &mut masses), "nothing measured yet");
+        assert!(masses.is_empty());
+        // Node 2 moves by 1e-3 of the largest move: not measured (its force change is too small to tell).
+        let x1 = vec![Vec3::new(1.5, 0.0, 0.0), Vec3::new(0.0, 1.3, 0.0), Vec3::new(0.0, 0.0, 1.0005)];
+        assert!(measured.add_masses(&x1, &forces(&x1), &mobile, dt_max, &mut masses));
+        assert!((measured.k[0] - 50.0).abs() < 1e-9 && (measured.k[1] - 0.5).abs() < 1e-9 && measured.k[2] == 0.0);
+        // 2/Δt_max² = 2: node 0 is heavier by 50/2 − 1 = 24, node 1 (0.5) and node 2 are not.
+        assert!((masses[0].mass - 25.0 * Mat3::identity()).norm() < 1e-9);
+        assert!((masses[0].inverse * masses[0].mass - Mat3::identity()).norm() < 1e-12);
+        assert_eq!(masses[1], NodeMass::UNIT);
+        assert_eq!(masses[2], NodeMass::UNIT);
+        // At rest the stiffness decays by MEASURED_STIFFNESS_DECAY a step.
+        masses.clear();
+        measured.add_masses(&x1, &forces(&x1), &mobile, dt_max, &mut masses);
+        assert!((measured.k[0] - 50.0 * MEASURED_STIFFNESS_DECAY).abs() < 1e-9);
     }
 }

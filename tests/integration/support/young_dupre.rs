@@ -35,6 +35,8 @@ pub struct Doublet {
     pub quadrature: ContactQuadrature,
     /// FIRE with unit masses everywhere (`Simulation::set_fire_contact_masses(false)`).
     pub unit_masses: bool,
+    /// FIRE's masses from the nodes' measured stiffnesses (`simulation.fire_measured_masses`).
+    pub measured_masses: bool,
 }
 
 impl Default for Doublet {
@@ -53,6 +55,7 @@ impl Default for Doublet {
             remesh: 50,
             quadrature: ContactQuadrature::Vertices,
             unit_masses: false,
+            measured_masses: false,
         }
     }
 }
@@ -108,6 +111,7 @@ pub fn params(a: &Doublet) -> Parameters {
     s.max_steps = a.steps;
     s.settle_steps = a.settle;
     s.normal_relaxation = a.normal;
+    s.fire_measured_masses = a.measured_masses;
     s.sample_every_steps = a.steps + 1;
     p
 }
