@@ -127,9 +127,11 @@ pub struct SimulationSettings {
     /// turns, every ~18 steps on SimuCell3D's doublet, fewer than the 20 steps it waits before it
     /// lengthens its step, so its step stays at 1–4 % of the largest and the relaxation crawls.
     /// Measured on SimuCell3D's doublet and triplet (face quadrature, normal_relaxation): converged
-    /// in 3,727 and 5,811 steps, where without it neither converged in 20,000 (docs book: Design
-    /// notes, "Spring contacts and Young–Dupré"). With the full forces it speeds the descent, but
-    /// nodes then drift along the contacts and the remeshing restarts FIRE every ~100 steps.
+    /// in 3,727 and 5,811 steps, where without it the doublet had not converged after 20,000 (docs
+    /// book: Design notes, "Spring contacts and Young–Dupré"). With the full forces it speeds the
+    /// descent, but nodes then drift along the contacts and the repairs restart FIRE (256 times in
+    /// 20,000 steps). The stiffnesses are not in checkpoints: a resumed run measures them afresh,
+    /// so its outputs are close to an uninterrupted run's but not byte-identical.
     pub fire_measured_masses: bool,
     /// Equilibrium mode: a relaxation that does not converge ends at its lowest-residual state
     /// since the last remeshing instead of its last step (summary: ended_at_step). A relaxation

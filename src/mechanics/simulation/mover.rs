@@ -33,7 +33,8 @@ pub(super) enum Mover {
         mobile: Vec<bool>,
         x: Vec<Vec3>,
         f: Vec<Vec3>,
-        /// The nodes' masses from their contacts (see [`Simulation::contact_masses`]).
+        /// The nodes' masses from their contacts (see [`Simulation::contact_masses`]) and their
+        /// measured stiffnesses ([`MeasuredStiffness::add_masses`]).
         masses: Vec<NodeMass>,
         /// The nodes' measured stiffnesses (`simulation.fire_measured_masses`).
         measured: MeasuredStiffness,
