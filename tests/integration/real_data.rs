@@ -529,8 +529,8 @@ fn multimaterial_contact_areas_are_the_files_own() {
 
 /// SimuCell3D's doublet and triplet reach an equilibrium through `tissuefit simulate` (the
 /// derived l_min = c = 0.837 µm, w/(2γ) = 0.175 and ξ = 2e10 Pa/m) with the face quadrature,
-/// normal relaxation and FIRE's measured masses; without the masses neither converged in 20,000
-/// steps (design note "Spring contacts and Young–Dupré"). Converged here means the run's own
+/// normal relaxation and FIRE's measured masses; without the masses the doublet had not converged
+/// after 20,000 steps (design note "Spring contacts and Young–Dupré"). Converged here means the run's own
 /// criterion (max force below 1e-3·γ·l_min, energy and volume changes below 1e-9 a step), read
 /// from summary.json. The doublet's far-field angle must lie within ±3° of Young–Dupré
 /// (cos(θ/2) = 1 − w/(2γ): 68.8°; measured 71.4°, +2.6°: the contact range c is 0.06 of these
@@ -576,7 +576,7 @@ fn real_simucell3d_doublet_and_triplet_converge_with_measured_fire_masses() {
             let cutoff =
                 derived.iter().find(|d| d["key"] == "numerics.contact_cutoff").unwrap()["value"].as_f64().unwrap();
             let ratio = 1e9 * cutoff * cutoff / (4.0 * 1e-3);
-            let young_dupre = 2.0 * (1.0 - ratio).acos().to_degrees();
+            let young_dupre = 2.0 * crate::support::young_dupre::young_dupre(ratio);
             assert!(
                 (angle - young_dupre).abs() <= 3.0,
                 "{name}: far-field angle {angle:.2}° vs Young–Dupré {young_dupre:.2}°"

@@ -244,17 +244,15 @@ impl MeasuredStiffness {
             self.k = vec![0.0; x.len()];
             return false;
         }
-        let moves: Vec<Real> = x.iter().zip(&self.x).map(|(a, b)| (a - b).norm_squared()).collect();
-        let largest = moves.iter().zip(mobile).filter(|(_, m)| **m).map(|(d, _)| *d).fold(0.0, Real::max);
+        let largest =
+            (0..x.len()).filter(|&i| mobile[i]).map(|i| (x[i] - self.x[i]).norm_squared()).fold(0.0, Real::max);
         let measured = MEASURED_MOVE_FRACTION * MEASURED_MOVE_FRACTION * largest;
         let threshold = 2.0 / (dt_max * dt_max);
         let mut heavy = false;
         for i in (0..x.len()).filter(|&i| mobile[i]) {
-            let k = if moves[i] > measured && moves[i] > 0.0 {
-                (-(f[i] - self.f[i]).dot(&(x[i] - self.x[i])) / moves[i]).max(0.0)
-            } else {
-                0.0
-            };
+            let dx = x[i] - self.x[i];
+            let moved = dx.norm_squared();
+            let k = if moved > measured && moved > 0.0 { (-(f[i] - self.f[i]).dot(&dx) / moved).max(0.0) } else { 0.0 };
             self.k[i] = k.max(MEASURED_STIFFNESS_DECAY * self.k[i]);
             if self.k[i] > threshold {
                 if masses.is_empty() {
