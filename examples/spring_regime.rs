@@ -14,7 +14,8 @@
 //! `--method fire|integrate` (fire), `--remesh N` (50), `--quadrature vertices|faces`
 //! (numerics.contact_quadrature, vertices), `--unit-masses` (FIRE without the contact masses,
 //! `Simulation::set_fire_contact_masses(false)`), `--measured-masses`
-//! (simulation.fire_measured_masses). One line per run, `key=value` separated by spaces, so that a
+//! (simulation.fire_measured_masses), `--contact-full-forces` (with `--normal`:
+//! simulation.full_forces_at_contacts). One line per run, `key=value` separated by spaces, so that a
 //! shell loop over a grid makes a table (see docs: the Young–Dupré regime note).
 
 use std::time::Instant;
@@ -31,10 +32,11 @@ fn parse() -> Result<Doublet, String> {
     let mut i = 0;
     while i < args.len() {
         let flag = args[i].as_str();
-        if flag == "--normal" || flag == "--unit-masses" || flag == "--measured-masses" {
+        if matches!(flag, "--normal" | "--unit-masses" | "--measured-masses" | "--contact-full-forces") {
             match flag {
                 "--normal" => a.normal = true,
                 "--unit-masses" => a.unit_masses = true,
+                "--contact-full-forces" => a.contact_full_forces = true,
                 _ => a.measured_masses = true,
             }
             i += 1;
@@ -101,7 +103,7 @@ fn run(a: &Doublet) -> Result<(), String> {
     let [ha, hb] = far_field_half_angles(sim.tissue(), 0.3 * r);
     let measured = 0.5 * (ha + hb);
     println!(
-        "radius_um={} lmin_um={} cutoff_um={} ratio={} xi={:.2e} start={} normal={} measured_masses={} quadrature={} yd_deg={yd:.2} half_angle_deg={measured:.2} \
+        "radius_um={} lmin_um={} cutoff_um={} ratio={} xi={:.2e} start={} normal={} contact_full_forces={} measured_masses={} quadrature={} yd_deg={yd:.2} half_angle_deg={measured:.2} \
          error_deg={:+.2} cells_deg={ha:.2}/{hb:.2} overlap_pct={:.3} nodes_per_cell={nodes} steps={} converged={} \
          residual={:.3e} splits={} collapses={} wall_s={wall:.1} stop={:?}",
         a.radius * 1e6,
@@ -111,6 +113,7 @@ fn run(a: &Doublet) -> Result<(), String> {
         a.xi,
         if a.over { "over" } else { "touch" },
         a.normal,
+        a.contact_full_forces,
         a.measured_masses,
         if a.quadrature == ContactQuadrature::Faces { "faces" } else { "vertices" },
         measured - yd,

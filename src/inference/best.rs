@@ -195,7 +195,7 @@ pub fn write_best_outputs(
     unit: OutputUnit,
 ) -> Result<BestRelaxation, InferenceError> {
     let output_err = |p: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", p.display()));
-    let params = model.space.apply(&model.base, &best.x);
+    let params = model.params_at(&best.x);
     let model_path = out.join(BEST_MODEL_FILE);
     write_bytes_atomically(&model_path, params.to_toml_string().as_bytes()).map_err(|e| output_err(&model_path, &e))?;
 

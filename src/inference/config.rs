@@ -30,7 +30,10 @@ pub struct FitConfig {
     pub model_overrides: Option<toml::Table>,
     /// The parameters to fit or fix, by name: `surface_tension` (every face type),
     /// `surface_tension_apical`, `surface_tension_lateral`, `surface_tension_basal`, `adhesion`
-    /// (every face type). Applied to every epithelial cell type. Names not listed keep the model's value.
+    /// (every face type), or instead of `adhesion` `adhesion_energy_over_tension`: the spring
+    /// adhesion as w/(2γ) = ω·c²/(4γ) (dimensionless; needs a fixed `surface_tension`), whose
+    /// bounds then hold whatever contact cutoff c the meshing sets. Applied to every epithelial cell
+    /// type. Names not listed keep the model's value.
     /// Required by `mode = "global"`; with `mode = "per_cell"` only the fixed values (`value`) and the
     /// starts (`initial`, else the middle of the bounds) of the base model are used.
     #[serde(default)]
@@ -750,12 +753,34 @@ impl FitConfig {
         }
         let mut fitted = 0;
         for (name, p) in &self.parameters {
-            let Some(parameter) = super::FitParameter::from_name(name) else {
+            // w/(2γ): dimensionless, at most 2 (cos(θ/2) = 1 − w/(2γ) ≥ −1).
+            let ratio = name == super::ADHESION_RATIO;
+            let parameter = super::FitParameter::from_name(name);
+            if parameter.is_none() && !ratio {
                 return Err(format!(
-                    "parameters.{name}: unknown parameter; one of {}",
-                    super::PARAMETER_NAMES.join(", ")
+                    "parameters.{name}: unknown parameter; one of {}, {}",
+                    super::PARAMETER_NAMES.join(", "),
+                    super::ADHESION_RATIO
                 ));
-            };
+            }
+            let is_tension = parameter.is_some_and(|p| p.is_tension());
+            if ratio && let Some(v) = p.bounds.map(|b| b[1]).or(p.value).filter(|&v| v > 2.0) {
+                return Err(format!(
+                    "parameters.{name}: w/(2γ) = {v} > 2 has no Young–Dupré angle (cos(θ/2) = 1 − w/(2γ) ≥ −1); \
+                     it is dimensionless: did you give ω in Pa/m? (that is `parameters.adhesion`)"
+                ));
+            }
+            if ratio && self.parameters.contains_key(super::FitParameter::Adhesion.name()) {
+                return Err(format!(
+                    "parameters.{name}: give it or `adhesion` (ω in Pa/m), not both: they set the same parameter"
+                ));
+            }
+            if ratio && self.parameters.get("surface_tension").and_then(|t| t.value).is_none() {
+                return Err(format!(
+                    "parameters.{name}: needs the tension γ of w/(2γ) fixed: give [parameters.surface_tension] a \
+                     `value` (e.g. 1e-3)"
+                ));
+            }
             match (p.bounds, p.value) {
                 (Some(_), Some(_)) => return Err(format!("parameters.{name}: give `bounds` or `value`, not both")),
                 (None, None) => return Err(format!("parameters.{name}: give `bounds` (to fit) or `value` (fixed)")),
@@ -763,7 +788,7 @@ impl FitConfig {
                     if !(lo > 0.0 && hi > lo && hi.is_finite()) {
                         return Err(format!("parameters.{name}.bounds: need 0 < lo < hi, finite; got [{lo}, {hi}]"));
                     }
-                    if parameter.is_tension()
+                    if is_tension
                         && let Some(bad) = [lo, hi]
                             .iter()
                             .find_map(|&g| crate::io::implausible_tension(&format!("parameters.{name}.bounds"), g))
@@ -781,7 +806,7 @@ impl FitConfig {
                     if !(v.is_finite() && v >= 0.0) {
                         return Err(format!("parameters.{name}.value: need a finite value ≥ 0; got {v}"));
                     }
-                    if parameter.is_tension()
+                    if is_tension
                         && let Some(bad) = crate::io::implausible_tension(&format!("parameters.{name}.value"), v)
                     {
                         return Err(bad);

@@ -59,7 +59,7 @@ use crate::geometry::{Real, Vec3};
 use crate::imaging::{BoundaryNoise, LabelVolume, boundary_roughness, label_overlap, perturb_boundaries, voxelize};
 use crate::io::{Heartbeat, Watch};
 use crate::mechanics::{
-    CellTypeParams, CheckpointRequest, NoObserver, Observer, Parameters, Simulation, SimulationSummary,
+    CellTypeParams, CheckpointRequest, ContactModel, NoObserver, Observer, Parameters, Simulation, SimulationSummary,
 };
 use crate::mesh::Tissue;
 use crate::meshing::{LabelMeshingOptions, mesh_labels};
@@ -423,7 +423,39 @@ impl Observer for EvaluationBeat<'_> {
     }
 }
 
+/// The meshing's l_min that the forward model gives the model as numerics.min_edge_length and
+/// numerics.contact_cutoff (`forward.match_mesh_length` with an observation meshed from labels).
+pub fn matched_mesh_length(forward: &ForwardConfig, observation: &Observation) -> Option<Real> {
+    observation.l_min.filter(|_| forward.match_mesh_length)
+}
+
+/// `config.parameters` for the model `base` and the observation: with
+/// [`super::ADHESION_RATIO`] resolved into `adhesion` at the contact cutoff the forward model will use.
+pub fn resolved_parameters(
+    config: &super::FitConfig,
+    base: &Parameters,
+    observation: &Observation,
+) -> Result<std::collections::BTreeMap<String, super::config::ParameterConfig>, super::InferenceError> {
+    let cutoff = matched_mesh_length(&config.forward, observation).unwrap_or(base.numerics.contact_cutoff);
+    super::resolve_adhesion_ratio(&config.parameters, cutoff, base.numerics.contact_model == ContactModel::Spring)
+}
+
 impl ForwardModel {
+    /// The model at log point `x` (clamped into the bounds first): the fitted and fixed parameters
+    /// written into the base model and, with spring contacts, the repulsion raised where it is below
+    /// what holds that point's adhesion and the observed cells' Laplace pressures apart
+    /// ([`Parameters::raise_repulsion_for_overrides`], never lowered), with the time step: a fitted
+    /// ω many times the base model's would otherwise pull cells into each other (a Surface Evolver
+    /// doublet fitted at w/(2γ) ≥ 0.5 with ξ = 1e9 Pa/m: cells detached or one vanished).
+    pub fn params_at(&self, x: &[Real]) -> Parameters {
+        let (x, _) = self.space.clamp(x);
+        let mut params = self.space.apply(&self.base, &x);
+        for d in params.raise_repulsion_for_overrides(&self.observation.tissue) {
+            tracing::debug!("{} = {:.3e} (was {:.3e}): {}", d.key, d.value, d.default, d.from);
+        }
+        params
+    }
+
     /// Prepares the base model: the forward settings applied to it (equilibrium mode, max steps,
     /// mesh length scale), no sampling output.
     pub fn new(
@@ -442,9 +474,7 @@ impl ForwardModel {
         if let Some(n) = forward.settle_steps {
             base.simulation.settle_steps = n;
         }
-        if forward.match_mesh_length
-            && let Some(l) = observation.l_min
-        {
+        if let Some(l) = matched_mesh_length(&forward, &observation) {
             base.numerics.min_edge_length = l;
             base.numerics.contact_cutoff = l;
         }
@@ -496,7 +526,7 @@ impl ForwardModel {
             .map_err(|e| format!("the observed mask's roughness: {e}"))?
             .ok_or("the observed mask has no boundaries")?;
         let (x, _) = self.space.clamp(x);
-        let params = self.space.apply(&self.base, &x);
+        let params = self.params_at(&x);
         // As an evaluation relaxes (with "auto" nothing is roughened yet).
         let (tissue, _) = self
             .relax(&params, &self.observation.tissue, &mut NoObserver)
@@ -638,7 +668,7 @@ impl ForwardModel {
     pub fn evaluate_from(&self, x: &[Real], start: &Tissue) -> (Evaluation, Option<Tissue>) {
         let started = Instant::now();
         let (x, _) = self.space.clamp(x);
-        let params = self.space.apply(&self.base, &x);
+        let params = self.params_at(&x);
         let penalty = self.objective.failure_penalty;
         let failed = |reason: String, steps: u64, residual: Real, metrics: Metrics| Evaluation {
             x: x.clone(),

@@ -45,7 +45,9 @@ pub use plot::{plot_landscape, plot_objective};
 pub use profile::{NOISE_STEP, NoiseFloor, Slice, profile, ratio_parts};
 pub use result::{AT_BOUND_FRACTION, FitResult, POOR_FIT_OBJECTIVE, ParameterResult, RatioResult};
 pub use run::{FitOptions, load_observation, observe_labels, run_fit, run_fit_observed};
-pub use space::{FitParameter, FittedParameter, PARAMETER_NAMES, ParameterSpace};
+pub use space::{
+    ADHESION_RATIO, FitParameter, FittedParameter, PARAMETER_NAMES, ParameterSpace, resolve_adhesion_ratio,
+};
 pub use trace::{read_trace, recorded_elapsed_seconds, write_trace};
 
 /// Why a fit could not run (a failed evaluation is not an error: it is penalised and recorded).

@@ -641,8 +641,9 @@ pub fn run_per_cell_from(
     }
     let output_err = |p: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", p.display()));
     // Fixed values and the fitted parameters' starts set the base model; nothing is searched.
-    let space = ParameterSpace::from_config(&config.parameters)?;
-    let base = space.apply(&config.base_parameters()?, &space.initial_point());
+    let base = config.base_parameters()?;
+    let space = ParameterSpace::from_config(&super::forward::resolved_parameters(config, &base, &observation)?)?;
+    let base = space.apply(&base, &space.initial_point());
     let empty = ParameterSpace::from_config(&BTreeMap::new())?;
     let mut model = ForwardModel::new(observation, base, empty, config.objective.clone(), config.forward.clone())?;
     // A log (stderr not a terminal) also hears from inside a relaxation of many minutes, and a

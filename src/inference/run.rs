@@ -115,16 +115,15 @@ pub fn run_fit_observed(
 ) -> Result<FitResult, InferenceError> {
     let started = Instant::now();
     let output_err = |p: &Path, e: &dyn std::fmt::Display| InferenceError::Output(format!("{}: {e}", p.display()));
-    let space = ParameterSpace::from_config(&config.parameters)?;
     let trace_path = out.join("trace.csv");
-    let preloaded = if trace_path.exists() {
+    let resuming = if trace_path.exists() {
         if !options.resume {
             return Err(InferenceError::Output(format!(
                 "{} already holds a fit (trace.csv); pass --resume to continue it or choose another --out",
                 out.display()
             )));
         }
-        read_trace(&trace_path, &space)?
+        true
     } else if options.resume {
         // Starting afresh instead would hide a mistyped --out, or a fit that never began.
         return Err(InferenceError::Resume(format!(
@@ -133,13 +132,15 @@ pub fn run_fit_observed(
             out.display()
         )));
     } else {
-        Vec::new()
+        false
     };
     let base = config.base_parameters()?;
     let observation = match observation {
         Some(o) => o,
         None => load_observation(config)?,
     };
+    let space = ParameterSpace::from_config(&super::forward::resolved_parameters(config, &base, &observation)?)?;
+    let preloaded = if resuming { read_trace(&trace_path, &space)? } else { Vec::new() };
     let mut model = ForwardModel::new(observation, base, space, config.objective.clone(), config.forward.clone())?;
     // A log (stderr not a terminal) also hears from inside an evaluation of many minutes.
     model.heartbeat = Some(Heartbeat::new("fit", options.progress));

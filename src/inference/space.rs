@@ -74,6 +74,68 @@ pub const PARAMETER_NAMES: [&str; 5] = [
     FitParameter::Adhesion.name(),
 ];
 
+/// The dimensionless spelling of the spring adhesion in `[parameters]`: w/(2γ) = ω·c²/(4γ), the
+/// group that sets a spring contact's Young–Dupré angle (cos(θ/2) = 1 − w/(2γ)), whatever the
+/// contact cutoff c that the meshing of the data sets. Resolved into `adhesion` (Pa/m) by
+/// [`resolve_adhesion_ratio`] once c is known.
+pub const ADHESION_RATIO: &str = "adhesion_energy_over_tension";
+
+/// `parameters` with [`ADHESION_RATIO`] (its bounds, start or value given as w/(2γ)) written as
+/// `adhesion` in Pa/m, ω = 4γ·(w/(2γ))/c², with γ the fixed `surface_tension` and c the model's
+/// contact cutoff `cutoff` (m; after `forward.match_mesh_length`); the other entries unchanged.
+/// An error names what is missing (a fixed `surface_tension`, spring contacts) or contradicts it
+/// (`adhesion` given too).
+pub fn resolve_adhesion_ratio(
+    parameters: &BTreeMap<String, ParameterConfig>,
+    cutoff: Real,
+    spring: bool,
+) -> Result<BTreeMap<String, ParameterConfig>, InferenceError> {
+    let Some(ratio) = parameters.get(ADHESION_RATIO) else {
+        return Ok(parameters.clone());
+    };
+    let err = |m: String| InferenceError::Config(format!("parameters.{ADHESION_RATIO}: {m}"));
+    if parameters.contains_key(FitParameter::Adhesion.name()) {
+        return Err(err("give it or `adhesion` (ω in Pa/m), not both: they set the same parameter".into()));
+    }
+    if !spring {
+        return Err(err("w/(2γ) = ω·c²/(4γ) is the spring contacts' adhesion; the model's contacts are coupled (set \
+             numerics.contact_model = \"spring\", or fit surface_tension_lateral)"
+            .into()));
+    }
+    let gamma = parameters.get(FitParameter::SurfaceTension.name()).and_then(|p| p.value).ok_or_else(|| {
+        err("needs the tension γ of w/(2γ) fixed: give [parameters.surface_tension] a `value` (e.g. 1e-3)".into())
+    })?;
+    if !(cutoff.is_finite() && cutoff > 0.0) {
+        return Err(err(format!(
+            "needs a positive contact cutoff c; the model has numerics.contact_cutoff = {cutoff}"
+        )));
+    }
+    let omega = |r: Real| 4.0 * gamma * r / (cutoff * cutoff);
+    let resolved = ParameterConfig {
+        bounds: ratio.bounds.map(|[lo, hi]| [omega(lo), omega(hi)]),
+        value: ratio.value.map(omega),
+        initial: ratio.initial.map(omega),
+    };
+    tracing::info!(
+        "parameters.{ADHESION_RATIO}: w/(2γ) {} → adhesion ω {} Pa/m (γ = {gamma:e} N/m, contact cutoff c = {:.4} µm)",
+        match (ratio.bounds, ratio.value) {
+            (Some([lo, hi]), _) => format!("in [{lo}, {hi}]"),
+            (None, Some(v)) => format!("= {v}"),
+            (None, None) => "unset".into(),
+        },
+        match (resolved.bounds, resolved.value) {
+            (Some([lo, hi]), _) => format!("in [{lo:.4e}, {hi:.4e}]"),
+            (None, Some(v)) => format!("= {v:.4e}"),
+            (None, None) => "unset".into(),
+        },
+        cutoff * 1e6
+    );
+    let mut out = parameters.clone();
+    out.remove(ADHESION_RATIO);
+    out.insert(FitParameter::Adhesion.name().to_string(), resolved);
+    Ok(out)
+}
+
 /// One fitted parameter: which, and its log-space bounds.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FittedParameter {
@@ -109,10 +171,14 @@ impl ParameterSpace {
         let mut fixed = Vec::new();
         for (name, p) in parameters {
             let parameter = FitParameter::from_name(name).ok_or_else(|| {
-                InferenceError::Config(format!(
-                    "parameters.{name}: unknown parameter; one of {}",
-                    PARAMETER_NAMES.join(", ")
-                ))
+                InferenceError::Config(if name == ADHESION_RATIO {
+                    format!("parameters.{name}: must be resolved into `adhesion` first (resolve_adhesion_ratio)")
+                } else {
+                    format!(
+                        "parameters.{name}: unknown parameter; one of {}, {ADHESION_RATIO}",
+                        PARAMETER_NAMES.join(", ")
+                    )
+                })
             })?;
             match (p.bounds, p.value) {
                 (Some(bounds), None) => {
@@ -223,6 +289,41 @@ mod tests {
             toml::from_str("[surface_tension_lateal]\nvalue = 1e-3\n").unwrap();
         let e = ParameterSpace::from_config(&parameters).unwrap_err().to_string();
         assert!(e.contains("surface_tension_lateal") && e.contains("surface_tension_lateral"), "{e}");
+    }
+
+    #[test]
+    fn the_adhesion_ratio_becomes_adhesion_at_the_models_cutoff() {
+        let parameters: BTreeMap<String, ParameterConfig> = toml::from_str(
+            "[surface_tension]\nvalue = 2e-3\n[adhesion_energy_over_tension]\nbounds = [0.1, 0.4]\ninitial = 0.2\n",
+        )
+        .unwrap();
+        let c = 0.5e-6;
+        let resolved = resolve_adhesion_ratio(&parameters, c, true).unwrap();
+        let s = ParameterSpace::from_config(&resolved).unwrap();
+        assert_eq!(s.fitted.len(), 1);
+        let p = &s.fitted[0];
+        assert_eq!(p.parameter, FitParameter::Adhesion);
+        // w/(2γ) = ω·c²/(4γ) back from the SI bounds and start.
+        let ratio = |omega: Real| omega * c * c / (4.0 * 2e-3);
+        assert!((ratio(p.bounds[0]) - 0.1).abs() < 1e-12 && (ratio(p.bounds[1]) - 0.4).abs() < 1e-12);
+        assert!((ratio(p.initial) - 0.2).abs() < 1e-12);
+        // Unresolved, it is refused with the reason; coupled contacts, a fitted tension or `adhesion`
+        // given too are errors naming the key.
+        let e = ParameterSpace::from_config(&parameters).unwrap_err().to_string();
+        assert!(e.contains("resolve"), "{e}");
+        let e = resolve_adhesion_ratio(&parameters, c, false).unwrap_err().to_string();
+        assert!(e.contains("adhesion_energy_over_tension") && e.contains("spring"), "{e}");
+        let fitted_gamma: BTreeMap<String, ParameterConfig> = toml::from_str(
+            "[surface_tension]\nbounds = [1e-4, 1e-3]\n[adhesion_energy_over_tension]\nbounds = [0.1, 0.4]\n",
+        )
+        .unwrap();
+        let e = resolve_adhesion_ratio(&fitted_gamma, c, true).unwrap_err().to_string();
+        assert!(e.contains("surface_tension") && e.contains("value"), "{e}");
+        let both: BTreeMap<String, ParameterConfig> = toml::from_str(
+            "[surface_tension]\nvalue = 1e-3\n[adhesion]\nvalue = 1e9\n[adhesion_energy_over_tension]\nvalue = 0.2\n",
+        )
+        .unwrap();
+        assert!(resolve_adhesion_ratio(&both, c, true).unwrap_err().to_string().contains("not both"));
     }
 
     #[test]

@@ -29,6 +29,12 @@ pub const PRESETS: &[Preset] = &[
                   whole cells inside); coupled contacts; fits the lateral tension relative to the free one",
         text: include_str!("presets/epithelium.toml"),
     },
+    Preset {
+        name: "aggregate",
+        summary: "whole cells that adhere (aggregate, spheroid, early embryo); spring contacts; fits the adhesion \
+                  w/(2γ) relative to the tension (Young–Dupré: cos(θ/2) = 1 − w/(2γ))",
+        text: include_str!("presets/aggregate.toml"),
+    },
 ];
 
 /// The preset called `name`, or an error listing the names (and the nearest one).

@@ -39,11 +39,11 @@ def labels_for(tissuefit, cluster_dir, truth, per_diameter, work):
     return out
 
 
-def tabulate(row, result_path, ratio, model_error=0.05):
+def tabulate(row, result_path, ratio, model_error=0.05, key_part="lateral"):
     """The row completed from a fit's result.json."""
     r = json.load(open(result_path))
-    # the γ_lateral/γ_apical ratio of result.json (its key names the ratio)
-    key = next((k for k in r.get("ratios", {}) if "lateral" in k), None)
+    # the fitted ratio of result.json (its key names the ratio: γ_lateral/γ_apical, or the spring fits' w/(2γ))
+    key = next((k for k in r.get("ratios", {}) if key_part in k), None)
     x = r["ratios"][key] if key else None
     fitted = x["value"] if x else None
     lo_hi = x["range"] if x else None
@@ -87,7 +87,10 @@ def main():
     ap.add_argument("--only", default="", help="comma-separated cluster names (default: all with a truth ratio)")
     ap.add_argument("--resolutions", default="10,20,40", help="voxels per cell diameter, comma-separated")
     ap.add_argument("--work", required=True, help="folder for the label volumes, pipelines and run directories")
-    ap.add_argument("--template", default=os.path.join(HERE, "fit-template.toml"))
+    ap.add_argument("--template", help="the pipeline template (default fit-template.toml, with --spring "
+                    "fit-template-aggregate.toml)")
+    ap.add_argument("--spring", action="store_true",
+                    help="fit spring adhesion (the aggregate preset): the truth is w/(2γ) = 1 − γ_l/γ_a")
     ap.add_argument("--model", default=os.path.join(HERE, "model.toml"), help="the forward model (@MODEL@)")
     ap.add_argument("--tissuefit", default=os.path.join(ROOT, "target", "release", "tissuefit"))
     ap.add_argument("--markdown", help="write the table here (Markdown)")
@@ -95,7 +98,9 @@ def main():
     ap.add_argument("--collect", action="store_true",
                     help="run nothing: tabulate the runs already in --work (those with a fit/result.json)")
     a = ap.parse_args()
-    template = open(a.template).read()
+    template = open(a.template or os.path.join(
+        HERE, "fit-template-aggregate.toml" if a.spring else "fit-template.toml")).read()
+    key_part = "adhesion_energy" if a.spring else "lateral"
     names = sorted(d for d in os.listdir(a.clusters) if os.path.exists(os.path.join(a.clusters, d, "truth.json")))
     if a.only:
         names = [n for n in names if n in a.only.split(",")]
@@ -107,6 +112,8 @@ def main():
         if ratio is None:
             print(f"{name}: heterogeneous tensions, no single ratio to fit; skipped", file=sys.stderr)
             continue
+        if a.spring:
+            ratio = round(1.0 - ratio, 12)
         for res in [int(r) for r in a.resolutions.split(",")]:
             work = os.path.join(a.work, f"{name}_{res}")
             os.makedirs(work, exist_ok=True)
@@ -123,7 +130,7 @@ def main():
                 row = {"cluster": name, "cells": truth["cells"], "per_diameter": res, "truth": ratio,
                        "exit": None, "wall_s": round(wall, 1)}
                 result_path = os.path.join(work, "run", "fit", "result.json")
-                rows.append(tabulate(row, result_path, ratio))
+                rows.append(tabulate(row, result_path, ratio, key_part=key_part))
                 continue
             labels = labels_for(a.tissuefit, cdir, truth, res, work)
             pipeline = os.path.join(work, "pipeline.toml")
@@ -140,7 +147,7 @@ def main():
                    "wall_s": round(wall, 1)}
             result_path = os.path.join(work, "run", "fit", "result.json")
             if os.path.exists(result_path):
-                row = tabulate(row, result_path, ratio)
+                row = tabulate(row, result_path, ratio, key_part=key_part)
             rows.append(row)
             err = row.get("error_pct")
             print(f"{name} @ {res} vox/diam: truth {ratio}, fitted {row.get('fitted')}, "

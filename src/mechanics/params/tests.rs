@@ -593,3 +593,30 @@ fn measured_fire_masses_are_warned_about_without_normal_relaxation_or_fire() {
     params.simulation.mode = SimulationMode::Time;
     assert!(warning(&params).expect("time run warned").contains("ignores it"));
 }
+
+#[test]
+fn normal_relaxation_of_adhering_springs_is_warned_about_and_full_forces_at_contacts_where_they_do_nothing() {
+    let warning = |p: &Parameters, key: &str| p.validate().expect("valid").into_iter().find(|w| w.starts_with(key));
+    let mut params = Parameters::default();
+    params.numerics.contact_model = ContactModel::Spring;
+    params.simulation.normal_relaxation = true;
+    // No adhesion: nothing to pin.
+    for ft in FaceType::ALL {
+        params.cell_types[0].faces.get_mut(ft).adhesion = 0.0;
+    }
+    assert_eq!(warning(&params, "simulation.normal_relaxation"), None);
+    params.cell_types[0].faces.lateral.adhesion = 1e9;
+    let w = warning(&params, "simulation.normal_relaxation").expect("pinned contact lines warned");
+    assert!(w.contains("full_forces_at_contacts = true") && w.contains("Young–Dupré"), "{w}");
+    params.simulation.full_forces_at_contacts = true;
+    assert_eq!(warning(&params, "simulation.normal_relaxation"), None);
+    assert_eq!(warning(&params, "simulation.full_forces_at_contacts"), None);
+    // Where the setting does nothing: without the normal relaxation, or with coupled contacts.
+    params.simulation.normal_relaxation = false;
+    let w = warning(&params, "simulation.full_forces_at_contacts").expect("without normal relaxation");
+    assert!(w.contains("ignores it"), "{w}");
+    params.simulation.normal_relaxation = true;
+    params.numerics.contact_model = ContactModel::Coupling;
+    let w = warning(&params, "simulation.full_forces_at_contacts").expect("coupled contacts");
+    assert!(w.contains("spring") && w.contains("ignores it"), "{w}");
+}

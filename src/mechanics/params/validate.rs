@@ -144,6 +144,36 @@ impl Parameters {
                 );
             }
         }
+        let adheres = self.numerics.contact_model == ContactModel::Spring
+            && self
+                .cell_types
+                .iter()
+                .any(|t| t.kind == CellKind::Epithelial && t.faces.iter().any(|(_, f)| f.adhesion > 0.0));
+        if sim.normal_relaxation && !sim.full_forces_at_contacts && adheres && sim.mode == SimulationMode::Equilibrium {
+            report.warnings.push(
+                "simulation.normal_relaxation = true with adhering spring contacts: moved along their normals only, \
+                 nodes at a contact rim lose the adhesion's pull along the surface and the contact line stays near \
+                 where it started; such runs report \"converged\" 14–18° short of Young–Dupré at w/(2γ) = 0.5 from \
+                 touching spheres; set simulation.full_forces_at_contacts = true so that contact lines slide (docs \
+                 book: Design notes, \"Spring contacts and Young–Dupré\")"
+                    .to_owned(),
+            );
+        }
+        if sim.full_forces_at_contacts {
+            if !sim.normal_relaxation {
+                report.warnings.push(
+                    "simulation.full_forces_at_contacts = true without simulation.normal_relaxation = true: every node \
+                     already keeps its whole force; this run ignores it"
+                        .to_owned(),
+                );
+            } else if self.numerics.contact_model != ContactModel::Spring {
+                report.warnings.push(
+                    "simulation.full_forces_at_contacts = true acts on spring contacts (numerics.contact_model = \
+                     \"spring\"); coupled contacts move along their normals; this run ignores it"
+                        .to_owned(),
+                );
+            }
+        }
         if !(sim.checkpoint_every_seconds.is_finite() && sim.checkpoint_every_seconds >= 0.0) {
             report.errors.push(format!(
                 "simulation.checkpoint_every_seconds = {}: must be a finite number ≥ 0 (0: not by time)",

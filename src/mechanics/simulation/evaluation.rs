@@ -130,7 +130,8 @@ impl<'p> Simulation<'p> {
     }
 
     /// Keeps only the component of every nodal force along the node's normal (the sum of its faces'
-    /// area vectors; see `SimulationSettings::normal_relaxation`). A descent along these forces
+    /// area vectors; see `SimulationSettings::normal_relaxation`), except at the nodes within the
+    /// contact cutoff of another cell with `SimulationSettings::full_forces_at_contacts`. A descent along these forces
     /// still lowers the energy (dE = −|F_n|²·dt), and its fixed points are the shapes on which no
     /// node is pushed off the surface.
     /// Projects every node's force onto its normal and, integrating the dynamic model, its momentum
@@ -142,14 +143,24 @@ impl<'p> Simulation<'p> {
     fn project_to_normals(&mut self) {
         let cells = self.tissue.cells();
         let dynamic = self.params.numerics.dynamics == Dynamics::Dynamic;
+        let spare_contacts = self.params.simulation.full_forces_at_contacts
+            && self.params.numerics.contact_model == ContactModel::Spring;
+        let contacts = &self.work.contacts;
         self.work
             .forces
             .cells
             .par_iter_mut()
             .zip(cells.par_iter())
             .zip(self.cell_data.momenta.par_iter_mut())
-            .for_each(|((work, cell), momenta)| {
-                let normals = node_normals(cell, &work.geometry.area_vectors);
+            .enumerate()
+            .for_each(|(c, ((work, cell), momenta))| {
+                let mut normals = node_normals(cell, &work.geometry.area_vectors);
+                if spare_contacts {
+                    // A zero normal leaves the node's force (and momentum) whole.
+                    for (node, _, _) in contacts.node_contacts(c) {
+                        normals[node as usize] = Vec3::zeros();
+                    }
+                }
                 project_onto(&normals, &mut work.forces);
                 if dynamic {
                     project_onto(&normals, momenta);

@@ -37,6 +37,8 @@ pub struct Doublet {
     pub unit_masses: bool,
     /// FIRE's masses from the nodes' measured stiffnesses (`simulation.fire_measured_masses`).
     pub measured_masses: bool,
+    /// With `normal`: contact nodes keep their whole force (`simulation.full_forces_at_contacts`).
+    pub contact_full_forces: bool,
 }
 
 impl Default for Doublet {
@@ -56,6 +58,7 @@ impl Default for Doublet {
             quadrature: ContactQuadrature::Vertices,
             unit_masses: false,
             measured_masses: false,
+            contact_full_forces: false,
         }
     }
 }
@@ -112,6 +115,7 @@ pub fn params(a: &Doublet) -> Parameters {
     s.settle_steps = a.settle;
     s.normal_relaxation = a.normal;
     s.fire_measured_masses = a.measured_masses;
+    s.full_forces_at_contacts = a.contact_full_forces;
     s.sample_every_steps = a.steps + 1;
     p
 }
