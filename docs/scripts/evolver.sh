@@ -21,7 +21,11 @@
 #   docs/src/generated/noise-roughen-seeds.md  the doublet and held-out triplet of noise-roughen.md under
 #                                        other draws of the noise (SEEDS, default "2 3"), "auto" and not
 #                                        roughened (about 16 minutes)
-# Usage: docs/scripts/evolver.sh [relax|fits|heldout|noise|noise-scatter|roughen|roughen-seeds|all]
+#   docs/src/generated/evolver-spring-fits.md  the same clusters fitted as spring adhesion with the
+#                                        "aggregate" preset (run_fits.py --spring: the truth is
+#                                        w/(2γ) = 1 − γ_l/γ_a; doublet, triplet, tetra at 10 and 20 voxels,
+#                                        about 12 minutes)
+# Usage: docs/scripts/evolver.sh [relax|fits|heldout|spring|noise|noise-scatter|roughen|roughen-seeds|all]
 # (default all)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -46,6 +50,13 @@ if [ "$what" = heldout ] || [ "$what" = all ]; then
     work=$(mktemp -d)
     python3 validation/evolver/run_fits.py --only heldout_triplet,heldout_ball8 \
         --resolutions "${RESOLUTIONS:-10,20,40}" --work "$work" --markdown "$out/evolver-heldout.md"
+fi
+if [ "$what" = spring ] || [ "$what" = all ]; then
+    cargo build --release
+    work=$(mktemp -d)
+    python3 validation/evolver/run_fits.py --spring --only "${CLUSTERS:-doublet,triplet,tetra}" \
+        --resolutions "${RESOLUTIONS:-10,20}" --work "$work" --markdown "$out/evolver-spring-fits.md" \
+        --json "$out/evolver-spring-fits.json"
 fi
 if [ "$what" = noise ] || [ "$what" = all ]; then
     cargo build --release

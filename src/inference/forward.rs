@@ -423,6 +423,33 @@ impl Observer for EvaluationBeat<'_> {
     }
 }
 
+/// With spring contacts, the first epithelial face whose adhesion well W = ωc²/4 reaches its tension
+/// (w/(2γ) ≥ 1): its contact faces have no net tension left, so no equilibrium exists (the surfaces
+/// crumple; validation warns from 0.7γ); `None` otherwise. The repulsion a point's ω raises
+/// ([`ForwardModel::params_at`]) would let such a point run, for as long as it takes to fold.
+fn complete_wetting(params: &Parameters) -> Option<String> {
+    if params.numerics.contact_model != ContactModel::Spring {
+        return None;
+    }
+    let c = params.numerics.contact_cutoff;
+    params.cell_types.iter().enumerate().filter(|(_, t)| t.kind == crate::mesh::CellKind::Epithelial).find_map(
+        |(i, t)| {
+            t.faces.iter().find(|(_, f)| f.adhesion > 0.0 && f.adhesion_well_depth(c) >= f.surface_tension).map(
+                |(ft, f)| {
+                    format!(
+                        "cell_types[{i}].faces.{}: w/(2γ) = ωc²/(4γ) = {:.3} ≥ 1 (ω = {:.3e} Pa/m, c = {:.3e} m): the \
+                         adhesion cancels the tension of contact faces, which then crumple; no equilibrium to fit",
+                        ft.name(),
+                        f.adhesion_well_depth(c) / f.surface_tension,
+                        f.adhesion,
+                        c
+                    )
+                },
+            )
+        },
+    )
+}
+
 /// The meshing's l_min that the forward model gives the model as numerics.min_edge_length and
 /// numerics.contact_cutoff (`forward.match_mesh_length` with an observation meshed from labels).
 pub fn matched_mesh_length(forward: &ForwardConfig, observation: &Observation) -> Option<Real> {
@@ -682,6 +709,9 @@ impl ForwardModel {
             elapsed_seconds: Real::NAN,
         };
         if let Err(e) = params.validate() {
+            return (failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default()), None);
+        }
+        if let Some(e) = complete_wetting(&params) {
             return (failed(format!("invalid parameters: {e}"), 0, Real::NAN, Metrics::default()), None);
         }
         let relaxed = self.relax_reporting(&params, start, || {

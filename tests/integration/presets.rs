@@ -106,9 +106,10 @@ fn the_own_data_tutorial_fits_the_real_embryo_to_a_determined_ratio() {
 /// An outside truth for the spring model: Surface Evolver's doublet (validation/evolver/fixtures,
 /// γ_lateral/γ_free = 0.6, voxelised at 10 voxels per diameter) has the shape of a spring doublet
 /// with w/(2γ) = 1 − 0.6 = 0.4 (γ_free·A_free + 2γ_lateral·A_contact = γ·A_free + (2γ − w)·A_contact).
-/// The "aggregate" preset with nothing but the labels must recover it within 5 % (the pipeline's
-/// [demo] tolerance; measured −0.1 %, and +2.7 % at 20 voxels, by validation/evolver/run_fits.py
-/// --spring), report it determined with a range that holds it, and relax its best point with a
+/// The "aggregate" preset with nothing but the labels must recover it within 10 % (the issue's
+/// round-trip bound; measured −0.1…+4.3 % at 10 voxels as the preset's optimiser settings changed,
+/// +2.7 % at 20 voxels, by validation/evolver/run_fits.py --spring: the optimiser stops within the
+/// forward model's own scatter), report it determined with a range that holds it, and relax its best point with a
 /// repulsion that holds the fitted adhesion (ξ ≥ 20·ω, raised with ω in every evaluation: with the
 /// default ξ = 1e9 Pa/m evaluations at w/(2γ) ≥ 0.5 let the cells detach or one vanish). ≈ 20 s.
 #[test]
@@ -120,7 +121,7 @@ fn the_aggregate_preset_recovers_surface_evolvers_doublet_as_spring_adhesion() {
         &pipeline,
         format!(
             "preset = \"aggregate\"\n[input]\nlabels = \"{}\"\n[demo]\ntruth = {{ adhesion_energy_over_tension = 0.4 }}\n\
-             tolerance = 0.05\n",
+             tolerance = 0.1\n",
             labels.display()
         ),
     )
@@ -135,7 +136,7 @@ fn the_aggregate_preset_recovers_surface_evolvers_doublet_as_spring_adhesion() {
     let (value, lo, hi) =
         (ratio["value"].as_f64().unwrap(), ratio["range"][0].as_f64().unwrap(), ratio["range"][1].as_f64().unwrap());
     eprintln!("Evolver doublet as springs: w/(2γ) = {value:.4} [{lo:.4}, {hi:.4}] (truth 0.4)");
-    assert!((value - 0.4).abs() <= 0.05 * 0.4, "{ratio}");
+    assert!((value - 0.4).abs() <= 0.1 * 0.4, "{ratio}");
     assert_eq!(ratio["determined"].as_bool(), Some(true), "{ratio}");
     assert!(lo <= 0.4 && 0.4 <= hi, "{ratio}");
     let best = tissuefit::mechanics::Parameters::load(&run.join("fit/best.toml")).unwrap();

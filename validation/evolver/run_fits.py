@@ -50,7 +50,9 @@ def tabulate(row, result_path, ratio, model_error=0.05, key_part="lateral"):
     # The range from the objective alone (the profile's noise bounds; without profile.model_error).
     # A fit run before model_error existed has only that one: its model-error range is then
     # computed here with the same formula (value · exp(±√(o² + ln(1 + m)²))) and marked "post hoc".
-    sl = next((s for s in r.get("profile", []) if key and s["name"] == key), None)
+    # w/(2γ) is ω/γ times c²/4: the same log offsets as the profile's adhesion_over_tension slice.
+    slice_name = "adhesion_over_tension" if key == "adhesion_energy_over_tension" else key
+    sl = next((s for s in r.get("profile", []) if key and s["name"] == slice_name), None)
     noise, post_hoc = None, False
     if sl and fitted is not None:
         lo_o, hi_o = sl.get("noise_lower", "absent"), sl.get("noise_upper", "absent")
