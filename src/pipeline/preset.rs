@@ -31,8 +31,9 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         name: "aggregate",
-        summary: "whole cells that adhere (aggregate, spheroid, early embryo); spring contacts; fits the adhesion \
-                  w/(2γ) relative to the tension (Young–Dupré: cos(θ/2) = 1 − w/(2γ))",
+        summary: "whole cells that adhere moderately (aggregate, spheroid; w/(2γ) up to 0.7); spring contacts; fits \
+                  the adhesion w/(2γ) relative to the tension (Young–Dupré: cos(θ/2) = 1 − w/(2γ)); strongly \
+                  compacted cells: compact-embryo",
         text: include_str!("presets/aggregate.toml"),
     },
 ];
