@@ -770,16 +770,8 @@ impl FitConfig {
                      it is dimensionless: did you give ω in Pa/m? (that is `parameters.adhesion`)"
                 ));
             }
-            if ratio && self.parameters.contains_key(super::FitParameter::Adhesion.name()) {
-                return Err(format!(
-                    "parameters.{name}: give it or `adhesion` (ω in Pa/m), not both: they set the same parameter"
-                ));
-            }
-            if ratio && self.parameters.get("surface_tension").and_then(|t| t.value).is_none() {
-                return Err(format!(
-                    "parameters.{name}: needs the tension γ of w/(2γ) fixed: give [parameters.surface_tension] a \
-                     `value` (e.g. 1e-3)"
-                ));
+            if ratio && let Some(m) = super::space::adhesion_ratio_conflict(&self.parameters) {
+                return Err(format!("parameters.{name}: {m}"));
             }
             match (p.bounds, p.value) {
                 (Some(_), Some(_)) => return Err(format!("parameters.{name}: give `bounds` or `value`, not both")),

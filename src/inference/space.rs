@@ -80,6 +80,26 @@ pub const PARAMETER_NAMES: [&str; 5] = [
 /// [`resolve_adhesion_ratio`] once c is known.
 pub const ADHESION_RATIO: &str = "adhesion_energy_over_tension";
 
+/// The fixed `surface_tension` of `parameters`: the γ of w/(2γ).
+fn fixed_tension(parameters: &BTreeMap<String, ParameterConfig>) -> Option<Real> {
+    parameters.get(FitParameter::SurfaceTension.name()).and_then(|p| p.value)
+}
+
+/// Why [`ADHESION_RATIO`] in `parameters` cannot mean one ω (the reason, without the key): `adhesion`
+/// given too, or no fixed `surface_tension`; `None` when it is absent or consistent. The config check
+/// and [`resolve_adhesion_ratio`] both ask it.
+pub(super) fn adhesion_ratio_conflict(parameters: &BTreeMap<String, ParameterConfig>) -> Option<String> {
+    if !parameters.contains_key(ADHESION_RATIO) {
+        None
+    } else if parameters.contains_key(FitParameter::Adhesion.name()) {
+        Some("give it or `adhesion` (ω in Pa/m), not both: they set the same parameter".into())
+    } else if fixed_tension(parameters).is_none() {
+        Some("needs the tension γ of w/(2γ) fixed: give [parameters.surface_tension] a `value` (e.g. 1e-3)".into())
+    } else {
+        None
+    }
+}
+
 /// `parameters` with [`ADHESION_RATIO`] (its bounds, start or value given as w/(2γ)) written as
 /// `adhesion` in Pa/m, ω = 4γ·(w/(2γ))/c², with γ the fixed `surface_tension` and c the model's
 /// contact cutoff `cutoff` (m; after `forward.match_mesh_length`); the other entries unchanged.
@@ -94,17 +114,15 @@ pub fn resolve_adhesion_ratio(
         return Ok(parameters.clone());
     };
     let err = |m: String| InferenceError::Config(format!("parameters.{ADHESION_RATIO}: {m}"));
-    if parameters.contains_key(FitParameter::Adhesion.name()) {
-        return Err(err("give it or `adhesion` (ω in Pa/m), not both: they set the same parameter".into()));
+    if let Some(m) = adhesion_ratio_conflict(parameters) {
+        return Err(err(m));
     }
     if !spring {
         return Err(err("w/(2γ) = ω·c²/(4γ) is the spring contacts' adhesion; the model's contacts are coupled (set \
              numerics.contact_model = \"spring\", or fit surface_tension_lateral)"
             .into()));
     }
-    let gamma = parameters.get(FitParameter::SurfaceTension.name()).and_then(|p| p.value).ok_or_else(|| {
-        err("needs the tension γ of w/(2γ) fixed: give [parameters.surface_tension] a `value` (e.g. 1e-3)".into())
-    })?;
+    let gamma = fixed_tension(parameters).expect("adhesion_ratio_conflict checked it");
     if !(cutoff.is_finite() && cutoff > 0.0) {
         return Err(err(format!(
             "needs a positive contact cutoff c; the model has numerics.contact_cutoff = {cutoff}"
