@@ -620,6 +620,26 @@ fn tensions<'py>(
         ..Default::default()
     };
     let kind = if kind == "labels" { "labels" } else { "tissue" };
+    if labelled.is_none() && tissuefit::morphology::sheet::is_sheet(&tissue.tissue) {
+        // A 2.5-D sheet: relative line tensions of its walls, in-plane pressures.
+        if gauge_tension.is_some() || one_medium_tension {
+            return Err(error(format!(
+                "tensions: {file} is a 2.5-D cell sheet (open cell patches of one surface): its walls' line tensions \
+                 are relative to the gauge; gauge_tension and one_medium_tension apply to 3-D cells"
+            )));
+        }
+        let gauge = settings.gauge;
+        let outcome = py.detach(|| stages::tensions::run_sheet(&tissue.tissue, gauge, file, &out)).map_err(error)?;
+        let mut faces = Vec::with_capacity(tissue.tissue.len());
+        let mut at = 0;
+        for cell in tissue.tissue.cells() {
+            let n = cell.mesh().face_count();
+            faces.push(outcome.face_tension[at..at + n].to_vec().into_pyarray(py));
+            at += n;
+        }
+        let summary = serde_json::to_string(&outcome.summary).map_err(error)?;
+        return Ok((faces, outcome.pressure.into_pyarray(py), summary));
+    }
     let input = stages::tensions::TensionsInput { file, kind, gauge_in_mn_per_m: gauge_tension.is_some() };
     let estimated = labelled.as_ref().unwrap_or(&tissue.tissue);
     let outcome = py.detach(|| stages::tensions::run(estimated, &settings, &input, &out)).map_err(error)?;

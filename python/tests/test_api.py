@@ -183,6 +183,51 @@ def test_tensions_are_the_cli_tensions(demo, tmp_path):
         tf.tensions(m.tissue, far_field="nearby")
 
 
+def _y_junction_ply(angles_deg):
+    """Three flat cells around one junction at the origin, walls along ``angles_deg``, as a PLY with
+    a per-face ``label``: cell k + 1 spans the walls k and k + 1 out to radius 1 µm (its rim)."""
+    a = np.radians(np.asarray(angles_deg, dtype=float))
+    points, faces, index = [], [], {}
+
+    def point(key, xy):
+        if key not in index:
+            index[key] = len(points)
+            points.append((xy[0], xy[1], 0.0))
+        return index[key]
+
+    for k in range(3):
+        lo, hi = a[k], a[(k + 1) % 3] + (2 * np.pi if k == 2 else 0.0)
+        ring = [point("o", (0.0, 0.0))]
+        ring += [point(("w", k, r), (r * np.cos(lo), r * np.sin(lo))) for r in (0.5, 1.0)]
+        ring += [point(("rim", k, m), (np.cos(lo + (hi - lo) * m / 6), np.sin(lo + (hi - lo) * m / 6))) for m in range(1, 6)]
+        ring += [point(("w", (k + 1) % 3, r), (r * np.cos(hi), r * np.sin(hi))) for r in (1.0, 0.5)]
+        centre = point(("c", k), (0.5 * np.cos(0.5 * (lo + hi)), 0.5 * np.sin(0.5 * (lo + hi))))
+        faces += [(centre, ring[i], ring[(i + 1) % len(ring)], k + 1) for i in range(len(ring))]
+    text = "ply\nformat ascii 1.0\nelement vertex %d\nproperty double x\nproperty double y\nproperty double z\n" % len(points)
+    text += "element face %d\nproperty list uchar int vertex_indices\nproperty int label\nend_header\n" % len(faces)
+    text += "".join("%.17g %.17g %.17g\n" % p for p in points)
+    text += "".join("3 %d %d %d %d\n" % f for f in faces)
+    return text
+
+
+def test_a_ply_sheet_gives_the_law_of_sines_at_its_junction(tmp_path):
+    # Walls at 0°, 135° and 240°: each wall's tension ∝ the sine of the angle between the other two.
+    path = tmp_path / "y.ply"
+    path.write_text(_y_junction_ply([0.0, 135.0, 240.0]))
+    sheet = tf.read_tissue(path, length_unit="um")
+    m = tf.tensions(sheet, out=tmp_path / "py")
+    assert m.summary["input"] == "sheet" and m.summary["junctions"] == 1
+    want = {(1, 3): np.sin(np.radians(105)), (1, 2): np.sin(np.radians(120)), (2, 3): np.sin(np.radians(135))}
+    mean = sum(want.values()) / 3
+    got = {(a, b): t for a, b, t in zip(m.interfaces["cell_a"], m.interfaces["cell_b"], m.interfaces["tension"])}
+    for pair, value in want.items():
+        assert got[pair] == pytest.approx(value / mean, rel=1e-9), pair
+    cli("tensions", str(path), "--length-unit", "um", "--out", str(tmp_path / "cli"))
+    assert (tmp_path / "py" / "interfaces.csv").read_bytes() == (tmp_path / "cli" / "interfaces.csv").read_bytes()
+    with pytest.raises(tf.TissuefitError, match="2.5-D cell sheet"):
+        tf.tensions(sheet, gauge_tension=1.0)
+
+
 def test_the_demo_fit_gives_the_cli_numbers_bit_for_bit(demo, tmp_path):
     # The README's demo: pipelines/demo.toml's [fit] (with its [input] seed and [mesh] settings), on
     # the volume read here, against `tissuefit fit --config pipelines/demo.toml`.

@@ -254,7 +254,8 @@ def mesh(
 
 def read_tissue(path: PathLike, length_unit: Optional[str] = None) -> Tissue:
     """Reads a tissue file: .vtp (ours, or ParaView's), SimuCell3D legacy .vtk, multi-material
-    meshes. ``length_unit`` ("m", "um", "nm", "px:0.2um"...) for files that do not record theirs
+    meshes (.vtk or .ply), 2.5-D cell sheets (.ply: open cell patches of one surface, for
+    :func:`tensions`). ``length_unit`` ("m", "um", "nm", "px:0.2um"...) for files that do not record theirs
     (default metres)."""
     return Tissue(_native.read_tissue(os.fspath(path), length_unit))
 
@@ -376,7 +377,9 @@ def tensions(
 ) -> TensionMap:
     """Estimates every interface's tension and every cell's pressure from the shapes of a
     :class:`Tissue` or of a label volume (meshed first as :func:`mesh` does, with ``voxel_size``
-    in µm), as ``tissuefit tensions`` does.
+    in µm), as ``tissuefit tensions`` does. On a 2.5-D cell sheet (open cell patches of one
+    surface, e.g. a PLY epidermis) it estimates the walls' line tensions at the junctions and
+    in-plane pressures instead (``summary["input"] == "sheet"``; no ``gauge_tension``).
 
     ``gauge``: the interface (a, b) whose tension is the unit (0 = the medium; default: the mean of
     the cell–medium tensions); ``gauge_tension``: that tension in mN/m, when known (tensions are then

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct ConvertArgs {
-    /// Input tissue file (.vtk or .vtp).
+    /// Input tissue file (.vtk, .vtp or .ply).
     pub input: PathBuf,
     /// Output file: .vtp (ParaView PolyData) or .vtk (SimuCell3D legacy, opens in the reference program).
     pub output: PathBuf,

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct InspectArgs {
-    /// Tissue file (.vtk or .vtp).
+    /// Tissue file (.vtk, .vtp or .ply).
     pub file: PathBuf,
     /// Print one JSON object instead of a table.
     #[arg(long)]

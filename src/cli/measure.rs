@@ -23,7 +23,7 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct MeasureArgs {
-    /// Tissue file (.vtk or .vtp), or a label volume (0 = background) measured directly on its voxels
+    /// Tissue file (.vtk, .vtp or .ply). or a label volume (0 = background) measured directly on its voxels
     /// (cell ids = labels): a TIFF stack (.tif/.tiff), an OME-Zarr label or image group (a .zarr
     /// folder), an HDF5 dataset (.h5, e.g. PlantSeg's; FILE.h5/DATASET names one) or a NumPy .npy
     /// array, recognised by content.

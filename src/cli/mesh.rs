@@ -29,7 +29,7 @@ pub struct MeshArgs {
     /// Label volume (0 = background): a TIFF stack (.tif/.tiff, ImageJ/OME voxel size), an OME-Zarr
     /// label or image group (a .zarr folder, NGFF 0.4/0.5), an HDF5 dataset (.h5, e.g. PlantSeg's,
     /// element_size_um voxel size; FILE.h5/DATASET names one) or a NumPy .npy array; or a tissue mesh
-    /// (.vtk/.vtp, e.g. a multi-material mesh from an image tool) to re-triangulate.
+    /// (.vtk/.vtp/.ply, e.g. a multi-material mesh from an image tool) to re-triangulate.
     /// Not with --config (the pipeline's `[input]` names the labels).
     #[arg(required_unless_present = "config", conflicts_with = "config")]
     pub labels: Option<PathBuf>,

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct PolarizeArgs {
-    /// Input tissue file (.vtk or .vtp).
+    /// Input tissue file (.vtk, .vtp or .ply).
     pub input: PathBuf,
     /// Output file: .vtp (ParaView; colour by the face_type cell array: 0 apical, 1 lateral, 2 basal)
     /// or .vtk (SimuCell3D legacy).

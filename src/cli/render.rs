@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
-    /// Tissue file (.vtk or .vtp).
+    /// Tissue file (.vtk, .vtp or .ply).
     pub tissue: PathBuf,
     /// Output picture (.png).
     #[arg(long, value_name = "VIEW.png")]

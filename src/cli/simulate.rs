@@ -22,7 +22,7 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct SimulateArgs {
-    /// Input tissue (.vtk or .vtp).
+    /// Input tissue (.vtk, .vtp or .ply).
     #[arg(required_unless_present = "resume", conflicts_with = "resume")]
     pub tissue: Option<PathBuf>,
     /// Parameter file (TOML; see `tissuefit config defaults`), or a pipeline file (one with an `[input]`

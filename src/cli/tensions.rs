@@ -3,6 +3,8 @@
 //! from the shapes alone (force balance at the junction lines, Young–Laplace on the interfaces; see
 //! [`crate::morphology::tensions`]) into `interfaces.csv`, `cells.csv`, `summary.json`, `tensions.vtp`
 //! and `cell_overrides.toml`, written together (all or nothing). A label TIFF is meshed first as `tissuefit mesh` meshes it.
+//! A 2.5-D cell sheet (open cell patches of one surface) gets the walls' line tensions of
+//! [`crate::morphology::sheet`] instead.
 
 use super::label_args::{describe_grid, parse_voxel_size};
 use super::{InputArgs, Outcome};
@@ -14,21 +16,23 @@ use crate::mesh::Tissue;
 use crate::meshing::{
     BorderPolicy, DEFAULT_MIN_VOXELS, DEFAULT_TARGET_NODES, LabelMeshingOptions, label_interfaces, mesh_labels,
 };
+use crate::morphology::sheet::is_sheet;
 use crate::morphology::tensions::{FarField, FieldOfView, Gauge, TensionMap, TensionSettings};
 use crate::stages::measure::is_labels;
-use crate::stages::tensions::{OUTPUT_FILES, Summary, TensionsInput};
+use crate::stages::tensions::{OUTPUT_FILES, SHEET_OUTPUT_FILES, Summary, TensionsInput};
 use anyhow::{Context, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct TensionsArgs {
-    /// Tissue file (.vtk or .vtp, per-cell or multi-material), or a label volume (0 = background: a
-    /// TIFF stack, an OME-Zarr .zarr folder, an HDF5 .h5 dataset or a NumPy .npy), meshed first as
-    /// `tissuefit mesh` does (cell ids = labels).
+    /// Tissue file (.vtk, .vtp or .ply, per-cell or multi-material), or a label volume (0 = background:
+    /// a TIFF stack, an OME-Zarr .zarr folder, an HDF5 .h5 dataset or a NumPy .npy), meshed first as
+    /// `tissuefit mesh` does (cell ids = labels). A 2.5-D cell sheet (every cell an open patch of one
+    /// surface, e.g. a PLY epidermis) gets its walls' line tensions from the junctions instead.
     pub tissue: PathBuf,
     /// Output directory (created if missing): interfaces.csv, cells.csv, summary.json, tensions.vtp,
-    /// cell_overrides.toml.
+    /// cell_overrides.toml, tensions.png (a 2.5-D sheet: walls.vtp instead of cell_overrides.toml).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Which tension fixes the scale: `medium` (the mean of the cell–medium tensions) or an interface
@@ -163,8 +167,14 @@ fn read_input(args: &TensionsArgs) -> anyhow::Result<(Tissue, &'static str, Labe
 }
 
 pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
-    OutputPolicy::new().input("TISSUE", &args.tissue).folder("--out", &args.out, &OUTPUT_FILES)?;
+    // A sheet writes walls.vtp instead of cell_overrides.toml: check the files of both.
+    let mut files = OUTPUT_FILES.to_vec();
+    files.extend(SHEET_OUTPUT_FILES.iter().filter(|n| !OUTPUT_FILES.contains(n)));
+    OutputPolicy::new().input("TISSUE", &args.tissue).folder("--out", &args.out, &files)?;
     let (tissue, input, grid) = read_input(args)?;
+    if grid.is_none() && is_sheet(&tissue) {
+        return run_sheet(args, &tissue);
+    }
     let (voxel, field_of_view) = grid.unzip();
     let settings = TensionSettings {
         contact_distance: args.contact_distance,
@@ -180,6 +190,64 @@ pub fn run(args: &TensionsArgs) -> anyhow::Result<Outcome> {
     let described = TensionsInput { file: &file, kind: input, gauge_in_mn_per_m: args.gauge_tension.is_some() };
     let outcome = crate::stages::tensions::run(&tissue, &settings, &described, &args.out)?;
     print_summary(&mut std::io::stdout().lock(), &args.tissue, &outcome.map, &outcome.summary)?;
+    Ok(Outcome::Success)
+}
+
+/// A 2.5-D sheet (open cell patches of one surface): the walls' line tensions.
+fn run_sheet(args: &TensionsArgs, tissue: &Tissue) -> anyhow::Result<Outcome> {
+    let given: Vec<&str> = [
+        (args.gauge_tension.is_some(), "--gauge-tension"),
+        (args.one_medium_tension, "--one-medium-tension"),
+        (args.contact_distance.is_some(), "--contact-distance"),
+        (args.distance_contacts, "--distance-contacts"),
+    ]
+    .iter()
+    .filter(|(set, _)| *set)
+    .map(|(_, name)| *name)
+    .collect();
+    if !given.is_empty() {
+        bail!(
+            "{} is a 2.5-D cell sheet (every cell an open patch of one surface): its walls carry line tensions,              estimated relative to the gauge (the mean wall tension, or --gauge A-B); {} apply to 3-D cells. Leave them              out",
+            args.tissue.display(),
+            given.join(", ")
+        );
+    }
+    tracing::info!(
+        "{}: a 2.5-D cell sheet ({} open cell patches): estimating the walls' line tensions at the junctions",
+        args.tissue.display(),
+        tissue.len()
+    );
+    let file = args.tissue.display().to_string();
+    let outcome = crate::stages::tensions::run_sheet(tissue, args.gauge, &file, &args.out)?;
+    let s = &outcome.summary;
+    let opt = |v: Option<Real>| v.map_or("n/a".to_string(), |x| format!("{x:.3}"));
+    let mut out = std::io::stdout().lock();
+    writeln!(
+        out,
+        "{}: 2.5-D sheet, {} cells ({} on the rim), {} walls ({} determined), {} junctions ({} on the rim left out), \
+         {:.3} s",
+        args.tissue.display(),
+        s.cells,
+        s.cells_on_rim,
+        s.interfaces,
+        s.determined_interfaces,
+        s.junctions,
+        s.junctions_on_rim,
+        s.wall_seconds
+    )?;
+    writeln!(
+        out,
+        "  gauge: {} = 1; force-balance residual rms {} (median {}); median relative sd {}; relative in-plane \
+         pressures for {} cells",
+        s.gauge,
+        opt(s.residual_rms),
+        opt(s.residual_median),
+        s.median_relative_sd.map_or("n/a".to_string(), |m| format!("{:.1} %", 100.0 * m)),
+        s.determined_pressures
+    )?;
+    if !s.warnings.is_empty() {
+        writeln!(out, "  {} warning(s) in summary.json", s.warnings.len())?;
+    }
     Ok(Outcome::Success)
 }
 

@@ -13,7 +13,7 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct VoxelizeArgs {
-    /// Tissue file (.vtk or .vtp).
+    /// Tissue file (.vtk, .vtp or .ply).
     pub tissue: PathBuf,
     /// Output label TIFF.
     #[arg(long)]

@@ -1,5 +1,5 @@
 //! Tissue files in and out: SimuCell3D legacy VTK (polyhedra), multi-material triangle meshes from
-//! image tools (VTK 4.2 and 5.1), ParaView `.vtp` + `.pvd` series.
+//! image tools (VTK 4.2 and 5.1, PLY), ParaView `.vtp` + `.pvd` series.
 //!
 //! Lengths inside tissuefit are metres. Files from image tools are in voxels or µm; a
 //! [`LengthScale`] converts them on reading.
@@ -9,6 +9,7 @@ mod error;
 mod legacy_parse;
 mod legacy_tissue;
 mod legacy_write;
+mod ply;
 mod progress;
 mod pvd;
 mod read;

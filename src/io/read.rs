@@ -3,6 +3,7 @@
 use super::legacy_parse::parse_legacy;
 use super::legacy_tissue::tissue_from_grid;
 use super::legacy_write::write_simucell3d;
+use super::ply::parse_ply;
 use super::{CellField, IoError, LengthScale, OutputUnit, TissueFormat, write_vtp_in};
 use crate::geometry::{Vec3, bounding_box};
 use crate::mesh::Tissue;
@@ -29,7 +30,7 @@ pub struct ReadReport {
     pub warnings: Vec<String>,
 }
 
-/// Reads a tissue from a legacy VTK (`.vtk`) or ParaView PolyData (`.vtp`) file.
+/// Reads a tissue from a legacy VTK (`.vtk`), ParaView PolyData (`.vtp`) or PLY (`.ply`) file.
 ///
 /// Cells with mesh defects (holes, non-manifold edges) are read as they are; `CellMesh::check`
 /// reports the defects. Structural problems (truncated file, wrong counts, indices out of range,
@@ -55,10 +56,17 @@ pub fn read_tissue_bytes(path: &Path, bytes: &[u8], options: &ReadOptions) -> Re
         } else if head.starts_with(b"# vtk") || ext.as_deref() == Some("vtk") {
             let grid = parse_legacy(path, bytes)?;
             tissue_from_grid(path, &grid, &mut warnings)?
+        } else if head.starts_with(b"ply") || ext.as_deref() == Some("ply") {
+            let (grid, ply_warnings) = parse_ply(path, bytes)?;
+            warnings.extend(ply_warnings);
+            tissue_from_grid(path, &grid, &mut warnings)?
         } else {
             return Err(IoError::Unsupported {
                 path: path.into(),
-                message: "unknown file type; tissuefit reads legacy VTK (.vtk) and ParaView PolyData (.vtp)".into(),
+                message:
+                    "unknown file type; tissuefit reads legacy VTK (.vtk), ParaView PolyData (.vtp) and PLY (.ply) \
+                          meshes"
+                        .into(),
             });
         };
     for cell in tissue.cells() {

@@ -35,6 +35,7 @@ mod measure;
 pub mod measure_labels;
 pub mod nucleus;
 pub mod rim_angle;
+pub mod sheet;
 mod summary;
 pub mod tensions;
 

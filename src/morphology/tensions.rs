@@ -961,23 +961,23 @@ fn near_other_lines(samples: &[Sample], radius: Real) -> Vec<bool> {
 }
 
 /// One force-balance equation: coefficients per unknown, its junction line and sample.
-struct Row {
-    coefficients: Vec<(usize, Real)>,
-    line: usize,
-    sample: usize,
+pub(super) struct Row {
+    pub(super) coefficients: Vec<(usize, Real)>,
+    pub(super) line: usize,
+    pub(super) sample: usize,
 }
 
 /// The tensions solved block by block (see the module docs).
-struct Solved {
-    tension: Vec<Option<Real>>,
-    tension_sd: Vec<Option<Real>>,
-    condition: Option<Real>,
-    gap: Option<Real>,
-    sampled: Vec<bool>,
-    warnings: Vec<String>,
+pub(super) struct Solved {
+    pub(super) tension: Vec<Option<Real>>,
+    pub(super) tension_sd: Vec<Option<Real>>,
+    pub(super) condition: Option<Real>,
+    pub(super) gap: Option<Real>,
+    pub(super) sampled: Vec<bool>,
+    pub(super) warnings: Vec<String>,
 }
 
-fn solve_tensions(
+pub(super) fn solve_tensions(
     rows: &[Row],
     n: usize,
     gauge_unknowns: &[usize],
@@ -1362,6 +1362,16 @@ struct LaplaceRow {
     b: Option<usize>,
     value: Real,
     variance: Real,
+}
+
+/// [`laplace_least_squares`] over rows `(a, b, value, variance)`: p_a − p_b = value between two cells.
+pub(super) fn laplace_least_squares_rows(
+    rows: &[(usize, usize, Real, Real)],
+    unknowns: &[usize],
+) -> Option<(DVector<Real>, DMatrix<Real>, Real)> {
+    let rows: Vec<LaplaceRow> =
+        rows.iter().map(|&(a, b, value, variance)| LaplaceRow { a, b: Some(b), value, variance }).collect();
+    laplace_least_squares(&rows.iter().collect::<Vec<_>>(), unknowns)
 }
 
 /// Least squares over `rows` in the `unknowns` (tissue indices): the minimum-norm solution (where only

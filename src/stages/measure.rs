@@ -267,6 +267,14 @@ pub fn run(input: &Path, options: &MeasureOptions, out: &Path) -> Result<Measure
     let zarr_target = options.config.zarr_properties.then(|| zarr_properties_target(input, options)).transpose()?;
     let measured = read_input(input, options)?;
     match &measured {
+        Input::Tissue(tissue) if crate::morphology::sheet::is_sheet(tissue) => {
+            return Err(err(format!(
+                "{} is a 2.5-D cell sheet ({} open cell patches of one surface): volumes, sphericity and contact angles \
+                 need closed 3-D cells; `tissuefit tensions` maps a sheet's wall tensions",
+                input.display(),
+                tissue.len()
+            )));
+        }
         Input::Tissue(_) if options.labels.any_set() => {
             return Err(err(format!(
                 "{} is a tissue mesh: --voxel-size, --zarr-level, --border, --lumen-labels, --min-voxels and \

@@ -10,6 +10,7 @@ use crate::geometry::Real;
 use crate::io::{CellField, OutputGroup, vtp_bytes};
 use crate::mesh::Tissue;
 use crate::morphology::ContactRule;
+use crate::morphology::sheet::{SheetTensionMap, WallTension, estimate_sheet_tensions};
 use crate::morphology::tensions::{
     CellPressure, Gauge, PerCellTensions, TensionMap, TensionSettings, estimate_tensions, per_cell_tensions,
 };
@@ -52,6 +53,13 @@ pub fn run(
     input: &TensionsInput<'_>,
     out: &Path,
 ) -> Result<TensionsOutcome, StageError> {
+    if crate::morphology::sheet::is_sheet(tissue) {
+        return Err(err(format!(
+            "{} is a 2.5-D cell sheet (every cell an open patch of one surface): its wall tensions come from the sheet \
+             estimate (`tissuefit tensions` picks it), not the 3-D one",
+            input.file
+        )));
+    }
     let start = Instant::now();
     // 0 is the medium in the maps: a file numbering its cells from 0 (SimuCell3D's) is renumbered.
     let from_zero = tissue.cells().iter().any(|c| c.id().0 == 0);
@@ -365,4 +373,278 @@ fn write_outputs(
     group.write_bytes(&png, &picture).map_err(|e| io(&png, &e))?;
     group.commit().map_err(|e| format!("writing the outputs into {}: {e}", dir.display()))?;
     Ok(Fields { face_tension, pressure })
+}
+
+/// What the sheet stage writes into its folder, all or nothing.
+pub const SHEET_OUTPUT_FILES: [&str; 6] =
+    ["interfaces.csv", "cells.csv", "summary.json", "tensions.vtp", "walls.vtp", "tensions.png"];
+
+/// What [`run_sheet`] estimated and wrote.
+pub struct SheetOutcome {
+    pub map: SheetTensionMap,
+    /// Per face in tissue order: the tension of the wall it borders, else the mean of its cell's
+    /// determined walls (NaN where none), in the summary's `tension_unit`.
+    pub face_tension: Vec<Real>,
+    /// Every cell's relative in-plane pressure in tissue order (NaN where undetermined).
+    pub pressure: Vec<Real>,
+    pub summary: SheetSummary,
+}
+
+/// `summary.json` of a 2.5-D sheet.
+#[derive(Serialize)]
+pub struct SheetSummary {
+    pub file: String,
+    /// Always `sheet`: open cell patches of one surface, line tensions of the walls.
+    pub input: &'static str,
+    pub method: &'static str,
+    pub cells: usize,
+    pub cells_on_rim: usize,
+    /// Walls (cell pairs) and those with a tension.
+    pub interfaces: usize,
+    pub determined_interfaces: usize,
+    pub determined_pressures: usize,
+    pub gauge: String,
+    pub gauge_value: Real,
+    /// Line tensions relative to the gauge; in-plane pressures in gauge tension per µm.
+    pub tension_unit: &'static str,
+    pub pressure_unit: &'static str,
+    pub uncertainty: &'static str,
+    pub junctions: usize,
+    pub junctions_on_rim: usize,
+    pub non_manifold_edges: usize,
+    pub unknowns: usize,
+    pub condition_number: Option<Real>,
+    pub spectral_gap: Option<Real>,
+    pub residual_rms: Option<Real>,
+    pub residual_median: Option<Real>,
+    pub median_relative_sd: Option<Real>,
+    pub wall_seconds: f64,
+    pub threads: usize,
+    pub warnings: Vec<String>,
+}
+
+/// A row of a sheet's `interfaces.csv`.
+#[derive(Serialize, Default)]
+struct WallRow {
+    cell_a: u32,
+    cell_b: u32,
+    tension: Option<Real>,
+    tension_sd: Option<Real>,
+    determined: bool,
+    length_um: Real,
+    junctions: usize,
+    curvature_per_um: Option<Real>,
+    on_rim: bool,
+}
+
+/// A row of a sheet's `cells.csv`.
+#[derive(Serialize, Default)]
+struct SheetCellRow {
+    cell: u32,
+    area_um2: Real,
+    walls: usize,
+    on_rim: bool,
+    pressure_relative: Option<Real>,
+    pressure_relative_sd: Option<Real>,
+}
+
+/// Estimates the wall tensions of a 2.5-D cell sheet ([`crate::morphology::sheet`]) and writes
+/// [`SHEET_OUTPUT_FILES`] into `out`, all or nothing. Tensions are relative: the gauge's is 1.
+pub fn run_sheet(tissue: &Tissue, gauge: Gauge, file: &str, out: &Path) -> Result<SheetOutcome, StageError> {
+    let start = Instant::now();
+    let gauge_value = 1.0;
+    let map = estimate_sheet_tensions(tissue, gauge, gauge_value)
+        .map_err(|e| err(format!("estimating the wall tensions of the sheet {file}: {e}")))?;
+    let wall_seconds = start.elapsed().as_secs_f64();
+    let mut warnings = map.warnings.clone();
+    let mut relative: Vec<Real> =
+        map.walls.iter().filter_map(|w| Some(w.tension_sd? / w.tension?.abs())).filter(|x| x.is_finite()).collect();
+    relative.sort_by(|a, b| a.total_cmp(b));
+    let median_relative_sd = (!relative.is_empty()).then(|| relative[relative.len() / 2]);
+    if let Some(m) = median_relative_sd
+        && m > crate::morphology::tensions::POOR_RELATIVE_SD
+    {
+        warnings.push(format!(
+            "the map is poorly determined: the median relative tension sd is {:.0} % (the junctions do not balance \
+             consistently; walls on a coarse or noisy mesh)",
+            100.0 * m
+        ));
+    }
+    if map.walls.iter().all(|w| w.curvature.is_none()) {
+        warnings.push(format!(
+            "no wall piece has the {} vertices a curvature needs (walls drawn as one to three straight edges): no \
+             in-plane pressures",
+            crate::morphology::sheet::MIN_CURVATURE_POINTS
+        ));
+    }
+    for w in &warnings {
+        tracing::warn!("{file}: {w}");
+    }
+    let (tension_unit, pressure_unit) = ("gauge", "gauge/um");
+    let summary = SheetSummary {
+        file: file.to_string(),
+        input: "sheet",
+        method: "2.5-D: line tensions of the walls from the force balance at the tricellular junctions in the \
+                 surface's tangent plane (circle-fitted wall tangents); relative in-plane pressures from the walls' \
+                 geodesic curvature",
+        cells: map.cells.len(),
+        cells_on_rim: map.cells.iter().filter(|c| c.on_rim).count(),
+        interfaces: map.walls.len(),
+        determined_interfaces: map.walls.iter().filter(|w| w.determined).count(),
+        determined_pressures: map.cells.iter().filter(|c| c.pressure_relative.is_some()).count(),
+        gauge: map.gauge.clone(),
+        gauge_value,
+        tension_unit,
+        pressure_unit,
+        uncertainty: "tension_sd: first-order propagation of the junctions' force residuals, cluster-robust by \
+                      junction; biases shared by all junctions are not in it",
+        junctions: map.junctions,
+        junctions_on_rim: map.junctions_on_rim,
+        non_manifold_edges: map.non_manifold_edges,
+        unknowns: map.walls.len(),
+        condition_number: map.condition_number,
+        spectral_gap: map.spectral_gap.filter(|g| g.is_finite()),
+        residual_rms: map.residual_rms,
+        residual_median: map.residual_median,
+        median_relative_sd,
+        wall_seconds,
+        threads: rayon::current_num_threads(),
+        warnings,
+    };
+    // Per-face tension: the wall a face borders, else its cell's mean determined wall.
+    let mut cell_mean: std::collections::BTreeMap<u32, (Real, usize)> = std::collections::BTreeMap::new();
+    for w in &map.walls {
+        if let Some(t) = w.tension {
+            for c in [w.cell_a, w.cell_b] {
+                let e = cell_mean.entry(c).or_default();
+                e.0 += t;
+                e.1 += 1;
+            }
+        }
+    }
+    let mut face_tension = Vec::with_capacity(map.face_wall.len());
+    let mut at = 0;
+    for cell in tissue.cells() {
+        let mean = cell_mean.get(&cell.id().0).map_or(Real::NAN, |&(s, n)| s / n as Real);
+        for k in 0..cell.mesh().face_count() {
+            face_tension.push(map.face_wall[at + k].and_then(|w| map.walls[w].tension).unwrap_or(mean));
+        }
+        at += cell.mesh().face_count();
+    }
+    let by_id: std::collections::BTreeMap<u32, &crate::morphology::sheet::SheetCell> =
+        map.cells.iter().map(|c| (c.cell, c)).collect();
+    let pressure: Vec<Real> = tissue
+        .cells()
+        .iter()
+        .map(|c| by_id.get(&c.id().0).and_then(|p| p.pressure_relative).map_or(Real::NAN, |p| p * 1e-6))
+        .collect();
+    write_sheet_outputs(out, tissue, &map, &face_tension, &pressure, &summary).map_err(err)?;
+    Ok(SheetOutcome { map, face_tension, pressure, summary })
+}
+
+fn write_sheet_outputs(
+    dir: &Path,
+    tissue: &Tissue,
+    map: &SheetTensionMap,
+    face_tension: &[Real],
+    pressure: &[Real],
+    summary: &SheetSummary,
+) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    let walls: Vec<WallRow> = map
+        .walls
+        .iter()
+        .map(|w| WallRow {
+            cell_a: w.cell_a,
+            cell_b: w.cell_b,
+            tension: w.tension,
+            tension_sd: w.tension_sd,
+            determined: w.determined,
+            length_um: w.length * 1e6,
+            junctions: w.junctions,
+            curvature_per_um: w.curvature.map(|k| k * 1e-6),
+            on_rim: w.on_rim,
+        })
+        .collect();
+    let cells: Vec<SheetCellRow> = map
+        .cells
+        .iter()
+        .map(|c| SheetCellRow {
+            cell: c.cell,
+            area_um2: c.area * 1e12,
+            walls: c.walls,
+            on_rim: c.on_rim,
+            pressure_relative: c.pressure_relative.map(|p| p * 1e-6),
+            pressure_relative_sd: c.pressure_relative_sd.map(|p| p * 1e-6),
+        })
+        .collect();
+    let mut group = OutputGroup::new();
+    let io = |path: &Path, e: &dyn std::fmt::Display| format!("writing {}: {e}", path.display());
+    let path = dir.join("interfaces.csv");
+    write_csv(&mut group, &path, &walls, &WallRow::default()).map_err(|e| io(&path, &e))?;
+    let path = dir.join("cells.csv");
+    write_csv(&mut group, &path, &cells, &SheetCellRow::default()).map_err(|e| io(&path, &e))?;
+    let path = dir.join("summary.json");
+    group
+        .write(&path, |w| {
+            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
+            writeln!(w)
+        })
+        .map_err(|e| io(&path, &e))?;
+    let vtp = dir.join("tensions.vtp");
+    let fields = [
+        CellField { name: "tension", values: face_tension },
+        CellField { name: "pressure_relative", values: pressure },
+    ];
+    let bytes = vtp_bytes(&vtp, tissue, &fields, None).map_err(|e| io(&vtp, &e))?;
+    group.write_bytes(&vtp, &bytes).map_err(|e| io(&vtp, &e))?;
+    let path = dir.join("walls.vtp");
+    group.write_bytes(&path, walls_vtp(map).as_bytes()).map_err(|e| io(&path, &e))?;
+    let png = dir.join("tensions.png");
+    let picture = super::map_png(tissue, face_tension.to_vec(), "wall line tension (relative to the gauge)")
+        .map_err(|e| io(&png, &e))?;
+    group.write_bytes(&png, &picture).map_err(|e| io(&png, &e))?;
+    group.commit().map_err(|e| format!("writing the outputs into {}: {e}", dir.display()))
+}
+
+/// The wall pieces as ParaView PolyData lines (µm, recorded as the file's length unit) with each
+/// wall's cells, tension and sd (NaN where undetermined).
+fn walls_vtp(map: &SheetTensionMap) -> String {
+    let points: usize = map.pieces.iter().map(|(_, p)| p.len()).sum();
+    let mut s = String::from(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n<PolyData>\n",
+    );
+    s.push_str(&format!(
+        "<FieldData><Array type=\"String\" name=\"length_unit\" NumberOfTuples=\"1\" format=\"ascii\">um</Array></FieldData>\n\
+         <Piece NumberOfPoints=\"{points}\" NumberOfVerts=\"0\" NumberOfLines=\"{}\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n",
+        map.pieces.len()
+    ));
+    s.push_str("<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n");
+    for (_, piece) in &map.pieces {
+        for p in piece {
+            s.push_str(&format!("{:e} {:e} {:e}\n", p.x * 1e6, p.y * 1e6, p.z * 1e6));
+        }
+    }
+    s.push_str("</DataArray></Points>\n<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
+    let (mut at, mut offsets) = (0usize, Vec::new());
+    for (_, piece) in &map.pieces {
+        let ids: Vec<String> = (at..at + piece.len()).map(|i| i.to_string()).collect();
+        s.push_str(&ids.join(" "));
+        s.push('\n');
+        at += piece.len();
+        offsets.push(at.to_string());
+    }
+    s.push_str("</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
+    s.push_str(&offsets.join(" "));
+    s.push_str("\n</DataArray></Lines>\n<CellData Scalars=\"tension\">\n");
+    let column = |name: &str, value: &dyn Fn(&WallTension) -> Real| {
+        let values: Vec<String> = map.pieces.iter().map(|(w, _)| format!("{:e}", value(&map.walls[*w]))).collect();
+        format!("<DataArray type=\"Float64\" Name=\"{name}\" format=\"ascii\">\n{}\n</DataArray>\n", values.join(" "))
+    };
+    s.push_str(&column("tension", &|w| w.tension.unwrap_or(Real::NAN)));
+    s.push_str(&column("tension_sd", &|w| w.tension_sd.unwrap_or(Real::NAN)));
+    s.push_str(&column("cell_a", &|w| w.cell_a.into()));
+    s.push_str(&column("cell_b", &|w| w.cell_b.into()));
+    s.push_str("</CellData>\n</Piece>\n</PolyData>\n</VTKFile>\n");
+    s
 }

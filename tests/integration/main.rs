@@ -49,6 +49,7 @@ mod render;
 mod resource_bounds;
 mod retriangulate;
 mod scenarios;
+mod sheet_tensions;
 mod simulate_defaults;
 mod stage_parity;
 mod sweep;

@@ -130,6 +130,11 @@ pub enum SimulationError {
          `tissuefit inspect` lists every defect (--orient repairs inconsistent winding)"
     )]
     InvalidCell { cell: CellId, defect: crate::mesh::MeshDefect },
+    #[error(
+        "the tissue is a 2.5-D cell sheet ({cells} open cell patches of one surface, as an epidermis segmented on its \
+         outer wall): the model needs closed 3-D cells. `tissuefit tensions` maps a sheet's wall tensions"
+    )]
+    Sheet { cells: usize },
     #[error("step {step}, cell {cell}: {what}. {hint}")]
     Unhealthy { step: u64, cell: CellId, what: String, hint: String, last_good: LastGood },
     #[error("step {step}: remeshing failed: {source}")]
@@ -225,6 +230,9 @@ impl<'p> Simulation<'p> {
         }
         if let Some((cell, defect)) = tissue.cells().iter().find_map(|c| c.mesh().validate().err().map(|d| (c.id(), d)))
         {
+            if crate::morphology::sheet::is_sheet(&tissue) {
+                return Err(SimulationError::Sheet { cells: tissue.len() });
+            }
             return Err(SimulationError::InvalidCell { cell, defect });
         }
         set_laplace_target_volumes(&mut tissue, &cell_params)?;
