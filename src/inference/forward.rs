@@ -260,6 +260,13 @@ impl Observation {
         meshing: Option<LabelMeshingOptions>,
     ) -> Result<Self, super::InferenceError> {
         let l_min = meshing.as_ref().and_then(|m| m.l_min);
+        if crate::morphology::sheet::is_sheet(&tissue) {
+            return Err(super::InferenceError::Observed(format!(
+                "the observed tissue is a 2.5-D cell sheet ({} open cell patches of one surface): the model needs \
+                 closed 3-D cells to fit; `tissuefit tensions` maps a sheet's wall tensions",
+                tissue.len()
+            )));
+        }
         let moving: Vec<&crate::mesh::Cell> =
             tissue.cells().iter().filter(|c| c.kind().is_cell() && !c.kind().is_immobile()).collect();
         if moving.is_empty() {

@@ -24,8 +24,11 @@
 //! **Solve.** The same mean-constrained least squares as the 3-D estimate (see
 //! [`super::tensions`]): tensions are relative, scaled so that the gauge holds (by default the mean of
 //! all wall tensions is 1, or a named wall's is); unknowns sharing no junction form separate groups;
-//! a wall with no junction (both ends on the rim) is undetermined. Standard deviations are the
-//! first-order propagation of the junctions' residuals, cluster-robust by junction.
+//! a wall with no junction (both ends on the rim) is undetermined. Standard deviations propagate an
+//! isotropic noise of the vertex coordinates to first order (each tangent's derivatives with respect
+//! to its wall's vertices, by central differences), its variance estimated from the junctions'
+//! residuals; a wall's vertices enter both of its junctions, so their errors are correlated, which a
+//! clustering by junction would miss.
 //!
 //! **Pressures.** Where walls are curved, 2-D Young–Laplace p_a − p_b = T_ab κ_ab (κ the wall's
 //! geodesic curvature, positive when it bulges into b) gives each cell's in-plane pressure relative to
@@ -250,6 +253,27 @@ fn tangent(p: &[Vec3], n: &Vec3) -> Option<(Vec3, Real)> {
     Some((t, sign / radius))
 }
 
+/// ∂t/∂x for the tangent of [`tangent`] at `p[0]` with respect to every coordinate of every vertex
+/// of the arm (`chain` its vertex ids), by central differences of step `h`: (3·vertex + axis, ∂t).
+fn tangent_derivatives(chain: &[usize], p: &[Vec3], n: &Vec3, h: Real) -> Vec<(usize, Vec3)> {
+    let mut out = Vec::with_capacity(3 * p.len());
+    let mut moved = p.to_vec();
+    for (k, &vertex) in chain.iter().enumerate() {
+        for axis in 0..3 {
+            let original = moved[k][axis];
+            moved[k][axis] = original + h;
+            let plus = tangent(&moved, n);
+            moved[k][axis] = original - h;
+            let minus = tangent(&moved, n);
+            moved[k][axis] = original;
+            if let (Some((a, _)), Some((b, _))) = (plus, minus) {
+                out.push((3 * vertex + axis, (a - b) / (2.0 * h)));
+            }
+        }
+    }
+    out
+}
+
 /// The principal direction of the area-weighted normals of `faces` at a vertex.
 fn vertex_normal(points: &[Vec3], faces: &[[usize; 3]]) -> Option<Vec3> {
     let mut m = Matrix3::<Real>::zeros();
@@ -373,7 +397,7 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
         }
     }
     // Each junction's arms: the pieces that start or end there.
-    let mut arms: BTreeMap<usize, Vec<(usize, Vec<Vec3>)>> = BTreeMap::new();
+    let mut arms: BTreeMap<usize, Vec<(usize, Vec<usize>)>> = BTreeMap::new();
     for (wall, chain) in &pieces {
         for reversed in [false, true] {
             let mut c = chain.clone();
@@ -381,7 +405,7 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
                 c.reverse();
             }
             if is_junction(c[0]) && !rim[c[0]] && !(reversed && chain.first() == chain.last()) {
-                arms.entry(c[0]).or_default().push((*wall, c.iter().map(|&v| points[v]).collect()));
+                arms.entry(c[0]).or_default().push((*wall, c));
             }
         }
     }
@@ -392,15 +416,19 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
     for (&j, list) in &arms {
         let faces: Vec<[usize; 3]> = vertex_faces[j].iter().map(|&f| sheet.faces[f].0).collect();
         let Some(n) = vertex_normal(points, &faces) else { continue };
-        let Some(tangents) =
-            list.iter().map(|(wall, p)| tangent(p, &n).map(|(t, _)| (*wall, t))).collect::<Option<Vec<_>>>()
+        let positions: Vec<Vec<Vec3>> = list.iter().map(|(_, c)| c.iter().map(|&v| points[v]).collect()).collect();
+        let Some(tangents) = list
+            .iter()
+            .zip(&positions)
+            .map(|((wall, _), p)| tangent(p, &n).map(|(t, _)| (*wall, t)))
+            .collect::<Option<Vec<_>>>()
         else {
             continue;
         };
         // A wall's direction is known to about (vertex noise)/(its length): a junction's equations
         // weigh 1/√Σ(L̄/L_k)², so junctions at short walls count less (scale-free: L̄ the mean arm).
         let lengths: Vec<Real> =
-            list.iter().map(|(_, p)| p.windows(2).map(|w| (w[1] - w[0]).norm()).sum::<Real>()).collect();
+            positions.iter().map(|p| p.windows(2).map(|w| (w[1] - w[0]).norm()).sum::<Real>()).collect();
         let mean_length = lengths.iter().sum::<Real>() / lengths.len() as Real;
         let weight = 1.0 / lengths.iter().map(|l| (mean_length / l).powi(2)).sum::<Real>().sqrt();
         let e1 = {
@@ -409,12 +437,21 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
         };
         let e2 = n.cross(&e1);
         let line = junction_rows.len();
+        // How each tangent moves with its arm's vertices (central differences), for the sds.
+        let moves: Vec<Vec<(usize, Vec3)>> = list
+            .iter()
+            .zip(&positions)
+            .zip(&lengths)
+            .map(|(((_, chain), p), length)| tangent_derivatives(chain, p, &n, 1e-8 * length))
+            .collect();
         for e in [e1, e2] {
             let mut coefficients: BTreeMap<usize, Real> = BTreeMap::new();
-            for (wall, t) in &tangents {
+            let mut noise = Vec::new();
+            for (((wall, t), arm_moves), _) in tangents.iter().zip(&moves).zip(list) {
                 *coefficients.entry(*wall).or_default() += weight * t.dot(&e);
+                noise.extend(arm_moves.iter().map(|(coordinate, dt)| (*wall, *coordinate, weight * dt.dot(&e))));
             }
-            rows.push(Row { coefficients: coefficients.into_iter().collect(), line, sample: line });
+            rows.push(Row { coefficients: coefficients.into_iter().collect(), line, sample: line, noise });
         }
         let mut seen: Vec<usize> = tangents.iter().map(|(w, _)| *w).collect();
         seen.sort_unstable();

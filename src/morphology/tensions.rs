@@ -647,7 +647,7 @@ pub fn estimate_tensions(tissue: &Tissue, settings: &TensionSettings) -> Result<
                     None => coefficients.push((unknown_of[k], c)),
                 }
             }
-            rows.push(Row { coefficients, line: s.line, sample: si });
+            rows.push(Row { coefficients, line: s.line, sample: si, noise: Vec::new() });
         }
         local_sample[si] = is_local;
     }
@@ -965,6 +965,10 @@ pub(super) struct Row {
     pub(super) coefficients: Vec<(usize, Real)>,
     pub(super) line: usize,
     pub(super) sample: usize,
+    /// How the row's coefficients move with the input's vertex coordinates, as (unknown, coordinate,
+    /// ∂coefficient/∂coordinate): where given (the 2.5-D sheet), the sds propagate an isotropic
+    /// vertex noise estimated from the residuals instead of clustering by line.
+    pub(super) noise: Vec<(usize, usize, Real)>,
 }
 
 /// The tensions solved block by block (see the module docs).
@@ -1042,7 +1046,12 @@ pub(super) fn solve_tensions(
             }
         }
         let gauge: Vec<usize> = gauge_unknowns.iter().filter_map(|u| local_of.get(u).copied()).collect();
-        match solve_block(&a, &block_rows.iter().map(|r| r.line).collect::<Vec<_>>(), &gauge, value) {
+        let noise: Vec<Vec<(usize, usize, Real)>> = block_rows
+            .iter()
+            .map(|r| r.noise.iter().filter_map(|&(u, c, d)| Some((*local_of.get(&u)?, c, d))).collect())
+            .collect();
+        let lines: Vec<usize> = block_rows.iter().map(|r| r.line).collect();
+        match solve_block(&a, &lines, &noise, &gauge, value) {
             Some(solution) => {
                 for (l, &u) in members.iter().enumerate() {
                     tension[u] = Some(solution.tension[l]);
@@ -1254,7 +1263,13 @@ struct BlockSolution {
 /// (see the module docs), scaled so that the mean over `gauge` is `value`, and their cluster-robust
 /// standard deviations; `None` when the samples leave several balancing directions (the two smallest
 /// singular values of `a` coincide).
-fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value: Real) -> Option<BlockSolution> {
+fn solve_block(
+    a: &DMatrix<Real>,
+    line_of_row: &[usize],
+    noise: &[Vec<(usize, usize, Real)>],
+    gauge: &[usize],
+    value: Real,
+) -> Option<BlockSolution> {
     let m = a.ncols();
     if m == 1 {
         // A single unknown (all samples on one shared tension): only the gauge fixes it.
@@ -1299,20 +1314,26 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
     // x · value / g, not x · (value / g): a gauge tension comes out exactly `value`.
     let tension: DVector<Real> = v.map(|x| x * value / g);
     // First-order response to the samples' errors, estimated by the residuals r = A v: δv = −K Aᵀ r,
-    // clustered by line.
+    // clustered by line; or, where the rows say how they move with the vertices, from an isotropic
+    // vertex noise σ² estimated from the residuals (see `vertex_noise_meat`).
     let residual = a * &v;
-    let mut scores: BTreeMap<usize, DVector<Real>> = BTreeMap::new();
-    for (r, &line) in line_of_row.iter().enumerate() {
-        let row: DVector<Real> = a.row(r).transpose();
-        *scores.entry(line).or_insert_with(|| DVector::zeros(m)) += row * residual[r];
-    }
-    let groups = scores.len() as Real;
-    let mut meat = DMatrix::<Real>::zeros(m, m);
-    for s in scores.values() {
-        meat += s * s.transpose();
-    }
-    let correction = if groups > 1.0 { groups / (groups - 1.0) } else { 1.0 };
-    let cov_v = &k * meat * &k * correction;
+    let cov_v = match vertex_noise_meat(a, &v, &residual, &k, noise) {
+        Some(meat) => &k * meat * &k,
+        None => {
+            let mut scores: BTreeMap<usize, DVector<Real>> = BTreeMap::new();
+            for (r, &line) in line_of_row.iter().enumerate() {
+                let row: DVector<Real> = a.row(r).transpose();
+                *scores.entry(line).or_insert_with(|| DVector::zeros(m)) += row * residual[r];
+            }
+            let groups = scores.len() as Real;
+            let mut meat = DMatrix::<Real>::zeros(m, m);
+            for s in scores.values() {
+                meat += s * s.transpose();
+            }
+            let correction = if groups > 1.0 { groups / (groups - 1.0) } else { 1.0 };
+            &k * meat * &k * correction
+        }
+    };
     // T = value · v / g(v): J = (value / g) (I − v gᵀ / g), g = mean over the gauge entries.
     let mut gvec = DVector::<Real>::zeros(m);
     for &k in gauge {
@@ -1328,6 +1349,61 @@ fn solve_block(a: &DMatrix<Real>, line_of_row: &[usize], gauge: &[usize], value:
         condition: Some((largest / second).sqrt()),
         gap: Some(gap),
     })
+}
+
+/// Σ_c s_c s_cᵀ σ² for an isotropic noise σ² of the input's vertex coordinates: the residual of row
+/// i moves with coordinate c by g_ic = Σ_u v_u ∂A_iu/∂x_c, the solution by K s_c with s_c = Σ_i A_iᵀ
+/// g_ic, and E|r|² = σ² (Σ_ic g_ic² − Σ_c s_cᵀ K s_c) gives σ². Rows sharing a vertex (a wall seen at
+/// both its junctions) are correlated through it. `None` where no row carries a noise loading.
+fn vertex_noise_meat(
+    a: &DMatrix<Real>,
+    v: &DVector<Real>,
+    residual: &DVector<Real>,
+    k: &DMatrix<Real>,
+    noise: &[Vec<(usize, usize, Real)>],
+) -> Option<DMatrix<Real>> {
+    if noise.iter().all(|n| n.is_empty()) {
+        return None;
+    }
+    let m = a.ncols();
+    // g_ic per coordinate, then s_c.
+    let mut g: BTreeMap<usize, Vec<(usize, Real)>> = BTreeMap::new();
+    for (i, loadings) in noise.iter().enumerate() {
+        let mut by_coordinate: BTreeMap<usize, Real> = BTreeMap::new();
+        for &(u, c, d) in loadings {
+            *by_coordinate.entry(c).or_default() += v[u] * d;
+        }
+        for (c, value) in by_coordinate {
+            g.entry(c).or_default().push((i, value));
+        }
+    }
+    let mut total = 0.0;
+    let mut explained = 0.0;
+    let mut meat = DMatrix::<Real>::zeros(m, m);
+    for entries in g.values() {
+        // s_c is sparse: the unknowns of the few rows that coordinate c enters.
+        let mut s: BTreeMap<usize, Real> = BTreeMap::new();
+        for &(i, value) in entries {
+            total += value * value;
+            for (u, &x) in a.row(i).iter().enumerate() {
+                if x != 0.0 {
+                    *s.entry(u).or_default() += x * value;
+                }
+            }
+        }
+        for (&p, &sp) in &s {
+            for (&q, &sq) in &s {
+                explained += sp * k[(p, q)] * sq;
+                meat[(p, q)] += sp * sq;
+            }
+        }
+    }
+    let dof = total - explained;
+    if dof.is_nan() || dof <= 0.0 {
+        return None;
+    }
+    let sigma2 = residual.norm_squared() / dof;
+    Some(meat * sigma2)
 }
 
 /// Union–find over `parent` (each entry its own root at first): the root of `i`'s group, halving the
@@ -1628,7 +1704,7 @@ mod tests {
         let a = DMatrix::<Real>::from_fn(rows, m, |_, _| rng.random::<Real>() * 2.0 - 1.0);
         let lines: Vec<usize> = (0..rows).map(|r| r / 2).collect();
         let gauge = [1, 3];
-        let got = solve_block(&a, &lines, &gauge, 2.0).unwrap();
+        let got = solve_block(&a, &lines, &vec![Vec::new(); lines.len()], &gauge, 2.0).unwrap();
         let lagrange = (a.transpose() * &a).try_inverse().unwrap() * DVector::<Real>::from_element(m, 1.0);
         let scale = 2.0 / ((lagrange[1] + lagrange[3]) / 2.0);
         for k in 0..m {

@@ -584,3 +584,54 @@ fn real_simucell3d_doublet_and_triplet_converge_with_measured_fire_masses() {
         }
     }
 }
+
+/// The cellcomplex topomesh of an Arabidopsis shoot-apex L1 layer (PLY, 2.5-D: each triangle belongs
+/// to one cell, cells are open patches): read as a sheet, mapped by `tissuefit tensions` into the
+/// walls' line tensions, and refused by `simulate` and `measure` with the reason.
+#[test]
+#[ignore = "needs ../shared/data/real"]
+fn real_shoot_apex_sheet_reads_from_ply_and_maps_its_walls() {
+    use crate::support::cli::tissuefit;
+    let ply = real("cellcomplex__p194-t4_L1_topomesh.ply");
+    let read = read_tissue(&ply, &ReadOptions { length_scale: "um".parse().unwrap(), orient: false }).unwrap();
+    // 516 volume records, 25 of them without faces.
+    assert_eq!(read.tissue.len(), 491);
+    assert!(read.warnings.iter().any(|w| w.contains("25 `volume` records list no faces")), "{:?}", read.warnings);
+    assert!(tissuefit::morphology::sheet::is_sheet(&read.tissue));
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("map");
+    let o = tissuefit(&["tensions", ply.to_str().unwrap(), "--length-unit", "um", "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["input"], "sheet");
+    let (walls, determined) =
+        (summary["interfaces"].as_u64().unwrap(), summary["determined_interfaces"].as_u64().unwrap());
+    assert!(walls > 1300 && determined as f64 >= 0.95 * walls as f64, "{determined} of {walls} walls determined");
+    assert!(summary["junctions"].as_u64().unwrap() > 850);
+    let mut tensions: Vec<f64> = std::fs::read_to_string(out.join("interfaces.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').nth(2)?.parse().ok())
+        .collect();
+    tensions.sort_by(|a, b| a.total_cmp(b));
+    let median = tensions[tensions.len() / 2];
+    let non_positive = tensions.iter().filter(|&&t| t <= 0.0).count();
+    // The mean is the gauge (1): most walls pull alike, a few outliers (straight-walled topomesh).
+    assert!((0.8..1.2).contains(&median), "median wall tension {median}");
+    assert!(non_positive * 100 < tensions.len(), "{non_positive} walls ≤ 0");
+    for command in ["simulate", "measure"] {
+        let o = tissuefit(&[
+            command,
+            ply.to_str().unwrap(),
+            "--length-unit",
+            "um",
+            "--out",
+            dir.path().join(command).to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_ne!(o.status.code(), Some(0), "{command} accepted a sheet");
+        assert!(stderr.contains("2.5-D cell sheet") && stderr.contains("tissuefit tensions"), "{command}: {stderr}");
+    }
+}

@@ -76,7 +76,8 @@ fn noisy_vertices_cost_little_and_show_in_the_sds() {
     let (e, _) = errors(&got, &sheet);
     let median = e[e.len() / 2];
     assert!(median < 0.08, "median relative error {median:.3} at 2 % jitter");
-    // The sds are no longer 0, and most errors lie within 3 sds.
+    // The sds propagate a vertex noise estimated from the residuals: about two thirds of the truths
+    // lie within one sd (64 % over seeds 1–4 in the docs' table), nearly all within three.
     let within = got
         .walls
         .iter()
@@ -86,8 +87,10 @@ fn noisy_vertices_cost_little_and_show_in_the_sds() {
         })
         .collect::<Vec<_>>();
     let scale = within.iter().map(|x| x.0).sum::<f64>() / within.iter().map(|x| x.2).sum::<f64>();
-    let inside = within.iter().filter(|(t, sd, truth)| (t - truth * scale).abs() <= 3.0 * sd).count();
-    assert!(inside as f64 > 0.8 * within.len() as f64, "{inside} of {} within 3 sd", within.len());
+    let inside = |k: f64| within.iter().filter(|(t, sd, truth)| (t - truth * scale).abs() <= k * sd).count();
+    let n = within.len() as f64;
+    assert!(inside(1.0) as f64 > 0.5 * n && inside(1.0) as f64 <= 0.85 * n, "{} of {n} within 1 sd", inside(1.0));
+    assert!(inside(3.0) as f64 > 0.9 * n, "{} of {n} within 3 sd", inside(3.0));
 }
 
 #[test]
