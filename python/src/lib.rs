@@ -630,28 +630,34 @@ fn tensions<'py>(
         }
         let gauge = settings.gauge;
         let outcome = py.detach(|| stages::tensions::run_sheet(&tissue.tissue, gauge, file, &out)).map_err(error)?;
-        let mut faces = Vec::with_capacity(tissue.tissue.len());
-        let mut at = 0;
-        for cell in tissue.tissue.cells() {
-            let n = cell.mesh().face_count();
-            faces.push(outcome.face_tension[at..at + n].to_vec().into_pyarray(py));
-            at += n;
-        }
         let summary = serde_json::to_string(&outcome.summary).map_err(error)?;
-        return Ok((faces, outcome.pressure.into_pyarray(py), summary));
+        return Ok((
+            faces_per_cell(py, &tissue.tissue, &outcome.face_tension),
+            outcome.pressure.into_pyarray(py),
+            summary,
+        ));
     }
     let input = stages::tensions::TensionsInput { file, kind, gauge_in_mn_per_m: gauge_tension.is_some() };
     let estimated = labelled.as_ref().unwrap_or(&tissue.tissue);
     let outcome = py.detach(|| stages::tensions::run(estimated, &settings, &input, &out)).map_err(error)?;
-    let mut faces = Vec::with_capacity(tissue.tissue.len());
+    let summary = serde_json::to_string(&outcome.summary).map_err(error)?;
+    Ok((faces_per_cell(py, &tissue.tissue, &outcome.face_tension), outcome.pressure.into_pyarray(py), summary))
+}
+
+/// Per-face values of a whole tissue (cell after cell) split into one array per cell.
+fn faces_per_cell<'py>(
+    py: Python<'py>,
+    tissue: &tissuefit::mesh::Tissue,
+    values: &[Real],
+) -> Vec<Bound<'py, PyArray1<f64>>> {
+    let mut faces = Vec::with_capacity(tissue.len());
     let mut at = 0;
-    for cell in tissue.tissue.cells() {
+    for cell in tissue.cells() {
         let n = cell.mesh().face_count();
-        faces.push(outcome.face_tension[at..at + n].to_vec().into_pyarray(py));
+        faces.push(values[at..at + n].to_vec().into_pyarray(py));
         at += n;
     }
-    let summary = serde_json::to_string(&outcome.summary).map_err(error)?;
-    Ok((faces, outcome.pressure.into_pyarray(py), summary))
+    faces
 }
 
 /// The library's version.

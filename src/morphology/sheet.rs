@@ -143,7 +143,8 @@ impl Sheet {
 }
 
 /// Whether `tissue` is a 2.5-D cell sheet: at least two cells, every cell an open patch (its mesh has
-/// an edge with one face), and some vertex shared by two cells.
+/// an edge with one face), no triangle in two cells (a 3-D multi-material mesh shares its interfaces),
+/// and some vertex shared by two cells.
 pub fn is_sheet(tissue: &Tissue) -> bool {
     if tissue.cells().len() < 2 {
         return false;
@@ -162,6 +163,16 @@ pub fn is_sheet(tissue: &Tissue) -> bool {
         return false;
     }
     let sheet = Sheet::of(tissue);
+    // A multi-material mesh whose every cell has a hole would pass the tests above, but its cells
+    // share their interface triangles; a sheet's cells never do.
+    let mut triangles: BTreeSet<[usize; 3]> = BTreeSet::new();
+    for (f, _) in &sheet.faces {
+        let mut key = *f;
+        key.sort_unstable();
+        if !triangles.insert(key) {
+            return false;
+        }
+    }
     let mut owner: Vec<Option<u32>> = vec![None; sheet.points.len()];
     sheet.faces.iter().any(|(f, c)| {
         f.iter().any(|&v| match owner[v] {
@@ -435,6 +446,9 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
             let t = tangents[0].1 - n * n.dot(&tangents[0].1);
             t.normalize()
         };
+        if !e1.iter().all(|x| x.is_finite()) {
+            continue;
+        }
         let e2 = n.cross(&e1);
         let line = junction_rows.len();
         // How each tangent moves with its arm's vertices (central differences), for the sds.

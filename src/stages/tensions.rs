@@ -345,17 +345,7 @@ fn write_outputs(
     }
     let mut group = OutputGroup::new();
     let io = |path: &Path, e: &dyn std::fmt::Display| format!("writing {}: {e}", path.display());
-    let path = dir.join("interfaces.csv");
-    write_csv(&mut group, &path, &interfaces, &InterfaceRow::default()).map_err(|e| io(&path, &e))?;
-    let path = dir.join("cells.csv");
-    write_csv(&mut group, &path, &cells, &CellRow::default()).map_err(|e| io(&path, &e))?;
-    let path = dir.join("summary.json");
-    group
-        .write(&path, |w| {
-            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
-            writeln!(w)
-        })
-        .map_err(|e| io(&path, &e))?;
+    write_tables(&mut group, dir, &interfaces, &cells, summary)?;
     let path = dir.join("cell_overrides.toml");
     group.write_bytes(&path, overrides.as_bytes()).map_err(|e| io(&path, &e))?;
     let vtp = dir.join("tensions.vtp");
@@ -582,17 +572,7 @@ fn write_sheet_outputs(
         .collect();
     let mut group = OutputGroup::new();
     let io = |path: &Path, e: &dyn std::fmt::Display| format!("writing {}: {e}", path.display());
-    let path = dir.join("interfaces.csv");
-    write_csv(&mut group, &path, &walls, &WallRow::default()).map_err(|e| io(&path, &e))?;
-    let path = dir.join("cells.csv");
-    write_csv(&mut group, &path, &cells, &SheetCellRow::default()).map_err(|e| io(&path, &e))?;
-    let path = dir.join("summary.json");
-    group
-        .write(&path, |w| {
-            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
-            writeln!(w)
-        })
-        .map_err(|e| io(&path, &e))?;
+    write_tables(&mut group, dir, &walls, &cells, summary)?;
     let vtp = dir.join("tensions.vtp");
     let fields = [
         CellField { name: "tension", values: face_tension },
@@ -607,6 +587,28 @@ fn write_sheet_outputs(
         .map_err(|e| io(&png, &e))?;
     group.write_bytes(&png, &picture).map_err(|e| io(&png, &e))?;
     group.commit().map_err(|e| format!("writing the outputs into {}: {e}", dir.display()))
+}
+
+/// `interfaces.csv`, `cells.csv` and `summary.json` into `group` (the 3-D map's and a sheet's).
+fn write_tables<I: Serialize + Default, C: Serialize + Default>(
+    group: &mut OutputGroup,
+    dir: &Path,
+    interfaces: &[I],
+    cells: &[C],
+    summary: &impl Serialize,
+) -> Result<(), String> {
+    let io = |path: &Path, e: &dyn std::fmt::Display| format!("writing {}: {e}", path.display());
+    let path = dir.join("interfaces.csv");
+    write_csv(group, &path, interfaces, &I::default()).map_err(|e| io(&path, &e))?;
+    let path = dir.join("cells.csv");
+    write_csv(group, &path, cells, &C::default()).map_err(|e| io(&path, &e))?;
+    let path = dir.join("summary.json");
+    group
+        .write(&path, |w| {
+            serde_json::to_writer_pretty(&mut *w, summary).map_err(std::io::Error::other)?;
+            writeln!(w)
+        })
+        .map_err(|e| io(&path, &e))
 }
 
 /// The wall pieces as ParaView PolyData lines (µm, recorded as the file's length unit) with each

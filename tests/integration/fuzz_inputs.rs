@@ -249,7 +249,8 @@ fn two_cell_tissue() -> Tissue {
     Tissue::from_cells(vec![a, b]).unwrap()
 }
 
-/// The same tissue as `.vtk` (SimuCell3D legacy) and `.vtp`, plus a hand-written multi-material mesh.
+/// The same tissue as `.vtk` (SimuCell3D legacy) and `.vtp`, plus a hand-written multi-material mesh
+/// and three PLY files (a topomesh sheet, multi-material tetrahedra, a binary sheet).
 fn tissue_seeds() -> &'static [(&'static str, Vec<u8>)] {
     static SEEDS: OnceLock<Vec<(&'static str, Vec<u8>)>> = OnceLock::new();
     SEEDS.get_or_init(make_tissue_seeds)
@@ -270,6 +271,29 @@ fn make_tissue_seeds() -> Vec<(&'static str, Vec<u8>)> {
         CONNECTIVITY vtktypeint64\n0 2 1 0 1 3 0 3 2 1 2 3 1 4 2 2 4 3 3 4 1\n\
         CELL_DATA 7\nFIELD FieldData 2\nlabel1 1 7 int\n1 1 1 1 2 2 2\nlabel2 1 7 int\n0 0 0 2 0 0 0\n";
     seeds.push(("vtk", multimaterial.as_bytes().to_vec()));
+    // PLY: a 2.5-D sheet as a cellcomplex topomesh (faces listed by `volume` records), the
+    // multi-material tetrahedra with label1/label2 per face, and the sheet in binary.
+    let topomesh = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+        element face 2\nproperty list uchar int vertex_indices\nelement volume 2\nproperty list int int face_index\n\
+        property int label\nend_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n1 0 7\n1 1 9\n";
+    seeds.push(("ply", topomesh.as_bytes().to_vec()));
+    let tetrahedra = "ply\nformat ascii 1.0\nelement vertex 5\nproperty double x\nproperty double y\nproperty double z\n\
+        element face 7\nproperty list uchar int vertex_indices\nproperty int label1\nproperty int label2\nend_header\n\
+        0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n3 0 2 1 1 0\n3 0 1 3 1 0\n3 0 3 2 1 0\n3 1 2 3 1 2\n3 1 4 2 2 0\n\
+        3 2 4 3 2 0\n3 3 4 1 2 0\n";
+    seeds.push(("ply", tetrahedra.as_bytes().to_vec()));
+    let mut binary = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+        property float z\nelement face 2\nproperty list uchar int vertex_indices\nproperty int label\nend_header\n"
+        .to_vec();
+    for p in [[0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]] {
+        p.iter().for_each(|v| binary.extend(v.to_le_bytes()));
+    }
+    for (f, label) in [([0i32, 1, 2], 7i32), ([1, 3, 2], 9)] {
+        binary.push(3);
+        f.iter().for_each(|v| binary.extend(v.to_le_bytes()));
+        binary.extend(label.to_le_bytes());
+    }
+    seeds.push(("ply", binary));
     seeds
 }
 
@@ -315,7 +339,7 @@ proptest! {
     }
 
     #[test]
-    fn tissue_readers_never_panic(seed in 0usize..3, mutations in prop::collection::vec(mutation(), 1..6)) {
+    fn tissue_readers_never_panic(seed in 0usize..6, mutations in prop::collection::vec(mutation(), 1..6)) {
         let (ext, base) = &tissue_seeds()[seed];
         let bytes = mutated(base, &mutations);
         let dir = tempfile::tempdir().unwrap();

@@ -152,6 +152,23 @@ fn ply_files_with_a_cell_element_or_bad_indices_read_or_fail_clearly() {
     let twice = ply.replace("1 1 9", "1 0 9");
     let e = read_tissue_bytes(Path::new("t.ply"), twice.as_bytes(), &ReadOptions::default()).unwrap_err().to_string();
     assert!(e.contains("face 0 is listed by the cells labelled 7 and 9"), "{e}");
+    // Two tetrahedra sharing a face (multi-material): closed 3-D cells, not a sheet; nor when each
+    // has lost a face (holes), since they still share their interface triangle.
+    let tetrahedra = "ply\nformat ascii 1.0\nelement vertex 5\nproperty double x\nproperty double y\nproperty double z\n\
+        element face 7\nproperty list uchar int vertex_indices\nproperty int label1\nproperty int label2\nend_header\n\
+        0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n3 0 2 1 1 0\n3 0 1 3 1 0\n3 0 3 2 1 0\n3 1 2 3 1 2\n3 1 4 2 2 0\n\
+        3 2 4 3 2 0\n3 3 4 1 2 0\n";
+    let read = read_tissue_bytes(Path::new("t.ply"), tetrahedra.as_bytes(), &ReadOptions::default()).unwrap();
+    assert_eq!(read.tissue.len(), 2);
+    assert!(read.tissue.cells().iter().all(|c| c.mesh().validate().is_ok()));
+    assert!(!is_sheet(&read.tissue));
+    let holed = tetrahedra
+        .replace("element face 7", "element face 5")
+        .replace("3 0 2 1 1 0\n", "")
+        .replace("3 3 4 1 2 0\n", "");
+    let read = read_tissue_bytes(Path::new("t.ply"), holed.as_bytes(), &ReadOptions::default()).unwrap();
+    assert!(read.tissue.cells().iter().all(|c| c.mesh().validate().is_err()));
+    assert!(!is_sheet(&read.tissue));
     // Not a PLY at all.
     let e = read_tissue_bytes(Path::new("t.ply"), b"ply\nformat nonsense\n", &ReadOptions::default())
         .unwrap_err()
