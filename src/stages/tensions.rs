@@ -488,7 +488,7 @@ pub fn run_sheet(tissue: &Tissue, gauge: Gauge, file: &str, out: &Path) -> Resul
         pressure_unit,
         uncertainty: "tension_sd: first-order propagation of an isotropic vertex noise, its size estimated from the \
                       junctions' force residuals (walls shared by two junctions correlate them); on analytic sheets \
-                      with noisy vertices 50-67 % of the truths lie within one sd on straight walls, 16-45 % on curved \
+                      with noisy vertices 46-67 % of the truths lie within one sd on straight walls, 16-45 % on curved \
                       ones (docs: Tension and pressure maps, 2.5-D cell sheets)",
         junctions: map.junctions,
         junctions_on_rim: map.junctions_on_rim,
