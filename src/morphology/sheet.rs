@@ -36,14 +36,14 @@
 //!
 //! Deterministic: every loop runs in a fixed order.
 
-use super::tensions::{Gauge, Row, TensionError, laplace_least_squares_rows, solve_tensions};
+use super::tensions::{Gauge, Row, TensionError, laplace_least_squares_rows, median, solve_tensions};
 use crate::geometry::{Real, Vec3};
 use crate::mesh::Tissue;
 use nalgebra::Matrix3;
 use std::collections::{BTreeMap, BTreeSet};
 
-/// A wall whose projected vertices deviate from their chord by less than this fraction of its length
-/// is straight (its chord is its tangent, its curvature 0).
+/// A wall whose projected vertices lie on their fitted line to within this fraction of its length
+/// (root of the summed squared distances) is straight: no circle is tried, its curvature is 0.
 pub const STRAIGHT_WALL: Real = 1e-6;
 
 /// One wall's estimate (a pair of cells; several wall pieces between the same two cells share it).
@@ -422,7 +422,8 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
     }
     let junctions_on_rim = (0..points.len()).filter(|&v| is_junction(v) && rim[v]).count();
     let mut rows: Vec<Row> = Vec::new();
-    let mut junction_rows: Vec<(usize, Vec<(usize, Vec3)>)> = Vec::new();
+    // Each junction's (wall, unit tangent) arms, in the order of their equations.
+    let mut junction_rows: Vec<Vec<(usize, Vec3)>> = Vec::new();
     let mut junctions_used = vec![0usize; pairs.len()];
     for (&j, list) in &arms {
         let faces: Vec<[usize; 3]> = vertex_faces[j].iter().map(|&f| sheet.faces[f].0).collect();
@@ -461,7 +462,7 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
         for e in [e1, e2] {
             let mut coefficients: BTreeMap<usize, Real> = BTreeMap::new();
             let mut noise = Vec::new();
-            for (((wall, t), arm_moves), _) in tangents.iter().zip(&moves).zip(list) {
+            for ((wall, t), arm_moves) in tangents.iter().zip(&moves) {
                 *coefficients.entry(*wall).or_default() += weight * t.dot(&e);
                 noise.extend(arm_moves.iter().map(|(coordinate, dt)| (*wall, *coordinate, weight * dt.dot(&e))));
             }
@@ -473,7 +474,7 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
         for w in seen {
             junctions_used[w] += 1;
         }
-        junction_rows.push((j, tangents));
+        junction_rows.push(tangents);
     }
     if rows.is_empty() {
         return Err(TensionError::NoJunctions { delta: 0.0 });
@@ -499,7 +500,7 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
     // Residuals per junction.
     let mut imbalance: Vec<Real> = junction_rows
         .iter()
-        .filter_map(|(_, tangents)| {
+        .filter_map(|tangents| {
             let mut f = Vec3::zeros();
             for (w, t) in tangents {
                 f += t * solved.tension[*w]?;
@@ -509,11 +510,7 @@ pub fn estimate_sheet_tensions(tissue: &Tissue, gauge: Gauge, value: Real) -> Re
         .collect();
     let residual_rms = (!imbalance.is_empty())
         .then(|| (imbalance.iter().map(|x| x * x).sum::<Real>() / imbalance.len() as Real).sqrt());
-    imbalance.sort_by(|a, b| a.total_cmp(b));
-    let residual_median = (!imbalance.is_empty()).then(|| {
-        let k = imbalance.len();
-        if k % 2 == 1 { imbalance[k / 2] } else { 0.5 * (imbalance[k / 2 - 1] + imbalance[k / 2]) }
-    });
+    let residual_median = median(&mut imbalance);
     // Walls: length, curvature (the longest piece's circle about its midpoint normal), rim.
     let mut walls: Vec<WallTension> = pairs
         .iter()

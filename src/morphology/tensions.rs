@@ -1242,7 +1242,7 @@ fn local_mean(points: &[Vec3], x: &Vec3, radius: Real) -> Vec3 {
     if count > 0 { sum / count as Real } else { points.iter().sum::<Vec3>() / points.len().max(1) as Real }
 }
 
-fn median(values: &mut [Real]) -> Option<Real> {
+pub(super) fn median(values: &mut [Real]) -> Option<Real> {
     if values.is_empty() {
         return None;
     }
