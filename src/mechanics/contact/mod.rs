@@ -247,6 +247,8 @@ pub struct ContactWorkspace {
     cutoff: Real,
     /// Per cell, the face quadrature's energy density Φ_f of every face (J/m²).
     face_density: Vec<Vec<Real>>,
+    /// Per cell, whether each face folds against a neighbour at this evaluation ([`fold_flags`]).
+    folds: Vec<Vec<bool>>,
     /// Time spent in the last evaluation, per phase.
     pub timings: ContactTimings,
 }
@@ -353,10 +355,11 @@ fn outside_sign(
     q: &crate::geometry::PointTriangle,
     p: &Vec3,
     normals: &[Vec3],
+    folds: &[bool],
     tie: Real,
 ) -> Real {
     let t = mesh.triangles()[f as usize];
-    if q.distance > tie && folded_feature(topo, t, f, q.region, normals) {
+    if q.distance > tie && folded_feature(topo, t, f, q.region, folds) {
         return if mesh.winding_number(p) > 0.5 { -1.0 } else { 1.0 };
     }
     let separation = p - q.point;
@@ -386,20 +389,25 @@ const SIGN_TIE: Real = 1e-3;
 /// normals turn by at most about 90°).
 const FOLD_COS: Real = -0.5;
 
+/// For each face of a cell (unit `normals`): whether its normal is more than 120° from a
+/// neighbour's (computed once per evaluation for [`folded_feature`]).
+fn fold_flags(topo: &CellTopology, normals: &[Vec3], out: &mut Vec<bool>) {
+    out.clear();
+    out.extend(topo.face_neighbours.iter().zip(normals).map(|(across, n)| {
+        across.iter().any(|&h| h != u32::MAX && n.dot(&normals[h as usize]) < FOLD_COS)
+    }));
+}
+
 /// Whether the surface folds back on itself at the closest feature (`region` of face `f`, corners
-/// `tri`): a face holding the feature whose normal is more than 120° from a neighbour's. The sign of the
+/// `tri`): a face holding the feature whose normal is more than 120° from a neighbour's (`folds`,
+/// from [`fold_flags`]). The sign of the
 /// distance from a pseudo-normal is exact for a surface without self-overlap; at a fold (an inverted
 /// sliver at a sharp contact rim, a few nanometres high) it is arbitrary, and a node far away whose
 /// closest point lands there would be read as deep inside the other cell: a jump of the contact
 /// energy by the whole repulsion, at fixed geometry (issue 20: the w/(2γ) = 0.5 doublets).
-fn folded_feature(topo: &CellTopology, tri: [u32; 3], f: u32, region: TriangleRegion, normals: &[Vec3]) -> bool {
+fn folded_feature(topo: &CellTopology, tri: [u32; 3], f: u32, region: TriangleRegion, flags: &[bool]) -> bool {
     // Each face holding the feature against the faces across its three sides.
-    let folds = |g: u32| {
-        g != u32::MAX
-            && topo.face_neighbours[g as usize]
-                .iter()
-                .any(|&h| h != u32::MAX && normals[g as usize].dot(&normals[h as usize]) < FOLD_COS)
-    };
+    let folds = |g: u32| g != u32::MAX && flags[g as usize];
     match region {
         TriangleRegion::Face => folds(f),
         TriangleRegion::Edge(s) => folds(f) || folds(topo.face_neighbours[f as usize][s as usize]),
@@ -570,9 +578,14 @@ impl ContactWorkspace {
 
         // Narrow phase, per cell in parallel: for each node, the closest face of every other cell
         // whose padded faces cover it (among its candidates, a superset: see [`CandidateLists`]).
+        let forces_ro: &[CellForces] = forces;
+        self.folds.resize_with(n, Vec::new);
+        self.folds.par_iter_mut().zip(self.topology.par_iter()).zip(forces_ro.par_iter()).for_each(
+            |((folds, topo), f)| fold_flags(topo, &f.geometry.normals, folds),
+        );
+        let folds = &self.folds;
         let face_offsets = &self.face_offsets;
         let topology = &self.topology;
-        let forces_ro: &[CellForces] = forces;
         // Adhesion towards a nucleus: the nucleus's own (mean ω of its type), capped (module doc).
         let nucleus_adhesion: Vec<Real> = cell_params
             .iter()
@@ -621,6 +634,8 @@ impl ContactWorkspace {
                     while hint_at < last.len() && (last[hint_at].0, last[hint_at].1) < (node as u32, b as u32) {
                         hint_at += 1;
                     }
+                    // The hinted face's closest point, reused when the scan reaches that face.
+                    let mut hinted = None;
                     if let Some(&(hn, hb, hf)) = last.get(hint_at)
                         && (hn, hb) == (node as u32, b as u32)
                         && let Some(t) = mesh_b.triangles().get(hf as usize)
@@ -628,6 +643,7 @@ impl ContactWorkspace {
                         let q =
                             closest_point_on_triangle(p, &pb[t[0] as usize], &pb[t[1] as usize], &pb[t[2] as usize]);
                         bound = bound.min(q.distance);
+                        hinted = Some((hf, q));
                     }
                     bound += prune_margin;
                     for &g in &candidates[group_start..k] {
@@ -638,9 +654,13 @@ impl ContactWorkspace {
                             continue;
                         }
                         let f = g - face_offsets[b];
-                        let t = mesh_b.triangles()[f as usize];
-                        let q =
-                            closest_point_on_triangle(p, &pb[t[0] as usize], &pb[t[1] as usize], &pb[t[2] as usize]);
+                        let q = match hinted {
+                            Some((hf, q)) if hf == f => q,
+                            _ => {
+                                let t = mesh_b.triangles()[f as usize];
+                                closest_point_on_triangle(p, &pb[t[0] as usize], &pb[t[1] as usize], &pb[t[2] as usize])
+                            }
+                        };
                         if best.is_none_or(|(_, bq)| q.distance < bq.distance) {
                             bound = bound.min(q.distance + prune_margin);
                             best = Some((f, q));
@@ -653,7 +673,8 @@ impl ContactWorkspace {
                     }
                     let normals_b = &forces_ro[b].geometry.normals;
                     let separation = p - q.point;
-                    let mut sign = outside_sign(mesh_b, &topology[b], f, &q, p, normals_b, SIGN_TIE * cutoff);
+                    let mut sign =
+                        outside_sign(mesh_b, &topology[b], f, &q, p, normals_b, &folds[b], SIGN_TIE * cutoff);
                     if (cells[b].kind() == CellKind::Ecm && cell_a.kind() != CellKind::Ecm) || host[a] == Some(b) {
                         sign = -sign;
                     }
@@ -882,6 +903,8 @@ mod tests {
         let mut topo = CellTopology::default();
         topo.update(&mesh);
         let normals = unit_normals(&mesh);
+        let mut folds = Vec::new();
+        fold_flags(&topo, &normals, &mut folds);
         let p = mesh.positions();
         let [a, b, c] = mesh.triangles()[ear as usize].map(|i| p[i as usize]);
         // The ear is inverted: its normal points into the box (+x).
@@ -890,27 +913,28 @@ mod tests {
         for (x, y, expected) in [(-0.3, 0.993, 1.0), (0.3, 0.97, -1.0)] {
             let node = Vec3::new(x, y, 0.0);
             let q = closest_point_on_triangle(&node, &a, &b, &c);
-            assert!(folded_feature(&topo, mesh.triangles()[ear as usize], ear, q.region, &normals));
+            assert!(folded_feature(&topo, mesh.triangles()[ear as usize], ear, q.region, &folds));
             // The ear's own normal gives the wrong side: the trap is real.
             if q.region == TriangleRegion::Face {
                 let naive = if (node - q.point).dot(&normals[ear as usize]) < 0.0 { -1.0 } else { 1.0 };
                 assert_eq!(naive, -expected, "x = {x}");
             }
-            assert_eq!(outside_sign(&mesh, &topo, ear, &q, &node, &normals, 1e-6), expected, "x = {x}");
+            assert_eq!(outside_sign(&mesh, &topo, ear, &q, &node, &normals, &folds, 1e-6), expected, "x = {x}");
         }
         // Unfolded (v outside the chord), the same feature is not flagged and the pseudo-normal decides.
         let (mesh, ear) = box_with_ear(1.02);
         topo.update(&mesh);
         let normals = unit_normals(&mesh);
+        fold_flags(&topo, &normals, &mut folds);
         assert!(!mesh.triangles().iter().enumerate().any(|(f, &t)| {
             [TriangleRegion::Face, TriangleRegion::Edge(0), TriangleRegion::Vertex(0)]
                 .into_iter()
-                .any(|r| folded_feature(&topo, t, f as u32, r, &normals))
+                .any(|r| folded_feature(&topo, t, f as u32, r, &folds))
         }));
         let p = mesh.positions();
         let [a, b, c] = mesh.triangles()[ear as usize].map(|i| p[i as usize]);
         let node = Vec3::new(-0.3, 1.005, 0.0);
         let q = closest_point_on_triangle(&node, &a, &b, &c);
-        assert_eq!(outside_sign(&mesh, &topo, ear, &q, &node, &normals, 1e-6), 1.0);
+        assert_eq!(outside_sign(&mesh, &topo, ear, &q, &node, &normals, &folds, 1e-6), 1.0);
     }
 }
