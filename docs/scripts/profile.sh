@@ -12,10 +12,12 @@
 # are byte-identical (a speed change must not change a result) and prints their wall and CPU seconds.
 # With PERF=1, `perf record` of one 1-thread bench run and its top source lines are printed too.
 # Usage: docs/scripts/profile.sh [REPEAT (3)] [OLD_BINARY]. About 1 minute per repeat, 3 for the start.
+# OUT=NAME writes docs/src/generated/NAME instead (each A/B of performance.md keeps its own table).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 repeat=${1:-3}
 old=${2:-}
+out=docs/src/generated/${OUT:-relax-profile.md}
 new=target/release/tissuefit
 cargo build --release -q
 work=$(mktemp -d)
@@ -32,7 +34,7 @@ for k in $(seq "$repeat"); do
             2>/dev/null > "$work/bench-$t-$k.json"
     done
 done
-python3 - "$work" "$repeat" > docs/src/generated/relax-profile.md <<'PY'
+python3 - "$work" "$repeat" > "$out" <<'PY'
 import json, statistics, sys
 work, repeat = sys.argv[1], int(sys.argv[2])
 stages = ["internal_forces", "contact_lists", "contact_broad", "contact_narrow", "contact_apply",
@@ -101,9 +103,9 @@ if [ -n "$old" ]; then
             echo "| $which | $k | $g | $c |"
         done
     done
-    } >> docs/src/generated/relax-profile.md
+    } >> "$out"
 fi
-cat docs/src/generated/relax-profile.md
+cat "$out"
 if [ "${PERF:-0}" = 1 ]; then
     perf record -F 999 -o "$work/perf.data" -- "$new" --threads 1 bench relax "$work/start/final.vtk" \
         --config "$work/relax.toml" --steps 600 >/dev/null 2>&1

@@ -89,6 +89,8 @@ fn bench_growth_prints_milestones() {
         "seconds_per_node_step",
         "milestones",
         "alpha",
+        "breakdown_seconds_per_node_step",
+        "candidate_rebuilds",
     ] {
         assert!(v.get(key).is_some(), "missing {key}: {v}");
     }
@@ -97,6 +99,10 @@ fn bench_growth_prints_milestones() {
     let milestones = v["milestones"].as_array().unwrap();
     assert_eq!(milestones.iter().map(|m| m["milestone"].as_u64().unwrap()).collect::<Vec<_>>(), [2, 4]);
     assert!(milestones[1]["steps"].as_u64() > milestones[0]["steps"].as_u64());
+    // Peak memory (Linux): at least the tissue's node positions, and never less at a later milestone.
+    if let (Some(first), Some(last)) = (milestones[0]["peak_memory_bytes"].as_u64(), v["peak_memory_bytes"].as_u64()) {
+        assert!(first >= 24 * v["nodes"].as_u64().unwrap() && last >= first, "{v}");
+    }
     // A step limit that is too small ends the run with the reason and exit code 1, not an abort.
     let out = tissuefit(&["bench", "growth", "--cells", "4", "--max-steps", "10"]);
     assert_eq!(out.status.code(), Some(1));

@@ -1,9 +1,9 @@
 //! `tissuefit bench growth --cells N`: the paper's growth stress test (Fig. 1e). One spherical cell,
 //! meshed in code at l_min, grows and divides with the settings of `pipelines/growth.toml` (embedded
 //! at build time, so the benchmark and the shipped config cannot drift apart) until the tissue has N
-//! cells. Prints one JSON object with the DESIGN.md §2 bench keys, the wall time, steps and nodes at
-//! each cell-count milestone (2, 4, 8, …, 1000), the cost per node-step between milestones, and the
-//! exponent α of a least-squares fit T ∝ N^α.
+//! cells. Prints one JSON object with the DESIGN.md §2 bench keys, the wall time, steps, nodes and
+//! peak memory at each cell-count milestone (2, 4, 8, …, 1000, 2000, 4000, 8000, 10000), the cost
+//! per node-step between milestones, and the exponent α of a least-squares fit T ∝ N^α.
 //!
 //! It never aborts: an unhealthy state (a non-finite force, a folded cell) or any other simulation
 //! error ends the run with the JSON naming the step, the cell and the cause (exit code 1), as do
@@ -21,7 +21,7 @@ use std::time::Instant;
 pub const GROWTH_TOML: &str = include_str!("../../../pipelines/growth.toml");
 
 /// Cell counts at which the benchmark records a milestone.
-pub const MILESTONES: [usize; 10] = [2, 4, 8, 16, 32, 64, 128, 256, 500, 1000];
+pub const MILESTONES: [usize; 14] = [2, 4, 8, 16, 32, 64, 128, 256, 500, 1000, 2000, 4000, 8000, 10000];
 
 /// Radius of the initial cell (m): the reference benchmark's 6 µm-diameter sphere (V ≈ 1.13e-16 m³,
 /// below the division volume 2e-16 m³ of the benchmark).
@@ -50,6 +50,15 @@ pub fn growth_parameters(contact_model: Option<ContactModel>, l_min: Option<Real
     }
     params.validate().context("benchmark parameters")?;
     Ok(params)
+}
+
+/// Peak resident memory of this process so far (bytes), from `VmHWM` in `/proc/self/status`
+/// (Linux); `None` elsewhere.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }
 
 /// CPU time (user + system, s) of this process so far, from `/proc/self/stat` (Linux; clock ticks of
@@ -133,6 +142,7 @@ pub fn run_growth(bench: &GrowthBench) -> anyhow::Result<(Value, bool)> {
                 "nodes_per_cell": nodes as Real / cells as Real,
                 "seconds_per_node_step": (wall - last_wall) / since,
                 "cpu_seconds": cpu(),
+                "peak_memory_bytes": peak_memory_bytes(),
             }));
             eprintln!(
                 "growth: {cells} cells at step {steps}, {wall:.2} s, {nodes} nodes ({:.0} per cell), {:.3} µs per node-step since the last milestone",
@@ -165,6 +175,7 @@ pub fn run_growth(bench: &GrowthBench) -> anyhow::Result<(Value, bool)> {
         "wall_seconds": wall,
         "seconds_per_node_step": wall / node_steps.max(1) as Real,
         "cpu_seconds": cpu(),
+        "peak_memory_bytes": peak_memory_bytes(),
         "target_cells": bench.cells,
         "reached": reached,
         "stop_reason": match &outcome { Ok(()) => "target reached".to_string(), Err(why) => why.clone() },
@@ -174,6 +185,9 @@ pub fn run_growth(bench: &GrowthBench) -> anyhow::Result<(Value, bool)> {
         "initial_nodes": initial_nodes,
         "simulated_time": sim.time_and_step().0,
         "node_steps": node_steps,
+        "candidate_rebuilds": sim.contacts().candidate_rebuilds,
+        "candidate_updates": sim.contacts().candidate_updates,
+        "breakdown_seconds_per_node_step": super::relax::breakdown(&sim.stage_times(), wall, node_steps as Real),
         "milestones": milestones,
         "alpha": fit_exponent(&fit_points),
         "alpha_from_cells": alpha_from,

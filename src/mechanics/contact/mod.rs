@@ -354,10 +354,10 @@ fn outside_sign(
     f: u32,
     q: &crate::geometry::PointTriangle,
     p: &Vec3,
-    normals: &[Vec3],
-    folds: &[bool],
+    faces: FaceFrames,
     tie: Real,
 ) -> Real {
+    let FaceFrames { normals, folds } = faces;
     let t = mesh.triangles()[f as usize];
     if q.distance > tie && folded_feature(topo, t, f, q.region, folds) {
         return if mesh.winding_number(p) > 0.5 { -1.0 } else { 1.0 };
@@ -380,6 +380,13 @@ fn outside_sign(
     if separation.dot(&pseudo) < 0.0 { -1.0 } else { 1.0 }
 }
 
+/// A cell's unit face normals at this evaluation and its faces' fold flags ([`fold_flags`]).
+#[derive(Clone, Copy)]
+struct FaceFrames<'a> {
+    normals: &'a [Vec3],
+    folds: &'a [bool],
+}
+
 /// Below this fraction of the cutoff a node counts as on the other surface for [`outside_sign`]
 /// (the winding number is not asked).
 const SIGN_TIE: Real = 1e-3;
@@ -393,9 +400,12 @@ const FOLD_COS: Real = -0.5;
 /// neighbour's (computed once per evaluation for [`folded_feature`]).
 fn fold_flags(topo: &CellTopology, normals: &[Vec3], out: &mut Vec<bool>) {
     out.clear();
-    out.extend(topo.face_neighbours.iter().zip(normals).map(|(across, n)| {
-        across.iter().any(|&h| h != u32::MAX && n.dot(&normals[h as usize]) < FOLD_COS)
-    }));
+    out.extend(
+        topo.face_neighbours
+            .iter()
+            .zip(normals)
+            .map(|(across, n)| across.iter().any(|&h| h != u32::MAX && n.dot(&normals[h as usize]) < FOLD_COS)),
+    );
 }
 
 /// Whether the surface folds back on itself at the closest feature (`region` of face `f`, corners
@@ -580,9 +590,11 @@ impl ContactWorkspace {
         // whose padded faces cover it (among its candidates, a superset: see [`CandidateLists`]).
         let forces_ro: &[CellForces] = forces;
         self.folds.resize_with(n, Vec::new);
-        self.folds.par_iter_mut().zip(self.topology.par_iter()).zip(forces_ro.par_iter()).for_each(
-            |((folds, topo), f)| fold_flags(topo, &f.geometry.normals, folds),
-        );
+        self.folds
+            .par_iter_mut()
+            .zip(self.topology.par_iter())
+            .zip(forces_ro.par_iter())
+            .for_each(|((folds, topo), f)| fold_flags(topo, &f.geometry.normals, folds));
         let folds = &self.folds;
         let face_offsets = &self.face_offsets;
         let topology = &self.topology;
@@ -673,8 +685,15 @@ impl ContactWorkspace {
                     }
                     let normals_b = &forces_ro[b].geometry.normals;
                     let separation = p - q.point;
-                    let mut sign =
-                        outside_sign(mesh_b, &topology[b], f, &q, p, normals_b, &folds[b], SIGN_TIE * cutoff);
+                    let mut sign = outside_sign(
+                        mesh_b,
+                        &topology[b],
+                        f,
+                        &q,
+                        p,
+                        FaceFrames { normals: normals_b, folds: &folds[b] },
+                        SIGN_TIE * cutoff,
+                    );
                     if (cells[b].kind() == CellKind::Ecm && cell_a.kind() != CellKind::Ecm) || host[a] == Some(b) {
                         sign = -sign;
                     }
@@ -919,7 +938,11 @@ mod tests {
                 let naive = if (node - q.point).dot(&normals[ear as usize]) < 0.0 { -1.0 } else { 1.0 };
                 assert_eq!(naive, -expected, "x = {x}");
             }
-            assert_eq!(outside_sign(&mesh, &topo, ear, &q, &node, &normals, &folds, 1e-6), expected, "x = {x}");
+            assert_eq!(
+                outside_sign(&mesh, &topo, ear, &q, &node, FaceFrames { normals: &normals, folds: &folds }, 1e-6),
+                expected,
+                "x = {x}"
+            );
         }
         // Unfolded (v outside the chord), the same feature is not flagged and the pseudo-normal decides.
         let (mesh, ear) = box_with_ear(1.02);
@@ -935,6 +958,9 @@ mod tests {
         let [a, b, c] = mesh.triangles()[ear as usize].map(|i| p[i as usize]);
         let node = Vec3::new(-0.3, 1.005, 0.0);
         let q = closest_point_on_triangle(&node, &a, &b, &c);
-        assert_eq!(outside_sign(&mesh, &topo, ear, &q, &node, &normals, &folds, 1e-6), 1.0);
+        assert_eq!(
+            outside_sign(&mesh, &topo, ear, &q, &node, FaceFrames { normals: &normals, folds: &folds }, 1e-6),
+            1.0
+        );
     }
 }
