@@ -81,6 +81,7 @@ use crate::geometry::{Real, SpatialGrid, TriangleRegion, Vec3, closest_point_on_
 use crate::mesh::{Adjacency, Cell, CellKind, FaceType, Tissue};
 use candidates::{CandidateLists, Refresh};
 use rayon::prelude::*;
+use std::sync::OnceLock;
 
 /// Topology of one cell needed by contacts, cached until its triangles change.
 #[derive(Clone, Debug, Default)]
@@ -247,8 +248,9 @@ pub struct ContactWorkspace {
     cutoff: Real,
     /// Per cell, the face quadrature's energy density Φ_f of every face (J/m²).
     face_density: Vec<Vec<Real>>,
-    /// Per cell, whether each face folds against a neighbour at this evaluation ([`fold_flags`]).
-    folds: Vec<Vec<bool>>,
+    /// Per cell, whether each face folds against a neighbour at this evaluation ([`fold_flags`]),
+    /// computed the first time a node's closest feature on that cell is asked about.
+    folds: Vec<OnceLock<Vec<bool>>>,
     /// Time spent in the last evaluation, per phase.
     pub timings: ContactTimings,
 }
@@ -359,7 +361,7 @@ fn outside_sign(
 ) -> Real {
     let FaceFrames { normals, folds } = faces;
     let t = mesh.triangles()[f as usize];
-    if q.distance > tie && folded_feature(topo, t, f, q.region, folds) {
+    if q.distance > tie && folded_feature(topo, t, f, q.region, folds.get_or_init(|| fold_flags(topo, normals))) {
         return if mesh.winding_number(p) > 0.5 { -1.0 } else { 1.0 };
     }
     let separation = p - q.point;
@@ -380,11 +382,13 @@ fn outside_sign(
     if separation.dot(&pseudo) < 0.0 { -1.0 } else { 1.0 }
 }
 
-/// A cell's unit face normals at this evaluation and its faces' fold flags ([`fold_flags`]).
+/// A cell's unit face normals at this evaluation and its faces' fold flags ([`fold_flags`]), made
+/// from the normals when first needed (with coupling contacts most closest features are a tied node
+/// at distance 0, which never asks).
 #[derive(Clone, Copy)]
 struct FaceFrames<'a> {
     normals: &'a [Vec3],
-    folds: &'a [bool],
+    folds: &'a OnceLock<Vec<bool>>,
 }
 
 /// Below this fraction of the cutoff a node counts as on the other surface for [`outside_sign`]
@@ -397,15 +401,13 @@ const SIGN_TIE: Real = 1e-3;
 const FOLD_COS: Real = -0.5;
 
 /// For each face of a cell (unit `normals`): whether its normal is more than 120° from a
-/// neighbour's (computed once per evaluation for [`folded_feature`]).
-fn fold_flags(topo: &CellTopology, normals: &[Vec3], out: &mut Vec<bool>) {
-    out.clear();
-    out.extend(
-        topo.face_neighbours
-            .iter()
-            .zip(normals)
-            .map(|(across, n)| across.iter().any(|&h| h != u32::MAX && n.dot(&normals[h as usize]) < FOLD_COS)),
-    );
+/// neighbour's (computed at most once per evaluation for [`folded_feature`]).
+fn fold_flags(topo: &CellTopology, normals: &[Vec3]) -> Vec<bool> {
+    topo.face_neighbours
+        .iter()
+        .zip(normals)
+        .map(|(across, n)| across.iter().any(|&h| h != u32::MAX && n.dot(&normals[h as usize]) < FOLD_COS))
+        .collect()
 }
 
 /// Whether the surface folds back on itself at the closest feature (`region` of face `f`, corners
@@ -589,12 +591,8 @@ impl ContactWorkspace {
         // Narrow phase, per cell in parallel: for each node, the closest face of every other cell
         // whose padded faces cover it (among its candidates, a superset: see [`CandidateLists`]).
         let forces_ro: &[CellForces] = forces;
-        self.folds.resize_with(n, Vec::new);
-        self.folds
-            .par_iter_mut()
-            .zip(self.topology.par_iter())
-            .zip(forces_ro.par_iter())
-            .for_each(|((folds, topo), f)| fold_flags(topo, &f.geometry.normals, folds));
+        self.folds.clear();
+        self.folds.resize_with(n, OnceLock::new);
         let folds = &self.folds;
         let face_offsets = &self.face_offsets;
         let topology = &self.topology;
@@ -922,8 +920,7 @@ mod tests {
         let mut topo = CellTopology::default();
         topo.update(&mesh);
         let normals = unit_normals(&mesh);
-        let mut folds = Vec::new();
-        fold_flags(&topo, &normals, &mut folds);
+        let folds = fold_flags(&topo, &normals);
         let p = mesh.positions();
         let [a, b, c] = mesh.triangles()[ear as usize].map(|i| p[i as usize]);
         // The ear is inverted: its normal points into the box (+x).
@@ -939,7 +936,15 @@ mod tests {
                 assert_eq!(naive, -expected, "x = {x}");
             }
             assert_eq!(
-                outside_sign(&mesh, &topo, ear, &q, &node, FaceFrames { normals: &normals, folds: &folds }, 1e-6),
+                outside_sign(
+                    &mesh,
+                    &topo,
+                    ear,
+                    &q,
+                    &node,
+                    FaceFrames { normals: &normals, folds: &OnceLock::new() },
+                    1e-6
+                ),
                 expected,
                 "x = {x}"
             );
@@ -948,7 +953,7 @@ mod tests {
         let (mesh, ear) = box_with_ear(1.02);
         topo.update(&mesh);
         let normals = unit_normals(&mesh);
-        fold_flags(&topo, &normals, &mut folds);
+        let folds = fold_flags(&topo, &normals);
         assert!(!mesh.triangles().iter().enumerate().any(|(f, &t)| {
             [TriangleRegion::Face, TriangleRegion::Edge(0), TriangleRegion::Vertex(0)]
                 .into_iter()
@@ -959,7 +964,7 @@ mod tests {
         let node = Vec3::new(-0.3, 1.005, 0.0);
         let q = closest_point_on_triangle(&node, &a, &b, &c);
         assert_eq!(
-            outside_sign(&mesh, &topo, ear, &q, &node, FaceFrames { normals: &normals, folds: &folds }, 1e-6),
+            outside_sign(&mesh, &topo, ear, &q, &node, FaceFrames { normals: &normals, folds: &OnceLock::new() }, 1e-6),
             1.0
         );
     }
