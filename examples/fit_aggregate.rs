@@ -36,10 +36,16 @@ use tissuefit::mesh::Tissue;
 #[path = "../tests/integration/support/round_trip.rs"]
 mod round_trip;
 use round_trip::{
-    AGGREGATE_GAMMA as GAMMA, aggregate_fit_config, aggregate_model, initial_aggregate, observe_aggregate,
+    AGGREGATE_GAMMA as GAMMA, aggregate_fit_config, aggregate_model, aggregate_truth, initial_aggregate,
+    observe_aggregate, spring_adhesion,
 };
 
 fn main() {
+    // On a worker of the pool, as the CLI runs: its parallel loops then start by work stealing.
+    tissuefit::on_pool(run);
+}
+
+fn run() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     // `--probe F1,F2,…`: instead of fitting, evaluate the forward model at truth × each factor and
     // print what each relaxation did (the noise study of README "Fitting parameters").
@@ -87,14 +93,7 @@ fn main() {
 
     let started = Instant::now();
     let (initial, l_min) = initial_aggregate(cells, nodes);
-    let (truth, ratio_name) = match contact {
-        ContactModel::Coupling => (aggregate_model(contact, l_min, ratio * GAMMA, 0.0), "lateral_over_apical"),
-        // w/(2γ) = ω·c²/(4γ), c = l_min.
-        ContactModel::Spring => (
-            aggregate_model(contact, l_min, GAMMA, ratio * 4.0 * GAMMA / (l_min * l_min)),
-            "adhesion_energy_over_tension",
-        ),
-    };
+    let (truth, ratio_name) = aggregate_truth(contact, l_min, ratio);
     let observed = observe_aggregate(&dir, &truth, &initial, vpd);
     eprintln!(
         "truth: {} steps, residual {:.3e}, {:.0} nodes per cell, diameter {:.3} µm, voxel {:.3} µm, {} overlapping voxels",
@@ -115,7 +114,7 @@ fn main() {
     if let Some(factors) = probe {
         let truth_x = match contact {
             ContactModel::Coupling => ratio * GAMMA,
-            ContactModel::Spring => ratio * 4.0 * GAMMA / (l_min * l_min),
+            ContactModel::Spring => spring_adhesion(ratio, l_min),
         }
         .ln();
         probe_noise(&config, truth_x, &factors, probe_from_initial.then_some(&initial));

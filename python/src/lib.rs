@@ -242,10 +242,12 @@ fn mesh(
     let done = std::sync::atomic::AtomicU64::new(0);
     let watch = call.watch.clone();
     let meshed = py.detach(|| {
-        mesh_labels_with_progress(&volume, &options, &|label| {
-            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            watch.tick("mesh", n, total, "label", || format!("label {label} meshed"));
-            !watch.stopped()
+        tissuefit::on_pool(|| {
+            mesh_labels_with_progress(&volume, &options, &|label| {
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                watch.tick("mesh", n, total, "label", || format!("label {label} meshed"));
+                !watch.stopped()
+            })
         })
     });
     let meshing = match meshed {
@@ -308,7 +310,9 @@ fn morphology_json(m: &tissuefit::morphology::Morphology) -> PyResult<String> {
 #[pyfunction]
 fn measure_tissue_json(py: Python<'_>, tissue: &PyTissue) -> PyResult<String> {
     let settings = MeasureConfig::default().settings();
-    let m = py.detach(|| measure_tissue(&tissue.tissue, &settings)).map_err(|e| error(format!("measuring: {e}")))?;
+    let m = py
+        .detach(|| tissuefit::on_pool(|| measure_tissue(&tissue.tissue, &settings)))
+        .map_err(|e| error(format!("measuring: {e}")))?;
     morphology_json(&m)
 }
 
@@ -335,7 +339,7 @@ fn measure_labels_json(
         settings.min_voxels = n;
     }
     let m = py
-        .detach(|| measure_labels(&volume, &settings))
+        .detach(|| tissuefit::on_pool(|| measure_labels(&volume, &settings)))
         .map_err(|e| error(format!("measuring the labels ({}): {e}", volume.describe_grid())))?;
     morphology_json(&m.morphology)
 }
@@ -393,7 +397,9 @@ fn simulate(
         input_name: Some("input.vtp".into()),
         ..Default::default()
     };
-    let outcome = py.detach(|| stages::simulate::run(&input, model, &options, &out)).map_err(|e| call.fail(e))?;
+    let outcome = py
+        .detach(|| tissuefit::on_pool(|| stages::simulate::run(&input, model, &options, &out)))
+        .map_err(|e| call.fail(e))?;
     match outcome {
         SimulateOutcome::Completed(_) => {}
         SimulateOutcome::Interrupted { step } => {
@@ -499,7 +505,7 @@ fn fit(
         watch: call.watch.clone(),
         output_unit: pipeline_unit.unwrap_or_default(),
     };
-    py.detach(|| stages::fit::run(&config, observed, &out, &options)).map_err(|e| {
+    py.detach(|| tissuefit::on_pool(|| stages::fit::run(&config, observed, &out, &options))).map_err(|e| {
         if call.watch.stopped() {
             call.fail(format!("{}; the fit folder is {}", InferenceError::Stopped, out.display()))
         } else {
@@ -556,7 +562,7 @@ fn fit_series(
         cold,
         fit: FitOptions { resume, progress: false, plots: true, watch: call.watch.clone(), ..Default::default() },
     };
-    py.detach(|| stages::fit_series::run(&config, &frames, &out, &options)).map_err(|e| {
+    py.detach(|| tissuefit::on_pool(|| stages::fit_series::run(&config, &frames, &out, &options))).map_err(|e| {
         if call.watch.stopped() {
             call.fail(format!("{}; the series folder is {}", InferenceError::Stopped, out.display()))
         } else {
@@ -629,7 +635,9 @@ fn tensions<'py>(
             )));
         }
         let gauge = settings.gauge;
-        let outcome = py.detach(|| stages::tensions::run_sheet(&tissue.tissue, gauge, file, &out)).map_err(error)?;
+        let outcome = py
+            .detach(|| tissuefit::on_pool(|| stages::tensions::run_sheet(&tissue.tissue, gauge, file, &out)))
+            .map_err(error)?;
         let summary = serde_json::to_string(&outcome.summary).map_err(error)?;
         return Ok((
             faces_per_cell(py, &tissue.tissue, &outcome.face_tension),
@@ -639,7 +647,9 @@ fn tensions<'py>(
     }
     let input = stages::tensions::TensionsInput { file, kind, gauge_in_mn_per_m: gauge_tension.is_some() };
     let estimated = labelled.as_ref().unwrap_or(&tissue.tissue);
-    let outcome = py.detach(|| stages::tensions::run(estimated, &settings, &input, &out)).map_err(error)?;
+    let outcome = py
+        .detach(|| tissuefit::on_pool(|| stages::tensions::run(estimated, &settings, &input, &out)))
+        .map_err(error)?;
     let summary = serde_json::to_string(&outcome.summary).map_err(error)?;
     Ok((faces_per_cell(py, &tissue.tissue, &outcome.face_tension), outcome.pressure.into_pyarray(py), summary))
 }

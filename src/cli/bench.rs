@@ -11,8 +11,11 @@
 //!   replicated on a grid (1, 8, 27, 64 copies) to show how the contact stage scales;
 //! * `growth --cells N`: the paper's growth stress test from one cell to N cells (`bench/growth.rs`);
 //! * `relax FILE [--config CFG] [--steps N]`: N steps of the relaxation `simulate` would run, with
-//!   the time per node-step of each stage (`bench/relax.rs`).
+//!   the time per node-step of each stage (`bench/relax.rs`);
+//! * `fit`: the 20-cell aggregate round trip, truth to fitted ratio, with the fit's CPU time and its
+//!   accuracy (`bench/fit.rs`).
 
+mod fit;
 mod growth;
 mod relax;
 
@@ -32,8 +35,8 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// forces-cell, forces-tissue FILE, relax-cube, contacts-tissue FILE, growth or relax FILE.
-    #[arg(value_parser = ["forces-cell", "forces-tissue", "relax-cube", "contacts-tissue", "growth", "relax"])]
+    /// forces-cell, forces-tissue FILE, relax-cube, contacts-tissue FILE, growth, relax FILE or fit.
+    #[arg(value_parser = ["forces-cell", "forces-tissue", "relax-cube", "contacts-tissue", "growth", "relax", "fit"])]
     pub scenario: String,
     /// Tissue file for forces-tissue, contacts-tissue and relax.
     pub file: Option<PathBuf>,
@@ -47,13 +50,14 @@ pub struct BenchArgs {
     /// Repetitions (force evaluations or steps) per measurement.
     #[arg(long, default_value_t = 200)]
     pub repeat: usize,
-    /// Contact model: spring or coupling (default: spring for contacts-tissue, the config's
+    /// Contact model: spring or coupling (default: spring for contacts-tissue and fit, the config's
     /// coupling for growth).
     #[arg(long, value_parser = ["spring", "coupling"])]
     pub contact_model: Option<String>,
-    /// growth: stop when the tissue has this many cells.
-    #[arg(long, default_value_t = 128)]
-    pub cells: usize,
+    /// growth: stop when the tissue has this many cells (default 128); fit: cells of the aggregate
+    /// (default 20).
+    #[arg(long)]
+    pub cells: Option<usize>,
     /// growth: minimum edge length l_min in metres (default: pipelines/growth.toml's 6e-7); the
     /// contact cutoff follows at 5/6·l_min.
     #[arg(long)]
@@ -64,6 +68,22 @@ pub struct BenchArgs {
     /// growth: give up after this many seconds of wall time.
     #[arg(long)]
     pub max_seconds: Option<f64>,
+    /// fit: the truth's key ratio, w/(2γ) for spring contacts (default 0.2), γ_lateral/γ_apical for
+    /// coupling (default 0.5).
+    #[arg(long)]
+    pub ratio: Option<f64>,
+    /// fit: voxels per mean cell diameter of the observed label volume.
+    #[arg(long, default_value_t = 10.0)]
+    pub voxels_per_diameter: f64,
+    /// fit: target nodes per cell of the meshing (observed and initial aggregate).
+    #[arg(long, default_value_t = 150)]
+    pub nodes: usize,
+    /// fit: Nelder–Mead evaluations (the profile's come on top).
+    #[arg(long, default_value_t = 14)]
+    pub evaluations: usize,
+    /// fit: sub-voxel shifts each like-data measurement averages over (forward.measure_shifts).
+    #[arg(long, default_value_t = 8)]
+    pub shifts: usize,
 }
 
 fn contact_model(name: Option<&str>) -> Option<ContactModel> {
@@ -343,7 +363,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<Outcome> {
         }
         "growth" => {
             let bench = growth::GrowthBench {
-                cells: args.cells,
+                cells: args.cells.unwrap_or(128),
                 contact_model: contact_model(args.contact_model.as_deref()),
                 l_min: args.l_min,
                 max_steps: args.max_steps,
@@ -352,6 +372,21 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<Outcome> {
             let (value, reached) = growth::run_growth(&bench)?;
             println!("{}", serde_json::to_string(&value)?);
             return Ok(if reached { Outcome::Success } else { Outcome::CheckFailed });
+        }
+        "fit" => {
+            let contact_model = contact_model(args.contact_model.as_deref()).unwrap_or(ContactModel::Spring);
+            let bench = fit::FitBench {
+                contact_model,
+                ratio: args.ratio.unwrap_or(if contact_model == ContactModel::Spring { 0.2 } else { 0.5 }),
+                cells: args.cells.unwrap_or(20),
+                nodes: args.nodes,
+                voxels_per_diameter: args.voxels_per_diameter,
+                evaluations: args.evaluations,
+                shifts: args.shifts,
+            };
+            let (value, accurate) = fit::run_fit_bench(&bench)?;
+            println!("{}", serde_json::to_string(&value)?);
+            return Ok(if accurate { Outcome::Success } else { Outcome::CheckFailed });
         }
         "relax" => {
             let file = args.file.as_ref().context("relax needs a tissue FILE")?;

@@ -25,6 +25,7 @@ mod per_cell;
 pub(crate) mod plot;
 mod profile;
 mod result;
+pub mod round_trip;
 mod run;
 mod space;
 mod trace;

@@ -271,6 +271,37 @@ fn bench_relax_reports_the_cost_of_each_stage_per_node_step() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("relax needs a tissue FILE"));
 }
 
+/// Issue 24's fit benchmark: `bench fit` runs the aggregate round trip (truth, labels, fit) and prints
+/// its cost and accuracy; on a small aggregate with a tiny budget the fit misses the truth, and the
+/// benchmark says so in its JSON and its exit status (1) instead of printing a time as if it counted.
+#[test]
+fn bench_fit_reports_cost_and_accuracy_and_fails_when_inaccurate() {
+    let o = tissuefit(&["bench", "fit", "--cells", "8", "--evaluations", "3", "--shifts", "1"]);
+    let v = json(&o);
+    assert_eq!(v["scenario"], "fit");
+    let accurate = v["accurate"].as_bool().unwrap();
+    assert_eq!(o.status.code(), Some(if accurate { 0 } else { 1 }), "{v}");
+    let error = v["error_percent"].as_f64().unwrap();
+    let recovered = v["recovered"].as_f64().unwrap();
+    assert!((100.0 * (recovered - 0.2) / 0.2 - error).abs() < 1e-9, "{v}");
+    assert_eq!(accurate, error.abs() <= 10.0 && v["determined"] == true, "{v}");
+    // Every evaluation (the fit's and the profile's) runs two passes of at most 1,500 steps.
+    let evaluations = v["evaluations"].as_u64().unwrap() + v["profile_evaluations"].as_u64().unwrap();
+    let steps = v["fit_steps"].as_u64().unwrap();
+    assert!(evaluations >= 3 && steps > 0 && steps <= evaluations * 3000, "{v}");
+    let nodes = v["nodes"].as_f64().unwrap();
+    assert_eq!(v["fit_node_steps"].as_f64().unwrap(), steps as f64 * nodes);
+    let at_truth = &v["evaluation_at_truth"];
+    assert_eq!(at_truth["steps"].as_u64(), Some(3000), "{v}");
+    for key in ["relax_wall_seconds", "measure_wall_seconds"] {
+        assert!(at_truth[key].as_f64().unwrap() > 0.0, "{key}: {v}");
+    }
+    assert!(v["fit_wall_seconds"].as_f64().unwrap() > at_truth["relax_wall_seconds"].as_f64().unwrap(), "{v}");
+    let o = tissuefit(&["bench", "fit", "--ratio=-1"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--ratio"));
+}
+
 /// Issue 23, item 2: no output may destroy an input or replace what is not a regular file. Each
 /// refusal exits 2 with a message naming the option and the path, before any work, and leaves the
 /// file it would have replaced byte for byte (and a FIFO a FIFO).
