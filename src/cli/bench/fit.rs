@@ -160,6 +160,11 @@ struct ScratchDir(std::path::PathBuf);
 impl ScratchDir {
     fn new() -> anyhow::Result<Self> {
         let path = std::env::temp_dir().join(format!("tissuefit-bench-fit-{}", std::process::id()));
+        // A folder left by an earlier process with the same id (killed before it cleaned up) would
+        // hold its trace, which the fit refuses to overwrite.
+        if path.exists() {
+            std::fs::remove_dir_all(&path).with_context(|| format!("removing the stale {}", path.display()))?;
+        }
         std::fs::create_dir_all(&path).with_context(|| format!("creating {}", path.display()))?;
         Ok(Self(path))
     }
