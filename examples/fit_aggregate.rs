@@ -36,8 +36,8 @@ use tissuefit::mesh::Tissue;
 #[path = "../tests/integration/support/round_trip.rs"]
 mod round_trip;
 use round_trip::{
-    AGGREGATE_GAMMA as GAMMA, aggregate_fit_config, aggregate_model, aggregate_truth, initial_aggregate,
-    observe_aggregate, spring_adhesion,
+    AGGREGATE_GAMMA as GAMMA, aggregate_fit_config, aggregate_model, aggregate_truth, fitted_truth, initial_aggregate,
+    observe_aggregate,
 };
 
 fn main() {
@@ -112,11 +112,7 @@ fn run() {
     std::fs::write(dir.join("fit.toml"), config).expect("fit.toml");
     let config = FitConfig::load(&dir.join("fit.toml")).expect("fit config");
     if let Some(factors) = probe {
-        let truth_x = match contact {
-            ContactModel::Coupling => ratio * GAMMA,
-            ContactModel::Spring => spring_adhesion(ratio, l_min),
-        }
-        .ln();
+        let truth_x = fitted_truth(contact, l_min, ratio).ln();
         probe_noise(&config, truth_x, &factors, probe_from_initial.then_some(&initial));
         return;
     }

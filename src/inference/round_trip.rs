@@ -208,13 +208,19 @@ span = 1.3
 /// The truth of a round trip with key ratio `ratio` and the name of that ratio in the fit's result:
 /// γ_lateral/γ_apical for coupling contacts; w/(2γ) = ω·c²/(4γ) with c = l_min for spring contacts.
 pub fn aggregate_truth(contact: ContactModel, l_min: Real, ratio: Real) -> (Parameters, &'static str) {
+    let value = fitted_truth(contact, l_min, ratio);
     match contact {
-        ContactModel::Coupling => {
-            (aggregate_model(contact, l_min, ratio * AGGREGATE_GAMMA, 0.0), "lateral_over_apical")
-        }
-        ContactModel::Spring => {
-            (aggregate_model(contact, l_min, AGGREGATE_GAMMA, spring_adhesion(ratio, l_min)), super::ADHESION_RATIO)
-        }
+        ContactModel::Coupling => (aggregate_model(contact, l_min, value, 0.0), "lateral_over_apical"),
+        ContactModel::Spring => (aggregate_model(contact, l_min, AGGREGATE_GAMMA, value), super::ADHESION_RATIO),
+    }
+}
+
+/// The true value of the parameter a round trip fits ([`aggregate_fit_config`]) for key ratio
+/// `ratio`: γ_lateral (N/m) for coupling contacts, the adhesion ω for spring contacts.
+pub fn fitted_truth(contact: ContactModel, l_min: Real, ratio: Real) -> Real {
+    match contact {
+        ContactModel::Coupling => ratio * AGGREGATE_GAMMA,
+        ContactModel::Spring => spring_adhesion(ratio, l_min),
     }
 }
 

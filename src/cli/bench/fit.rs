@@ -14,8 +14,10 @@
 
 use super::growth::cpu_seconds;
 use crate::geometry::Real;
-use crate::inference::round_trip::{aggregate_fit_config, aggregate_model, aggregate_truth, initial_aggregate};
-use crate::inference::round_trip::{observe_aggregate, spring_adhesion};
+use crate::inference::round_trip::{
+    AGGREGATE_GAMMA, aggregate_fit_config, aggregate_model, aggregate_truth, fitted_truth, initial_aggregate,
+    observe_aggregate,
+};
 use crate::inference::{FitConfig, FitOptions, ForwardModel, ParameterSpace, load_observation, run_fit};
 use crate::mechanics::{ContactModel, NoObserver};
 use anyhow::Context;
@@ -61,7 +63,7 @@ pub fn run_fit_bench(bench: &FitBench) -> anyhow::Result<(Value, bool)> {
         Ok((observed, l_min, key))
     });
     let (observed, l_min, key) = made?;
-    let base = aggregate_model(contact, l_min, crate::inference::round_trip::AGGREGATE_GAMMA, 0.0);
+    let base = aggregate_model(contact, l_min, AGGREGATE_GAMMA, 0.0);
     std::fs::write(dir.path().join("model.toml"), base.to_toml_string())?;
     let config_path = dir.path().join("fit.toml");
     let config_text = aggregate_fit_config(contact, l_min, bench.nodes, bench.evaluations, bench.shifts);
@@ -83,12 +85,7 @@ pub fn run_fit_bench(bench: &FitBench) -> anyhow::Result<(Value, bool)> {
         config.objective.clone(),
         config.forward.clone(),
     )?;
-    let x_truth = match contact {
-        ContactModel::Coupling => bench.ratio * crate::inference::round_trip::AGGREGATE_GAMMA,
-        ContactModel::Spring => spring_adhesion(bench.ratio, l_min),
-    }
-    .ln();
-    let params = model.params_at(&[x_truth]);
+    let params = model.params_at(&[fitted_truth(contact, l_min, bench.ratio).ln()]);
     let (relaxed, relax_wall, relax_cpu) = timed(|| model.relax(&params, &model.observation.tissue, &mut NoObserver));
     let (tissue, summary) = relaxed.map_err(|(e, _)| anyhow::anyhow!("relaxing at the truth: {e}"))?;
     let (measured, measure_wall, measure_cpu) = timed(|| model.measure(&tissue));

@@ -11,7 +11,7 @@ use tissuefit::mesh::Tissue;
 
 pub use tissuefit::inference::round_trip::{
     AGGREGATE_COUPLING_STEPS, AGGREGATE_GAMMA, AGGREGATE_SETTLE_STEPS, AGGREGATE_SPRING_STEPS, AGGREGATE_TRUTH_STEPS,
-    Observed, aggregate_fit_config, aggregate_model, aggregate_truth, round_trip_model, spring_adhesion,
+    Observed, aggregate_fit_config, aggregate_model, aggregate_truth, fitted_truth, round_trip_model, spring_adhesion,
 };
 
 /// [`tissuefit::inference::round_trip::initial_aggregate`], which must succeed.
